@@ -1,0 +1,17 @@
+#pragma once
+// How a subcommand plugs into `octshape`: each command file has one `add_<name>_command`
+// that creates the CLI11 subcommand and sets its callback. A callback reports failure by
+// throwing an octshape::Error (main maps it to an exit code) or, for a partial success such as
+// a batch with failed inputs, by setting `RunContext::exit_code`.
+
+#include <CLI/CLI.hpp>
+
+namespace octshape::app {
+
+struct RunContext {
+    int exit_code = 0;
+};
+
+void add_info_command(CLI::App& app, RunContext& ctx);
+
+}  // namespace octshape::app

@@ -1,0 +1,77 @@
+// octshape: shape parameters of the fovea and the optic nerve head from Spectralis exports.
+//
+// main only parses the command line, configures logging and maps errors to exit codes; all
+// work is in the commands (app/commands) and the libraries.
+
+#include <exception>
+#include <iostream>
+#include <new>
+
+#include <CLI/CLI.hpp>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include "commands/command.h"
+#include "octshape/io/error.h"
+#include "octshape/version.h"
+
+namespace {
+
+constexpr const char* kExitCodes = R"(Exit codes:
+  0   success
+  1   batch finished, some inputs failed (each recorded with its reason)
+  64  usage error (bad command line or option value)
+  65  input corrupt, truncated, hostile or unsupported
+  66  input missing, not a regular file, or unreadable
+  69  analysis not possible on this input (wrong scan pattern, segmentation missing)
+  70  internal error in octshape (please report it)
+  73  output cannot be written
+  100-127 command-line parse errors reported by CLI11)";
+
+void configure_logging(bool quiet, int verbose) {
+    auto logger = spdlog::stderr_color_mt("octshape");
+    logger->set_pattern("%^%l%$: %v");
+    spdlog::set_default_logger(logger);
+    if (quiet) {
+        spdlog::set_level(spdlog::level::err);
+    } else if (verbose >= 2) {
+        spdlog::set_level(spdlog::level::trace);
+    } else if (verbose == 1) {
+        spdlog::set_level(spdlog::level::debug);
+    } else {
+        spdlog::set_level(spdlog::level::info);
+    }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    CLI::App app{"octshape: 3-D shape parameters of the fovea and optic nerve head from "
+                 "Heidelberg Spectralis OCT exports"};
+    app.footer(kExitCodes);
+    app.set_version_flag("--version", std::string("octshape ") + octshape::kVersion);
+    app.require_subcommand(1);
+    bool quiet = false;
+    int verbose = 0;
+    app.add_flag("-q,--quiet", quiet, "Only print errors on stderr");
+    app.add_flag("-v,--verbose", verbose, "More detail on stderr (-vv for trace)");
+    app.parse_complete_callback([&] { configure_logging(quiet, verbose); });
+
+    octshape::app::RunContext ctx;
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        return app.exit(e);
+    } catch (const octshape::Error& e) {
+        std::cerr << "octshape: error: " << e.what() << '\n';
+        return static_cast<int>(e.exit_code());
+    } catch (const std::bad_alloc&) {
+        std::cerr << "octshape: error: out of memory\n";
+        return static_cast<int>(octshape::ExitCode::kInternal);
+    } catch (const std::exception& e) {
+        std::cerr << "octshape: internal error: " << e.what() << '\n';
+        return static_cast<int>(octshape::ExitCode::kInternal);
+    }
+    return ctx.exit_code;
+}

@@ -1,0 +1,147 @@
+#include "octshape/io/scan.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+
+namespace octshape::io {
+namespace {
+
+constexpr std::array<std::string_view, kNumKnownLayers> kLayerNames = {
+    "ILM", "BM", "RNFL", "GCL", "IPL", "INL", "OPL", "ONL", "ELM",
+    "IOS", "OPT", "CHO", "VIT", "ANT", "PR1", "PR2", "RPE"};
+
+bool iequals(std::string_view a, std::string_view b) {
+    return a.size() == b.size() &&
+           std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
+               return std::toupper(static_cast<unsigned char>(x)) ==
+                      std::toupper(static_cast<unsigned char>(y));
+           });
+}
+
+// Proleptic Gregorian date from days since 1970-01-01 (H. Hinnant's civil_from_days).
+void civil_from_days(long long z, int& y, unsigned& m, unsigned& d) {
+    z += 719468;
+    const long long era = (z >= 0 ? z : z - 146096) / 146097;
+    const auto doe = static_cast<unsigned>(z - era * 146097);
+    const unsigned yoe = (doe - doe / 1460 + doe / 36524 - doe / 146096) / 365;
+    const unsigned doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    const unsigned mp = (5 * doy + 2) / 153;
+    d = doy - (153 * mp + 2) / 5 + 1;
+    m = mp < 10 ? mp + 3 : mp - 9;
+    y = static_cast<int>(static_cast<long long>(yoe) + era * 400 + (m <= 2 ? 1 : 0));
+}
+
+}  // namespace
+
+std::string layer_name(int index) {
+    if (index >= 0 && index < kNumKnownLayers) return std::string(kLayerNames[index]);
+    return "LINE" + std::to_string(index);
+}
+
+std::optional<int> layer_from_name(std::string_view name) {
+    for (int k = 0; k < kNumKnownLayers; ++k) {
+        if (iequals(name, kLayerNames[k])) return k;
+    }
+    if (iequals(name, "EZ")) return static_cast<int>(Layer::kPR1);
+    if (iequals(name, "IZ")) return static_cast<int>(Layer::kPR2);
+    return std::nullopt;
+}
+
+std::string_view to_string(Laterality l) {
+    switch (l) {
+        case Laterality::kOD: return "OD";
+        case Laterality::kOS: return "OS";
+        case Laterality::kUnknown: break;
+    }
+    return "unknown";
+}
+
+std::string_view to_string(ScanPattern p) {
+    switch (p) {
+        case ScanPattern::kLine: return "line";
+        case ScanPattern::kCircle: return "circle";
+        case ScanPattern::kVolume: return "volume";
+        case ScanPattern::kFastVolume: return "fast volume";
+        case ScanPattern::kRadial: return "radial";
+        case ScanPattern::kRadialCircles: return "radial + circles";
+        case ScanPattern::kUnknown: break;
+    }
+    return "unknown";
+}
+
+std::string_view to_string(SourceFormat f) {
+    return f == SourceFormat::kVol ? "Heidelberg .vol" : "Heidelberg XML";
+}
+
+ScanPattern scan_pattern_from_code(std::int32_t code) {
+    if (code < 0 || code > 6) return ScanPattern::kUnknown;
+    return static_cast<ScanPattern>(code);
+}
+
+int Scan::num_lines() const {
+    if (bscans.empty()) return 0;
+    int n = bscans.front().num_seg();
+    for (const BScan& b : bscans) n = std::min(n, b.num_seg());
+    return n;
+}
+
+double Scan::valid_fraction(int k) const {
+    std::size_t total = 0;
+    std::size_t valid = 0;
+    for (const BScan& b : bscans) {
+        if (!b.has_line(k)) {
+            total += static_cast<std::size_t>(meta.size_x);
+            continue;
+        }
+        total += b.seg[static_cast<std::size_t>(k)].size();
+        for (float v : b.seg[static_cast<std::size_t>(k)]) valid += is_valid(v) ? 1U : 0U;
+    }
+    return total == 0 ? 0.0 : static_cast<double>(valid) / static_cast<double>(total);
+}
+
+float Scan::depth_px(int k, int b, int a) const {
+    if (b < 0 || b >= num_bscans()) return std::numeric_limits<float>::quiet_NaN();
+    const BScan& bs = bscans[static_cast<std::size_t>(b)];
+    if (!bs.has_line(k)) return std::numeric_limits<float>::quiet_NaN();
+    const auto& line = bs.seg[static_cast<std::size_t>(k)];
+    if (a < 0 || static_cast<std::size_t>(a) >= line.size()) {
+        return std::numeric_limits<float>::quiet_NaN();
+    }
+    return line[static_cast<std::size_t>(a)];
+}
+
+std::string filetime_to_iso(std::uint64_t filetime) {
+    // FILETIME counts 100 ns ticks since 1601-01-01; 11644473600 s separate it from 1970.
+    const long long secs = static_cast<long long>(filetime / 10000000ULL) - 11644473600LL;
+    long long days = secs / 86400;
+    long long rem = secs % 86400;
+    if (rem < 0) {
+        rem += 86400;
+        days -= 1;
+    }
+    int y = 0;
+    unsigned m = 0;
+    unsigned d = 0;
+    civil_from_days(days, y, m, d);
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%04d-%02u-%02uT%02lld:%02lld:%02lldZ", y, m, d, rem / 3600,
+                  (rem / 60) % 60, rem % 60);
+    return buf;
+}
+
+std::string ole_date_to_iso_date(double ole_days) {
+    if (!std::isfinite(ole_days) || std::fabs(ole_days) > 3.0e6) return "invalid";
+    // OLE automation dates count days since 1899-12-30; 25569 days separate it from 1970.
+    const auto days = static_cast<long long>(std::floor(ole_days)) - 25569LL;
+    int y = 0;
+    unsigned m = 0;
+    unsigned d = 0;
+    civil_from_days(days, y, m, d);
+    char buf[24];
+    std::snprintf(buf, sizeof buf, "%04d-%02u-%02u", y, m, d);
+    return buf;
+}
+
+}  // namespace octshape::io

@@ -1,0 +1,43 @@
+#pragma once
+// Paths the tests need, fixed at configure time, and small helpers shared by test files.
+
+#include <filesystem>
+#include <string>
+
+namespace octshape::test {
+
+// The octshape executable under test.
+inline std::string exe() { return OCTSHAPE_EXE; }
+inline std::filesystem::path source_dir() { return OCTSHAPE_SOURCE_DIR; }
+// ../shared beside the repository: real files, hostile files, meshes.
+inline std::filesystem::path shared_dir() { return OCTSHAPE_SHARED_DIR; }
+inline std::filesystem::path realdata(const std::string& name) {
+    return shared_dir() / "realdata" / name;
+}
+
+// A fresh empty directory under the system temp dir, removed by the destructor.
+class TempDir {
+public:
+    TempDir();
+    ~TempDir();
+    TempDir(const TempDir&) = delete;
+    TempDir& operator=(const TempDir&) = delete;
+    [[nodiscard]] const std::filesystem::path& path() const { return path_; }
+    [[nodiscard]] std::filesystem::path operator/(const std::string& name) const {
+        return path_ / name;
+    }
+
+private:
+    std::filesystem::path path_;
+};
+
+// Result of running a command line through the shell.
+struct RunResult {
+    int exit_code = -1;
+    std::string out;  // stdout
+    std::string err;  // stderr
+};
+// Runs `octshape ARGS` (args are passed through the shell verbatim: quote them yourself).
+RunResult run_octshape(const std::string& args);
+
+}  // namespace octshape::test
