@@ -13,5 +13,7 @@ struct RunContext {
 };
 
 void add_info_command(CLI::App& app, RunContext& ctx);
+// `phantom onh` under the `phantom` parent command.
+void add_phantom_onh_command(CLI::App& phantom, RunContext& ctx);
 
 }  // namespace octshape::app
