@@ -999,17 +999,54 @@ void general_column(const Column& c, double scale_z, std::span<float> out) {
     }
 }
 
-// A plausible fundus picture: vignetted red-free background, the disc with its rim and pallor,
-// the fovea temporal to it, and vessels leaving the disc (superior and inferior arcades
-// curving temporally, smaller nasal branches).
+// A vessel: a polyline in grid mm and its bounding box grown by the drawing reach.
+struct Vessel {
+    std::vector<Eigen::Vector2d> line;
+    Eigen::Vector2d lo = Eigen::Vector2d::Zero();
+    Eigen::Vector2d hi = Eigen::Vector2d::Zero();
+};
+constexpr double kVesselSigmaMm = 0.035;
+
+std::vector<Vessel> vessel_lines(const OnhPhantomGeometry& g, const phantom::GridFrame& gf) {
+    // (start angle, turn in deg per mm): anatomical angles, 0 nasal, 90 superior. The
+    // superior and inferior arcades curve temporally (towards 180 deg), nasal ones less.
+    const std::array<std::pair<double, double>, 8> spec = {{{105.0, 16.0},
+                                                            {255.0, -16.0},
+                                                            {135.0, 8.0},
+                                                            {225.0, -8.0},
+                                                            {60.0, -6.0},
+                                                            {300.0, 6.0},
+                                                            {15.0, -4.0},
+                                                            {345.0, 4.0}}};
+    std::vector<Vessel> vessels;
+    for (const auto& [a0, turn] : spec) {
+        Vessel v;
+        for (int i = 0; i <= 40; ++i) {
+            const double t = 0.1 * i;  // mm along the vessel
+            v.line.push_back(g.bmo_centre() + (0.3 + t) * gf.grid_direction(a0 + turn * t));
+        }
+        v.lo = v.hi = v.line.front();
+        for (const auto& q : v.line) {
+            v.lo = v.lo.cwiseMin(q);
+            v.hi = v.hi.cwiseMax(q);
+        }
+        v.lo.array() -= 5.0 * kVesselSigmaMm;
+        v.hi.array() += 5.0 * kVesselSigmaMm;
+        vessels.push_back(std::move(v));
+    }
+    return vessels;
+}
+
+// A plausible fundus picture: vignetted background, the disc with its rim and pallor, the
+// fovea temporal to it, and vessels leaving the disc.
 double slo_brightness(const OnhPhantomGeometry& g,
                       const OnhPhantomParams& params,
                       const phantom::GridFrame& gf,
-                      const std::vector<std::vector<Eigen::Vector2d>>& vessels,
+                      const Eigen::Matrix2d& slo_to_grid,
+                      const std::vector<Vessel>& vessels,
                       double x_slo,
                       double y_slo) {
-    const Eigen::Vector2d grid = gf.grid_to_slo.inverse() * (Eigen::Vector2d(x_slo, y_slo) -
-                                                              gf.origin_slo_mm);
+    const Eigen::Vector2d grid = slo_to_grid * (Eigen::Vector2d(x_slo, y_slo) - gf.origin_slo_mm);
     const Eigen::Vector2d c = g.bmo_centre();
     const double side = gf.slo_scale_mm * 256.0;
     const Eigen::Vector2d slo_centre(side / 2, side / 2);
@@ -1023,40 +1060,20 @@ double slo_brightness(const OnhPhantomGeometry& g,
     const Eigen::Vector2d fovea = c + 4.5 * gf.grid_direction(180.0);
     v -= 0.18 * std::exp(-(grid - fovea).squaredNorm() / (2.0 * 0.6 * 0.6));
     double darkest = 0.0;
-    for (const auto& line : vessels) {
-        for (std::size_t i = 0; i + 1 < line.size(); ++i) {
-            const Eigen::Vector2d ab = line[i + 1] - line[i];
+    for (const Vessel& vs : vessels) {
+        if ((grid.array() < vs.lo.array()).any() || (grid.array() > vs.hi.array()).any()) {
+            continue;
+        }
+        for (std::size_t i = 0; i + 1 < vs.line.size(); ++i) {
+            const Eigen::Vector2d ab = vs.line[i + 1] - vs.line[i];
             const double t =
-                std::clamp((grid - line[i]).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-            const double d = (grid - (line[i] + t * ab)).norm();
-            darkest = std::max(darkest, std::exp(-d * d / (2.0 * 0.035 * 0.035)));
+                std::clamp((grid - vs.line[i]).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+            const double d = (grid - (vs.line[i] + t * ab)).norm();
+            darkest = std::max(darkest,
+                               std::exp(-d * d / (2.0 * kVesselSigmaMm * kVesselSigmaMm)));
         }
     }
     return v * (1.0 - 0.45 * darkest);
-}
-
-std::vector<std::vector<Eigen::Vector2d>> vessel_lines(const OnhPhantomGeometry& g,
-                                                       const phantom::GridFrame& gf) {
-    // (start angle, turn in deg per mm): anatomical angles, 0 nasal, 90 superior.
-    const std::array<std::pair<double, double>, 8> spec = {{{105.0, 16.0},
-                                                            {255.0, -16.0},
-                                                            {135.0, 8.0},
-                                                            {225.0, -8.0},
-                                                            {60.0, -6.0},
-                                                            {300.0, 6.0},
-                                                            {15.0, -4.0},
-                                                            {345.0, 4.0}}};
-    std::vector<std::vector<Eigen::Vector2d>> lines;
-    for (const auto& [a0, turn] : spec) {
-        std::vector<Eigen::Vector2d> line;
-        for (int i = 0; i <= 40; ++i) {
-            const double t = 0.1 * i;  // mm along the vessel
-            const Eigen::Vector2d dir = gf.grid_direction(a0 + turn * t);
-            line.push_back(g.bmo_centre() + (0.3 + t) * dir);
-        }
-        lines.push_back(std::move(line));
-    }
-    return lines;
 }
 
 }  // namespace
@@ -1123,9 +1140,12 @@ io::Scan render_onh_scan(const OnhPhantomParams& params) {
 
     const phantom::GridFrame gf = phantom::grid_frame(layout);
     const auto vessels = vessel_lines(g, gf);
+    const Eigen::Matrix2d slo_to_grid = gf.grid_to_slo.inverse();
     phantom::render_slo(
         scan,
-        [&](double x, double y) { return slo_brightness(g, params, gf, vessels, x, y); },
+        [&](double x, double y) {
+            return slo_brightness(g, params, gf, slo_to_grid, vessels, x, y);
+        },
         params.seed);
     return scan;
 }
