@@ -1263,8 +1263,8 @@ nlohmann::json onh_truth_to_json(const OnhPhantomParams& params,
                           {"anatomical_deg", truth.bmo_anatomical_deg[i]}});
     }
     j["bmo_points"] = points;
-    j["seconds"] = truth.seconds;
-    return j;
+    return j;  // no timings: the same options give the same file
+
 }
 
 }  // namespace octshape::retina

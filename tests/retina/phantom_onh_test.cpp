@@ -526,6 +526,10 @@ TEST(OnhScan, SameSeedSameFileOtherSeedOtherSpeckle) {
     }
     EXPECT_EQ(a.slo, b.slo);
     EXPECT_GT(differ, n * 9 / 10);  // speckle is independent per pixel
+    // The truth file is reproducible too (no timings or dates in it).
+    const OnhTruthOptions o = fast_options();
+    EXPECT_EQ(onh_truth_to_json(p, o, compute_onh_truth(p, o)).dump(),
+              onh_truth_to_json(p, o, compute_onh_truth(p, o)).dump());
 }
 
 // Mean display value (v^0.25) a few pixels below the true ILM vs a few pixels above it.
