@@ -440,7 +440,7 @@ void VolReader::read_file_header(Scan& scan) {
     version_ = version;
     ScanMeta& m = scan.meta;
     m.format = SourceFormat::kVol;
-    m.version = load_printable(h.data(), 12);
+    m.version = load_printable(&h[fh::kVersion], 12);
     size_x_ = load_u32(&h[fh::kSizeX]);
     num_bscans_ = load_u32(&h[fh::kNumBScans]);
     size_z_ = load_u32(&h[fh::kSizeZ]);
@@ -583,7 +583,7 @@ void VolReader::read_bscan(Scan& scan, std::uint32_t index) {
                                   " says " + std::to_string(own), start + bh::kHdrSize);
     }
     BScan b;
-    b.version = load_printable(h, 12);
+    b.version = load_printable(h + bh::kVersion, 12);
     b.start_x_mm = load_f64(h + bh::kStartX);
     b.start_y_mm = load_f64(h + bh::kStartY);
     b.end_x_mm = load_f64(h + bh::kEndX);
