@@ -58,6 +58,10 @@ int main(int argc, char** argv) {
     app.parse_complete_callback([&] { configure_logging(quiet, verbose); });
 
     octshape::app::RunContext ctx;
+    auto* phantom = app.add_subcommand(
+        "phantom", "Write a synthetic Spectralis export whose true shape parameters are known");
+    phantom->require_subcommand(1);
+    octshape::app::add_phantom_macula_command(*phantom, ctx);
 
     try {
         app.parse(argc, argv);

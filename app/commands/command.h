@@ -13,5 +13,7 @@ struct RunContext {
 };
 
 void add_info_command(CLI::App& app, RunContext& ctx);
+// `phantom macula` under the `phantom` parent.
+void add_phantom_macula_command(CLI::App& phantom, RunContext& ctx);
 
 }  // namespace octshape::app

@@ -142,6 +142,7 @@ DiskTruth disk(const std::vector<Eigen::Vector3d>& pts) {
     const Eigen::Vector3d ev = es.eigenvalues();  // ascending
     Eigen::Vector3d normal = es.eigenvectors().col(0);
     if (normal.z() < 0.0) normal = -normal;
+    normal += Eigen::Vector3d::Zero();  // -0.0 -> 0.0 in the output
     DiskTruth d;
     d.eigenvalues_mm2 = {ev(2), ev(1), ev(0)};
     d.semi_axes_mm = {std::sqrt(2.0 * std::max(0.0, ev(2))),

@@ -38,7 +38,7 @@ struct MaculaPhantomParams {
     int num_bscans = 61;    // volume only
     int size_x = 768;       // A-scans per B-scan
     int size_z = 496;       // pixels per A-scan
-    // 0 = keep the 25 x 30 deg field: ScaleX = 8.97792 mm / (size_x - 1) (0.01169 mm for 768).
+    // 0 = keep the 25 x 30 deg field: ScaleX = 8.96623 mm / (size_x - 1) (0.01169 mm for 768).
     double scale_x_mm = 0.0;
     // 0 = keep the 7.5 mm field: Distance = 7.5 mm / (num_bscans - 1) (0.125 mm for 61).
     double distance_mm = 0.0;
