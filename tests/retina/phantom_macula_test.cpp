@@ -605,5 +605,24 @@ TEST(PhantomMaculaCli, WritesScanAndTruth) {
     EXPECT_FALSE(std::filesystem::exists(dir / "m.txt"));
 }
 
+// sample_scans/README.md promises that its command reproduces the sample bit for bit.
+TEST(PhantomMaculaCli, SampleLineScanIsReproducedBitForBit) {
+    const test::TempDir dir;
+    const std::string vol = (dir / "l.vol").string();
+    const auto r = test::run_octshape(
+        "phantom macula --pattern line --family bezier --eye OD --fovea-dx 0.03 --seed 3 -o '" +
+        vol + "'");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    auto bytes = [](const std::filesystem::path& path) {
+        std::string text(std::filesystem::file_size(path), '\0');
+        std::ifstream in(path, std::ios::binary);
+        in.read(text.data(), static_cast<std::streamsize>(text.size()));
+        return text;
+    };
+    const auto sample = test::source_dir() / "sample_scans";
+    EXPECT_TRUE(bytes(vol) == bytes(sample / "macula_line_od.vol"));
+    EXPECT_EQ(bytes(dir / "l.truth.json"), bytes(sample / "macula_line_od.truth.json"));
+}
+
 }  // namespace
 }  // namespace octshape::retina
