@@ -58,6 +58,7 @@ int main(int argc, char** argv) {
     app.parse_complete_callback([&] { configure_logging(quiet, verbose); });
 
     octshape::app::RunContext ctx;
+    octshape::app::add_info_command(app, ctx);
     auto* phantom = app.add_subcommand(
         "phantom", "Write a synthetic Spectralis export whose true shape parameters are known");
     phantom->require_subcommand(1);

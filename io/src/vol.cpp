@@ -273,14 +273,15 @@ std::optional<Problem> check_bscan_header(const BScan& b, std::int64_t num_seg,
                            std::to_string(hdr_size),
                        bh::kNumSeg};
     }
-    if (version >= 101 && !std::isfinite(b.quality)) {
-        return Problem{"Quality = " + num(b.quality) + " is not finite", bh::kQuality};
+    // Quality and IVTrafo: finite and below the device's invalid marker (FLT_MAX).
+    if (version >= 101 && !is_valid_raw(b.quality)) {
+        return Problem{"Quality = " + num(b.quality) + " is not a finite number", bh::kQuality};
     }
     if (version >= 103) {
         for (std::size_t i = 0; i < b.iv_trafo.size(); ++i) {
-            if (!std::isfinite(b.iv_trafo[i])) {
+            if (!is_valid_raw(b.iv_trafo[i])) {
                 return Problem{"IVTrafo[" + std::to_string(i) + "] = " + num(b.iv_trafo[i]) +
-                                   " is not finite",
+                                   " is not a finite number",
                                bh::kIvTrafo + 4 * i};
             }
         }
@@ -439,7 +440,7 @@ void VolReader::read_file_header(Scan& scan) {
     version_ = version;
     ScanMeta& m = scan.meta;
     m.format = SourceFormat::kVol;
-    m.version = load_printable(h.data(), 12);
+    m.version = load_printable(&h[fh::kVersion], 12);
     size_x_ = load_u32(&h[fh::kSizeX]);
     num_bscans_ = load_u32(&h[fh::kNumBScans]);
     size_z_ = load_u32(&h[fh::kSizeZ]);
@@ -582,7 +583,7 @@ void VolReader::read_bscan(Scan& scan, std::uint32_t index) {
                                   " says " + std::to_string(own), start + bh::kHdrSize);
     }
     BScan b;
-    b.version = load_printable(h, 12);
+    b.version = load_printable(h + bh::kVersion, 12);
     b.start_x_mm = load_f64(h + bh::kStartX);
     b.start_y_mm = load_f64(h + bh::kStartY);
     b.end_x_mm = load_f64(h + bh::kEndX);
@@ -641,7 +642,11 @@ std::optional<ThicknessGrid> VolReader::read_grid(std::uint64_t offset,
     const bool circular = g.is_circular();
     const std::size_t head_len = circular ? kCircularGridSize : kRectGridHeaderSize;
     if (offset > size_ || size_ - offset < head_len) {
-        if (from_header) read_at(offset, nullptr, head_len, what);  // throws truncated
+        if (from_header) {
+            throw InputError::truncated(name_, what + " needs " + std::to_string(head_len) +
+                                        " bytes but the file ends at byte " +
+                                        std::to_string(size_), offset);
+        }
         why_not = "too short for a " + what;
         return std::nullopt;
     }
@@ -693,7 +698,11 @@ std::optional<ThicknessGrid> VolReader::read_grid(std::uint64_t offset,
             static_cast<std::uint64_t>(g.rows) * static_cast<std::uint64_t>(g.cols);
         const std::uint64_t cells_at = offset + kRectGridHeaderSize;
         if (size_ - cells_at < n_cells * 8) {
-            if (from_header) read_at(cells_at, nullptr, n_cells * 8, what + " cells");
+            if (from_header) {
+                throw InputError::truncated(name_, what + " cells need " +
+                                            std::to_string(n_cells * 8) + " bytes but the file "
+                                            "ends at byte " + std::to_string(size_), cells_at);
+            }
             why_not = "too short for its cells";
             return std::nullopt;
         }
@@ -723,11 +732,15 @@ void VolReader::read_grids(Scan& scan) {
                                  " not read");
             continue;
         }
-        if (offset < static_cast<std::int64_t>(kVolFileHeaderSize) ||
-            static_cast<std::uint64_t>(offset) >= size_) {
-            throw InputError::corrupt(name_, std::string(i == 0 ? "GridOffset" : "GridOffset1") +
-                                      " = " + std::to_string(offset) + " is outside the file "
-                                      "(2048.." + std::to_string(size_) + ")", field[i]);
+        const std::string field_name = i == 0 ? "GridOffset" : "GridOffset1";
+        if (offset < static_cast<std::int64_t>(kVolFileHeaderSize)) {
+            throw InputError::corrupt(name_, field_name + " = " + std::to_string(offset) +
+                                      " points into the file header", field[i]);
+        }
+        if (static_cast<std::uint64_t>(offset) >= size_) {
+            throw InputError::truncated(name_, field_name + " = " + std::to_string(offset) +
+                                        " points past the end of the file (byte " +
+                                        std::to_string(size_) + ")", field[i]);
         }
         std::string unused;
         if (auto g = read_grid(static_cast<std::uint64_t>(offset), type, true, unused)) {
