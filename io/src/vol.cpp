@@ -40,10 +40,10 @@ constexpr std::uint32_t kMaxSizeZ = 1U << 16;
 constexpr std::uint32_t kMaxBScans = 1U << 16;
 constexpr std::uint32_t kMaxSloSide = 1U << 14;
 constexpr std::uint32_t kMaxBScanHdrSize = 1U << 26;
-constexpr double kMaxScaleXmm = 10.0;     // mm per A-scan
-constexpr double kMaxScaleZmm = 1.0;      // mm per pixel
-constexpr double kMaxDistanceMm = 10.0;   // mm between B-scans
-constexpr double kMaxSloScaleMm = 10.0;   // mm per SLO pixel
+constexpr double kMaxScaleXmm = 10.0;    // mm per A-scan
+constexpr double kMaxScaleZmm = 1.0;     // mm per pixel
+constexpr double kMaxDistanceMm = 10.0;  // mm between B-scans
+constexpr double kMaxSloScaleMm = 10.0;  // mm per SLO pixel
 constexpr std::uint32_t kMaxFieldSizeDeg = 360;
 constexpr double kMaxFocusDpt = 100.0;
 constexpr double kMaxPositionMm = 1000.0;  // |Start/End/centre| on the SLO
@@ -58,23 +58,28 @@ constexpr std::uint64_t kMaxFiletime = 2650467743990000000ULL;
 // BMO 104).
 constexpr std::uint32_t bscan_fixed_end(int version) {
     switch (version) {
-        case 100: return 56;
-        case 101: return 60;
-        case 102: return 64;
-        case 103: return 88;
-        default: return 112;
+        case 100:
+            return 56;
+        case 101:
+            return 60;
+        case 102:
+            return 64;
+        case 103:
+            return 88;
+        default:
+            return 112;
     }
 }
 
 // File header field offsets.
 namespace fh {
 constexpr std::size_t kVersion = 0, kSizeX = 12, kNumBScans = 16, kSizeZ = 20, kScaleX = 24,
-                      kDistance = 32, kScaleZ = 40, kSizeXSlo = 48, kSizeYSlo = 52,
-                      kScaleXSlo = 56, kScaleYSlo = 64, kFieldSizeSlo = 72, kScanFocus = 76,
-                      kScanPosition = 84, kExamTime = 88, kScanPattern = 96, kBScanHdrSize = 100,
-                      kId = 104, kReferenceId = 120, kPid = 136, kPatientId = 140, kDob = 164,
-                      kVid = 172, kVisitId = 176, kVisitDate = 200, kGridType = 208,
-                      kGridOffset = 212, kGridType1 = 216, kGridOffset1 = 220, kProgId = 224;
+                      kDistance = 32, kScaleZ = 40, kSizeXSlo = 48, kSizeYSlo = 52, kScaleXSlo = 56,
+                      kScaleYSlo = 64, kFieldSizeSlo = 72, kScanFocus = 76, kScanPosition = 84,
+                      kExamTime = 88, kScanPattern = 96, kBScanHdrSize = 100, kId = 104,
+                      kReferenceId = 120, kPid = 136, kPatientId = 140, kDob = 164, kVid = 172,
+                      kVisitId = 176, kVisitDate = 200, kGridType = 208, kGridOffset = 212,
+                      kGridType1 = 216, kGridOffset1 = 220, kProgId = 224;
 constexpr std::size_t kIdLen = 16, kPatientIdLen = 24, kVisitIdLen = 24, kProgIdLen = 34;
 }  // namespace fh
 
@@ -175,8 +180,13 @@ struct Problem {
     std::size_t field_offset = 0;  // within the structure checked
 };
 
-std::optional<Problem> check_range(double v, double lo, double hi, bool lo_inclusive,
-                                   const char* field, std::size_t off, const char* unit) {
+std::optional<Problem> check_range(double v,
+                                   double lo,
+                                   double hi,
+                                   bool lo_inclusive,
+                                   const char* field,
+                                   std::size_t off,
+                                   const char* unit) {
     const bool ok = std::isfinite(v) && (lo_inclusive ? v >= lo : v > lo) && v <= hi;
     if (ok) return std::nullopt;
     return Problem{std::string(field) + " = " + num(v) + " " + unit + " is not in " +
@@ -194,11 +204,13 @@ std::optional<Problem> check_count(T v, T lo, T hi, const char* field, std::size
 
 // File-header values that must hold for a file to be read (sizes, scales). The size of the
 // stream is checked separately.
-std::optional<Problem> check_file_header(std::uint32_t size_x, std::uint32_t num_bscans,
-                                         std::uint32_t size_z, const ScanMeta& m) {
+std::optional<Problem> check_file_header(std::uint32_t size_x,
+                                         std::uint32_t num_bscans,
+                                         std::uint32_t size_z,
+                                         const ScanMeta& m) {
     if (auto p = check_count<std::uint32_t>(size_x, 1, kMaxSizeX, "SizeX", fh::kSizeX)) return p;
-    if (auto p = check_count<std::uint32_t>(num_bscans, 1, kMaxBScans, "NumBScans",
-                                            fh::kNumBScans)) {
+    if (auto p =
+            check_count<std::uint32_t>(num_bscans, 1, kMaxBScans, "NumBScans", fh::kNumBScans)) {
         return p;
     }
     if (auto p = check_count<std::uint32_t>(size_z, 1, kMaxSizeZ, "SizeZ", fh::kSizeZ)) return p;
@@ -240,16 +252,18 @@ std::optional<Problem> check_file_header(std::uint32_t size_x, std::uint32_t num
 }
 
 // B-scan header values; `hdr_size` is the file's BScanHdrSize, `version` the file version.
-std::optional<Problem> check_bscan_header(const BScan& b, std::int64_t num_seg,
-                                          std::uint32_t size_x, std::uint32_t hdr_size,
+std::optional<Problem> check_bscan_header(const BScan& b,
+                                          std::int64_t num_seg,
+                                          std::uint32_t size_x,
+                                          std::uint32_t hdr_size,
                                           int version) {
     const std::array<std::pair<double, const char*>, 4> pos = {{{b.start_x_mm, "StartX"},
-                                                                 {b.start_y_mm, "StartY"},
-                                                                 {b.end_x_mm, "EndX"},
-                                                                 {b.end_y_mm, "EndY"}}};
+                                                                {b.start_y_mm, "StartY"},
+                                                                {b.end_x_mm, "EndX"},
+                                                                {b.end_y_mm, "EndY"}}};
     for (std::size_t i = 0; i < pos.size(); ++i) {
-        if (auto p = check_range(pos[i].first, -kMaxPositionMm, kMaxPositionMm, true,
-                                 pos[i].second, bh::kStartX + 8 * i, "mm")) {
+        if (auto p = check_range(pos[i].first, -kMaxPositionMm, kMaxPositionMm, true, pos[i].second,
+                                 bh::kStartX + 8 * i, "mm")) {
             return p;
         }
     }
@@ -264,8 +278,7 @@ std::optional<Problem> check_bscan_header(const BScan& b, std::int64_t num_seg,
                        bh::kOffSeg};
     }
     // num_seg < 2^31, size_x <= 2^16: the product fits easily in 64 bits.
-    const std::uint64_t seg_bytes =
-        static_cast<std::uint64_t>(num_seg) * size_x * sizeof(float);
+    const std::uint64_t seg_bytes = static_cast<std::uint64_t>(num_seg) * size_x * sizeof(float);
     if (seg_bytes > hdr_size - static_cast<std::uint64_t>(b.off_seg)) {
         return Problem{"NumSeg = " + std::to_string(num_seg) + " lines of " +
                            std::to_string(size_x) + " A-scans at OffSeg " +
@@ -330,8 +343,9 @@ std::optional<Problem> check_grid(const ThicknessGrid& g) {
         }
         return std::nullopt;
     }
-    return Problem{"grid type " + std::to_string(g.type) + " is neither circular (1..3) nor "
-                   "rectangular (8..10)",
+    return Problem{"grid type " + std::to_string(g.type) +
+                       " is neither circular (1..3) nor "
+                       "rectangular (8..10)",
                    0};
 }
 
@@ -351,14 +365,16 @@ bool is_known_grid_type(std::int32_t t) { return (t >= 1 && t <= 3) || (t >= 8 &
 // ---- reader ---------------------------------------------------------------------------------
 
 class VolReader {
-public:
-    VolReader(std::istream& in, std::uint64_t size, const std::string& name,
+  public:
+    VolReader(std::istream& in,
+              std::uint64_t size,
+              const std::string& name,
               const ReadOptions& options)
         : in_(in), size_(size), name_(name), options_(options) {}
 
     Scan read();
 
-private:
+  private:
     // Reads n bytes at `offset`; throws truncated naming `what` if the file or stream is short.
     void read_at(std::uint64_t offset, void* dst, std::size_t n, const std::string& what);
     [[noreturn]] void corrupt(const Problem& p, std::uint64_t base) const {
@@ -368,8 +384,10 @@ private:
     void check_layout(const Scan& scan);
     void read_bscan(Scan& scan, std::uint32_t index);
     void read_grids(Scan& scan);
-    std::optional<ThicknessGrid> read_grid(std::uint64_t offset, std::int32_t expected_type,
-                                           bool from_header, std::string& why_not);
+    std::optional<ThicknessGrid> read_grid(std::uint64_t offset,
+                                           std::int32_t expected_type,
+                                           bool from_header,
+                                           std::string& why_not);
 
     std::istream& in_;
     std::uint64_t size_;
@@ -391,8 +409,10 @@ private:
 void VolReader::read_at(std::uint64_t offset, void* dst, std::size_t n, const std::string& what) {
     if (offset > size_ || n > size_ - offset) {
         throw InputError::truncated(name_,
-                                    what + " needs " + std::to_string(n) + " bytes but the file "
-                                    "ends at byte " + std::to_string(size_),
+                                    what + " needs " + std::to_string(n) +
+                                        " bytes but the file "
+                                        "ends at byte " +
+                                        std::to_string(size_),
                                     offset);
     }
     if (n == 0) return;
@@ -414,28 +434,35 @@ void VolReader::read_file_header(Scan& scan) {
     if (std::memcmp(h.data(), kMagicPrefix.data(), cmp) != 0) {
         std::string found = quote_bytes(h.data(), std::min<std::size_t>(have, 12));
         throw InputError::unsupported(
-            name_, "not a Heidelberg Spectralis .vol: magic " + found +
-                       ", expected \"HSF-OCT-10x\"" +
-                       (std::memcmp(h.data(), "ep-v", std::min<std::size_t>(have, 4)) == 0 &&
-                                have >= 4
-                            ? " (written by eyepy, not by a Spectralis device)"
-                            : ""),
+            name_,
+            "not a Heidelberg Spectralis .vol: magic " + found + ", expected \"HSF-OCT-10x\"" +
+                (std::memcmp(h.data(), "ep-v", std::min<std::size_t>(have, 4)) == 0 && have >= 4
+                     ? " (written by eyepy, not by a Spectralis device)"
+                     : ""),
             0);
     }
     if (have < 12) {
-        throw InputError::truncated(name_, "file header needs 2048 bytes but the file ends at "
-                                    "byte " + std::to_string(size_), 0);
+        throw InputError::truncated(name_,
+                                    "file header needs 2048 bytes but the file ends at "
+                                    "byte " +
+                                        std::to_string(size_),
+                                    0);
     }
-    const bool digits = h[8] == '1' && h[9] == '0' && h[10] >= '0' && h[10] <= '9' &&
-                        (h[11] == 0 || h[11] == ' ');
+    const bool digits =
+        h[8] == '1' && h[9] == '0' && h[10] >= '0' && h[10] <= '9' && (h[11] == 0 || h[11] == ' ');
     const int version = digits ? 100 + (h[10] - '0') : -1;
     if (version < kMinVersion || version > kMaxVersion) {
-        throw InputError::unsupported(name_, "version " + quote_bytes(h.data(), 12) +
-                                      " is not supported (HSF-OCT-100 ... 104 are)", 0);
+        throw InputError::unsupported(
+            name_,
+            "version " + quote_bytes(h.data(), 12) + " is not supported (HSF-OCT-100 ... 104 are)",
+            0);
     }
     if (have < h.size()) {
-        throw InputError::truncated(name_, "file header needs 2048 bytes but the file ends at "
-                                    "byte " + std::to_string(size_), 0);
+        throw InputError::truncated(name_,
+                                    "file header needs 2048 bytes but the file ends at "
+                                    "byte " +
+                                        std::to_string(size_),
+                                    0);
     }
     version_ = version;
     ScanMeta& m = scan.meta;
@@ -481,9 +508,11 @@ void VolReader::read_file_header(Scan& scan) {
     hdr_size_ = load_u32(&h[fh::kBScanHdrSize]);
     m.bscan_hdr_size = hdr_size_;
     if (hdr_size_ < bscan_fixed_end(version_) || hdr_size_ > kMaxBScanHdrSize) {
-        throw InputError::corrupt(name_, "BScanHdrSize = " + std::to_string(hdr_size_) +
-                                  " is not in " + std::to_string(bscan_fixed_end(version_)) +
-                                  ".." + std::to_string(kMaxBScanHdrSize), fh::kBScanHdrSize);
+        throw InputError::corrupt(name_,
+                                  "BScanHdrSize = " + std::to_string(hdr_size_) + " is not in " +
+                                      std::to_string(bscan_fixed_end(version_)) + ".." +
+                                      std::to_string(kMaxBScanHdrSize),
+                                  fh::kBScanHdrSize);
     }
 
     Identifiers& ids = m.ids;
@@ -514,8 +543,9 @@ void VolReader::read_file_header(Scan& scan) {
     }
     m.prog_id = load_printable(&h[fh::kProgId], fh::kProgIdLen);
     if (version_ == 104) {
-        scan.notes.push_back("HSF-OCT-104: the B-scan BMO fields (BmoCoordLeft/Right) were read "
-                             "but their meaning is unverified (no public 104 file)");
+        scan.notes.push_back(
+            "HSF-OCT-104: the B-scan BMO fields (BmoCoordLeft/Right) were read "
+            "but their meaning is unverified (no public 104 file)");
     }
 }
 
@@ -528,10 +558,11 @@ void VolReader::check_layout(const Scan& scan) {
     // Bounded by the plausibility limits: no overflow (see the constants above).
     bscans_end_ = bscans_start_ + num_bscans_ * per_bscan;
     if (bscans_start_ > size_) {
-        throw InputError::truncated(name_, "SLO image of " + std::to_string(slo_bytes_) +
-                                    " bytes needs the file to reach byte " +
-                                    std::to_string(bscans_start_) + " but it ends at byte " +
-                                    std::to_string(size_), kVolFileHeaderSize);
+        throw InputError::truncated(
+            name_,
+            "SLO image of " + std::to_string(slo_bytes_) + " bytes needs the file to reach byte " +
+                std::to_string(bscans_start_) + " but it ends at byte " + std::to_string(size_),
+            kVolFileHeaderSize);
     }
     // Contradictory header sizes (as in files written by other tools) are reported as such
     // before the total length, which they usually also break.
@@ -539,15 +570,18 @@ void VolReader::check_layout(const Scan& scan) {
         std::array<Byte, 16> b0{};
         read_at(bscans_start_, b0.data(), b0.size(), "B-scan 0 header");
         if (std::memcmp(b0.data(), kBScanMagicPrefix.data(), kBScanMagicPrefix.size()) != 0) {
-            throw InputError::corrupt(name_, "B-scan 0 header magic is " +
-                                      quote_bytes(b0.data(), 12) + ", expected \"HSF-BS-10x\"",
+            throw InputError::corrupt(name_,
+                                      "B-scan 0 header magic is " + quote_bytes(b0.data(), 12) +
+                                          ", expected \"HSF-BS-10x\"",
                                       bscans_start_);
         }
         const std::uint32_t own = load_u32(&b0[bh::kHdrSize]);
         if (own != hdr_size_) {
-            throw InputError::corrupt(name_, "contradictory header sizes: the file header says "
-                                      "BScanHdrSize " + std::to_string(hdr_size_) +
-                                      ", B-scan 0 says " + std::to_string(own),
+            throw InputError::corrupt(name_,
+                                      "contradictory header sizes: the file header says "
+                                      "BScanHdrSize " +
+                                          std::to_string(hdr_size_) + ", B-scan 0 says " +
+                                          std::to_string(own),
                                       bscans_start_ + bh::kHdrSize);
         }
     }
@@ -555,13 +589,16 @@ void VolReader::check_layout(const Scan& scan) {
         const std::uint64_t k = (size_ - bscans_start_) / per_bscan;
         const std::uint64_t start = bscans_start_ + k * per_bscan;
         const bool in_header = size_ - start < hdr_size_;
-        throw InputError::truncated(
-            name_, "the header promises " + std::to_string(num_bscans_) + " B-scans of " +
-                       std::to_string(hdr_size_) + " + " + std::to_string(pixel_bytes_) +
-                       " bytes (" + std::to_string(bscans_end_) + " bytes in all) but the file "
-                       "ends at byte " + std::to_string(size_) + ", inside B-scan " +
-                       std::to_string(k) + (in_header ? " header" : " pixels"),
-            in_header ? start : start + hdr_size_);
+        throw InputError::truncated(name_,
+                                    "the header promises " + std::to_string(num_bscans_) +
+                                        " B-scans of " + std::to_string(hdr_size_) + " + " +
+                                        std::to_string(pixel_bytes_) + " bytes (" +
+                                        std::to_string(bscans_end_) +
+                                        " bytes in all) but the file "
+                                        "ends at byte " +
+                                        std::to_string(size_) + ", inside B-scan " +
+                                        std::to_string(k) + (in_header ? " header" : " pixels"),
+                                    in_header ? start : start + hdr_size_);
     }
 }
 
@@ -573,14 +610,18 @@ void VolReader::read_bscan(Scan& scan, std::uint32_t index) {
     read_at(start, hdr_buf_.data(), fixed, label + " header");
     const Byte* h = hdr_buf_.data();
     if (std::memcmp(h, kBScanMagicPrefix.data(), kBScanMagicPrefix.size()) != 0) {
-        throw InputError::corrupt(name_, label + " header magic is " + quote_bytes(h, 12) +
-                                  ", expected \"HSF-BS-10x\"", start);
+        throw InputError::corrupt(
+            name_, label + " header magic is " + quote_bytes(h, 12) + ", expected \"HSF-BS-10x\"",
+            start);
     }
     const std::uint32_t own = load_u32(h + bh::kHdrSize);
     if (own != hdr_size_) {
-        throw InputError::corrupt(name_, "contradictory header sizes: the file header says "
-                                  "BScanHdrSize " + std::to_string(hdr_size_) + ", " + label +
-                                  " says " + std::to_string(own), start + bh::kHdrSize);
+        throw InputError::corrupt(name_,
+                                  "contradictory header sizes: the file header says "
+                                  "BScanHdrSize " +
+                                      std::to_string(hdr_size_) + ", " + label + " says " +
+                                      std::to_string(own),
+                                  start + bh::kHdrSize);
     }
     BScan b;
     b.version = load_printable(h + bh::kVersion, 12);
@@ -632,7 +673,8 @@ void VolReader::read_bscan(Scan& scan, std::uint32_t index) {
 }
 
 std::optional<ThicknessGrid> VolReader::read_grid(std::uint64_t offset,
-                                                  std::int32_t expected_type, bool from_header,
+                                                  std::int32_t expected_type,
+                                                  bool from_header,
                                                   std::string& why_not) {
     const std::string what = "thickness grid (type " + std::to_string(expected_type) + ")";
     ThicknessGrid g;
@@ -643,9 +685,11 @@ std::optional<ThicknessGrid> VolReader::read_grid(std::uint64_t offset,
     const std::size_t head_len = circular ? kCircularGridSize : kRectGridHeaderSize;
     if (offset > size_ || size_ - offset < head_len) {
         if (from_header) {
-            throw InputError::truncated(name_, what + " needs " + std::to_string(head_len) +
-                                        " bytes but the file ends at byte " +
-                                        std::to_string(size_), offset);
+            throw InputError::truncated(name_,
+                                        what + " needs " + std::to_string(head_len) +
+                                            " bytes but the file ends at byte " +
+                                            std::to_string(size_),
+                                        offset);
         }
         why_not = "too short for a " + what;
         return std::nullopt;
@@ -656,8 +700,9 @@ std::optional<ThicknessGrid> VolReader::read_grid(std::uint64_t offset,
     const std::int32_t own_type = load_i32(p);
     if (own_type != expected_type) {
         if (from_header) {
-            throw InputError::corrupt(name_, what + " at GridOffset starts with type " +
-                                      std::to_string(own_type), offset);
+            throw InputError::corrupt(
+                name_, what + " at GridOffset starts with type " + std::to_string(own_type),
+                offset);
         }
         why_not = "type mismatch";
         return std::nullopt;
@@ -699,9 +744,12 @@ std::optional<ThicknessGrid> VolReader::read_grid(std::uint64_t offset,
         const std::uint64_t cells_at = offset + kRectGridHeaderSize;
         if (size_ - cells_at < n_cells * 8) {
             if (from_header) {
-                throw InputError::truncated(name_, what + " cells need " +
-                                            std::to_string(n_cells * 8) + " bytes but the file "
-                                            "ends at byte " + std::to_string(size_), cells_at);
+                throw InputError::truncated(name_,
+                                            what + " cells need " + std::to_string(n_cells * 8) +
+                                                " bytes but the file "
+                                                "ends at byte " +
+                                                std::to_string(size_),
+                                            cells_at);
             }
             why_not = "too short for its cells";
             return std::nullopt;
@@ -734,13 +782,16 @@ void VolReader::read_grids(Scan& scan) {
         }
         const std::string field_name = i == 0 ? "GridOffset" : "GridOffset1";
         if (offset < static_cast<std::int64_t>(kVolFileHeaderSize)) {
-            throw InputError::corrupt(name_, field_name + " = " + std::to_string(offset) +
-                                      " points into the file header", field[i]);
+            throw InputError::corrupt(
+                name_, field_name + " = " + std::to_string(offset) + " points into the file header",
+                field[i]);
         }
         if (static_cast<std::uint64_t>(offset) >= size_) {
-            throw InputError::truncated(name_, field_name + " = " + std::to_string(offset) +
-                                        " points past the end of the file (byte " +
-                                        std::to_string(size_) + ")", field[i]);
+            throw InputError::truncated(name_,
+                                        field_name + " = " + std::to_string(offset) +
+                                            " points past the end of the file (byte " +
+                                            std::to_string(size_) + ")",
+                                        field[i]);
         }
         std::string unused;
         if (auto g = read_grid(static_cast<std::uint64_t>(offset), type, true, unused)) {
@@ -788,9 +839,7 @@ Scan VolReader::read() {
 
 // ---- writer ---------------------------------------------------------------------------------
 
-[[noreturn]] void usage(const std::string& why) {
-    throw UsageError("cannot write .vol: " + why);
-}
+[[noreturn]] void usage(const std::string& why) { throw UsageError("cannot write .vol: " + why); }
 
 void put_string(Byte* dst, std::size_t field_len, const std::string& s, const char* field) {
     if (s.size() > field_len) {
@@ -816,19 +865,19 @@ WritePlan plan_write(const Scan& scan) {
     const auto sz = static_cast<std::uint32_t>(m.size_z);
     if (m.size_x_slo < 0 || m.size_y_slo < 0) usage("SLO sizes must not be negative");
     if (auto p = check_file_header(sx, nb, sz, m)) usage(p->reason);
-    const std::uint64_t slo_bytes = static_cast<std::uint64_t>(m.size_x_slo) *
-                                    static_cast<std::uint64_t>(m.size_y_slo);
+    const std::uint64_t slo_bytes =
+        static_cast<std::uint64_t>(m.size_x_slo) * static_cast<std::uint64_t>(m.size_y_slo);
     if (!scan.slo.empty() && scan.slo.size() != slo_bytes) {
-        usage("slo holds " + std::to_string(scan.slo.size()) + " bytes, SizeXSlo x SizeYSlo = " +
-              std::to_string(slo_bytes));
+        usage("slo holds " + std::to_string(scan.slo.size()) +
+              " bytes, SizeXSlo x SizeYSlo = " + std::to_string(slo_bytes));
     }
     if (!m.scan_position_raw.empty() && m.laterality != Laterality::kUnknown &&
         m.scan_position_raw != to_string(m.laterality)) {
         usage("scan_position_raw \"" + m.scan_position_raw + "\" contradicts laterality " +
               std::string(to_string(m.laterality)));
     }
-    if (m.exam_time_filetime && (*m.exam_time_filetime == 0 ||
-                                 *m.exam_time_filetime > kMaxFiletime)) {
+    if (m.exam_time_filetime &&
+        (*m.exam_time_filetime == 0 || *m.exam_time_filetime > kMaxFiletime)) {
         usage("exam_time_filetime is not a valid date");
     }
     const auto check_ole = [](const std::optional<double>& v, const char* field) {
@@ -857,7 +906,8 @@ WritePlan plan_write(const Scan& scan) {
         const bool must_print = i < 2;
         for (char c : *text) {
             const auto u = static_cast<unsigned char>(c);
-            if (must_print && (u < 0x20 || u > 0x7e)) usage(std::string(field) + " is not printable ASCII");
+            if (must_print && (u < 0x20 || u > 0x7e))
+                usage(std::string(field) + " is not printable ASCII");
         }
     }
 
@@ -873,7 +923,8 @@ WritePlan plan_write(const Scan& scan) {
         }
         if (!b.pixels.empty() && b.pixels.size() != static_cast<std::size_t>(sx) * sz) {
             usage("B-scan " + std::to_string(i) + " has " + std::to_string(b.pixels.size()) +
-                  " pixels, size_x x size_z is " + std::to_string(static_cast<std::size_t>(sx) * sz));
+                  " pixels, size_x x size_z is " +
+                  std::to_string(static_cast<std::size_t>(sx) * sz));
         }
         if (b.off_seg < static_cast<std::int32_t>(bscan_fixed_end(kWriteVersion))) {
             usage("B-scan " + std::to_string(i) + " off_seg " + std::to_string(b.off_seg) +
@@ -898,10 +949,9 @@ WritePlan plan_write(const Scan& scan) {
     }
     for (const ThicknessGrid& g : scan.grids) {
         if (auto p = check_grid(g)) usage(p->reason);
-        const std::size_t cells = g.is_circular()
-                                      ? kCircularGridCells
-                                      : static_cast<std::size_t>(g.rows) *
-                                            static_cast<std::size_t>(g.cols);
+        const std::size_t cells =
+            g.is_circular() ? kCircularGridCells
+                            : static_cast<std::size_t>(g.rows) * static_cast<std::size_t>(g.cols);
         if (g.cells.size() != cells) {
             usage("a grid of type " + std::to_string(g.type) + " needs " + std::to_string(cells) +
                   " cells, it has " + std::to_string(g.cells.size()));
@@ -915,11 +965,12 @@ WritePlan plan_write(const Scan& scan) {
     }
     if (plan.header_grids.size() > 2) usage("a .vol header holds at most two grids");
     if (!plan.header_grids.empty() && plan.trailing_grid != nullptr) {
-        usage("a grid without a header entry cannot be combined with header grids (the reader "
-              "would not look for it)");
+        usage(
+            "a grid without a header entry cannot be combined with header grids (the reader "
+            "would not look for it)");
     }
-    plan.bscans_end = kVolFileHeaderSize + slo_bytes +
-                      nb * (hdr + static_cast<std::uint64_t>(sx) * sz * 4U);
+    plan.bscans_end =
+        kVolFileHeaderSize + slo_bytes + nb * (hdr + static_cast<std::uint64_t>(sx) * sz * 4U);
     std::uint64_t grids_end = plan.bscans_end;
     for (const ThicknessGrid* g : plan.header_grids) grids_end += grid_byte_size(*g);
     if (!plan.header_grids.empty() &&
@@ -968,10 +1019,13 @@ void write_bytes(std::ostream& out, const void* p, std::size_t n) {
 }  // namespace
 
 bool looks_like_vol(const char* head, std::size_t n) {
-    return n >= kMagicPrefix.size() && std::memcmp(head, kMagicPrefix.data(), kMagicPrefix.size()) == 0;
+    return n >= kMagicPrefix.size() &&
+           std::memcmp(head, kMagicPrefix.data(), kMagicPrefix.size()) == 0;
 }
 
-Scan read_vol(std::istream& in, std::uint64_t size, const std::string& name,
+Scan read_vol(std::istream& in,
+              std::uint64_t size,
+              const std::string& name,
               const ReadOptions& options) {
     return VolReader(in, size, name, options).read();
 }
@@ -996,11 +1050,11 @@ void write_vol(const Scan& scan, std::ostream& out) {
     store_f64(&h[fh::kScaleYSlo], m.scale_y_slo_mm);
     store_u32(&h[fh::kFieldSizeSlo], m.field_size_slo_deg);
     store_f64(&h[fh::kScanFocus], m.scan_focus_dpt);
-    const std::string position = !m.scan_position_raw.empty()
-                                     ? m.scan_position_raw
-                                     : (m.laterality == Laterality::kUnknown
-                                            ? std::string()
-                                            : std::string(to_string(m.laterality)));
+    const std::string position =
+        !m.scan_position_raw.empty()
+            ? m.scan_position_raw
+            : (m.laterality == Laterality::kUnknown ? std::string()
+                                                    : std::string(to_string(m.laterality)));
     put_string(&h[fh::kScanPosition], 4, position, "scan_position_raw");
     store_u64(&h[fh::kExamTime], m.exam_time_filetime.value_or(0));
     const std::int32_t pattern = scan_pattern_from_code(m.scan_pattern_code) == m.pattern

@@ -45,7 +45,8 @@ Scan make_scan(int num_bscans, int size_x, int size_z, int lines, int slo) {
         bs.quality = 30.0F;
         bs.shift = b - 1;
         bs.iv_trafo = {1.0F, 0.0F, 0.0F, 1.0F, 0.5F, -0.5F};
-        bs.seg.assign(static_cast<std::size_t>(lines), std::vector<float>(static_cast<std::size_t>(size_x)));
+        bs.seg.assign(static_cast<std::size_t>(lines),
+                      std::vector<float>(static_cast<std::size_t>(size_x)));
         for (int k = 0; k < lines; ++k) {
             for (int a = 0; a < size_x; ++a) {
                 bs.seg[k][a] = a % 5 == 0 ? std::numeric_limits<float>::quiet_NaN()
@@ -53,7 +54,8 @@ Scan make_scan(int num_bscans, int size_x, int size_z, int lines, int slo) {
             }
         }
         bs.pixels.resize(static_cast<std::size_t>(size_x * size_z));
-        for (std::size_t i = 0; i < bs.pixels.size(); ++i) bs.pixels[i] = static_cast<float>(i % 11) / 10.0F;
+        for (std::size_t i = 0; i < bs.pixels.size(); ++i)
+            bs.pixels[i] = static_cast<float>(i % 11) / 10.0F;
         s.bscans.push_back(std::move(bs));
     }
     s.slo.assign(static_cast<std::size_t>(slo * slo), 128);

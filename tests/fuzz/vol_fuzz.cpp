@@ -65,7 +65,8 @@ void check_rewrite(const Scan& s) {
         const auto& p = s.bscans[i];
         const auto& q = r.bscans[i];
         check(p.seg.size() == q.seg.size() && p.pixels.size() == q.pixels.size());
-        check(std::bit_cast<std::uint64_t>(p.start_x_mm) == std::bit_cast<std::uint64_t>(q.start_x_mm));
+        check(std::bit_cast<std::uint64_t>(p.start_x_mm) ==
+              std::bit_cast<std::uint64_t>(q.start_x_mm));
         for (std::size_t k = 0; k < p.seg.size(); ++k) {
             for (std::size_t a = 0; a < p.seg[k].size(); ++a) check(same(p.seg[k][a], q.seg[k][a]));
         }

@@ -9,7 +9,7 @@
 namespace octshape::test {
 
 class AllocProbe {
-public:
+  public:
     AllocProbe();   // starts recording (probes do not nest)
     ~AllocProbe();  // stops recording
     AllocProbe(const AllocProbe&) = delete;

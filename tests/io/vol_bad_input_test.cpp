@@ -71,8 +71,7 @@ void expect_sane(const io::Scan& s, bool pixels) {
     }
     for (const io::ThicknessGrid& g : s.grids) {
         ASSERT_TRUE(g.is_circular() || g.is_rectangular());
-        ASSERT_EQ(g.cells.size(), g.is_circular() ? 9U
-                                                  : static_cast<std::size_t>(g.rows * g.cols));
+        ASSERT_EQ(g.cells.size(), g.is_circular() ? 9U : static_cast<std::size_t>(g.rows * g.cols));
     }
 }
 
@@ -120,8 +119,11 @@ InputError expect_error(const std::string& bytes, const std::string& label, bool
     return InputError(Kind::kCorrupt, "", "");
 }
 
-void expect_error_at(const std::string& bytes, Kind kind, std::uint64_t offset,
-                     const std::string& reason_part, const std::string& label) {
+void expect_error_at(const std::string& bytes,
+                     Kind kind,
+                     std::uint64_t offset,
+                     const std::string& reason_part,
+                     const std::string& label) {
     const InputError e = expect_error(bytes, label);
     EXPECT_EQ(e.kind(), kind) << label << ": " << e.what();
     EXPECT_EQ(e.offset(), std::optional<std::uint64_t>(offset)) << label << ": " << e.what();
@@ -215,7 +217,9 @@ struct Patch {
 
 TEST(VolBadInput, AbsurdSizesAndOffsetsAreRejectedBeforeAllocating) {
     const std::uint64_t u32max = 0xFFFFFFFFULL;
-    const auto neg = [](std::int32_t v) { return static_cast<std::uint64_t>(static_cast<std::uint32_t>(v)); };
+    const auto neg = [](std::int32_t v) {
+        return static_cast<std::uint64_t>(static_cast<std::uint32_t>(v));
+    };
     const std::vector<Patch> patches = {
         {"SizeX 2^31", 12, 1ULL << 31, 4, Kind::kCorrupt, 12, "SizeX"},
         {"SizeX 0", 12, 0, 4, Kind::kCorrupt, 12, "SizeX"},
@@ -295,10 +299,10 @@ struct FloatField {
 
 std::vector<FloatField> float_fields() {
     std::vector<FloatField> f = {
-        {"ScaleX", 24, true, true},       {"Distance", 32, true, true},
-        {"ScaleZ", 40, true, true},       {"ScaleXSlo", 56, true, true},
-        {"ScaleYSlo", 64, true, true},    {"ScanFocus", 76, true, true},
-        {"DOB", 164, true, false},        {"VisitDate", 200, true, false},
+        {"ScaleX", 24, true, true},    {"Distance", 32, true, true},
+        {"ScaleZ", 40, true, true},    {"ScaleXSlo", 56, true, true},
+        {"ScaleYSlo", 64, true, true}, {"ScanFocus", 76, true, true},
+        {"DOB", 164, true, false},     {"VisitDate", 200, true, false},
     };
     for (const std::size_t b : {kBScan0, kBScan1}) {
         const std::string n = b == kBScan0 ? "B-scan 0 " : "B-scan 1 ";
@@ -327,8 +331,8 @@ TEST(VolBadInput, NanInfAndFltMaxInEveryFloatHeaderField) {
     const float fnan = std::numeric_limits<float>::quiet_NaN();
     const float finf = std::numeric_limits<float>::infinity();
     const float fmax = std::numeric_limits<float>::max();
-    const std::vector<double> f64_values = {dnan, -dnan, dinf, -dinf, fmax,
-                                            std::numeric_limits<double>::max()};
+    const std::vector<double> f64_values = {dnan,  -dnan, dinf,
+                                            -dinf, fmax,  std::numeric_limits<double>::max()};
     const std::vector<float> f32_values = {fnan, -fnan, finf, -finf, fmax, -fmax};
     const io::Scan good = read_from_string(small_file(), false);
     std::size_t cases = 0;
@@ -358,12 +362,11 @@ TEST(VolBadInput, NanInfAndFltMaxInEveryFloatHeaderField) {
                 // Grid thickness/volume values: missing (NaN), like invalid segmentation.
                 const std::size_t k = (field.offset - kGrid - 44) / 4;
                 const io::ThicknessGrid& g = s.grids.at(0);
-                const float got = k < 4 ? std::array<float, 4>{g.central_thickness_mm,
-                                                               g.min_central_thickness_mm,
-                                                               g.max_central_thickness_mm,
-                                                               g.total_volume_mm3}[k]
-                                        : (k % 2 == 0 ? g.cells[(k - 4) / 2].thickness_mm
-                                                      : g.cells[(k - 4) / 2].volume_mm3);
+                const float got =
+                    k < 4 ? std::array<float, 4>{g.central_thickness_mm, g.min_central_thickness_mm,
+                                                 g.max_central_thickness_mm, g.total_volume_mm3}[k]
+                          : (k % 2 == 0 ? g.cells[(k - 4) / 2].thickness_mm
+                                        : g.cells[(k - 4) / 2].volume_mm3);
                 EXPECT_TRUE(std::isnan(got)) << label;
             }
             // Everything else is read as before.
@@ -376,8 +379,8 @@ TEST(VolBadInput, NanInfAndFltMaxInEveryFloatHeaderField) {
 
 TEST(VolBadInput, NegativeOrAbsurdScalesAreRejected) {
     const std::vector<std::pair<std::size_t, double>> bad = {
-        {24, -0.01}, {24, 0.0}, {24, 1e6}, {32, -0.1}, {32, 1e9}, {40, 0.0}, {40, -1.0},
-        {40, 5.0},   {56, -1.0}, {76, 1e4}};
+        {24, -0.01}, {24, 0.0},  {24, 1e6}, {32, -0.1}, {32, 1e9},
+        {40, 0.0},   {40, -1.0}, {40, 5.0}, {56, -1.0}, {76, 1e4}};
     for (const auto& [off, v] : bad) {
         std::string f = small_file();
         put_f64(f, off, v);
@@ -450,14 +453,20 @@ TEST(VolBadInput, RandomMutationsNeverCrash) {
             f[rng() % span] = static_cast<char>(rng() & 0xFFU);
         }
         switch (rng() % 4) {
-            case 0: f.resize(rng() % f.size()); break;
-            case 1: f.append(rng() % 300, static_cast<char>(rng() & 0xFFU)); break;
-            default: break;
+            case 0:
+                f.resize(rng() % f.size());
+                break;
+            case 1:
+                f.append(rng() % 300, static_cast<char>(rng() & 0xFFU));
+                break;
+            default:
+                break;
         }
         count(read_both_ways(f, "mutation " + std::to_string(t)));
     }
-    std::cout << "[ vol mutations ] " << tried << " mutated files tried (x 2 read modes): "
-              << read_ok << " read cleanly, " << errors << " gave InputError, 0 crashes\n";
+    std::cout << "[ vol mutations ] " << tried
+              << " mutated files tried (x 2 read modes): " << read_ok << " read cleanly, " << errors
+              << " gave InputError, 0 crashes\n";
     EXPECT_EQ(tried, read_ok + errors);
     // Both outcomes occur: the sample reaches past the header checks into the data.
     EXPECT_GT(read_ok, 10000U);

@@ -81,8 +81,8 @@ TEST(VolRoundTrip, KeepsALargerBScanHeaderSizeAndChoosesTheSmallestOtherwise) {
 }
 
 TEST(VolRoundTrip, WithoutPixelsWritesNoDataAndZeroSlo) {
-    io::Scan s = make_synthetic_scan({.num_bscans = 2, .size_x = 8, .size_z = 4, .num_lines = 3,
-                                      .pixels = false});
+    io::Scan s = make_synthetic_scan(
+        {.num_bscans = 2, .size_x = 8, .size_z = 4, .num_lines = 3, .pixels = false});
     const io::Scan r = read_from_string(write_to_string(s), true);
     expect_same_scan(s, r, false);
     for (const io::BScan& b : r.bscans) {
@@ -125,7 +125,8 @@ TEST(VolRoundTrip, WriteVolFileIsAtomicAndReadable) {
     expect_same_scan(s, read_file(path, true), true);
     // Only the file itself is left in the directory (no temporary).
     int entries = 0;
-    for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir.path())) ++entries;
+    for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir.path()))
+        ++entries;
     EXPECT_EQ(entries, 1);
 }
 
@@ -211,9 +212,14 @@ std::string craft_vol(int version) {
     for (std::size_t i = 0; i < 6; ++i) put_f32(b, 64 + 4 * i, static_cast<float>(i + 1));
     for (std::size_t i = 0; i < 6; ++i) put_i32(b, 88 + 4 * i, static_cast<std::int32_t>(11 + i));
     const float inf = std::numeric_limits<float>::infinity();
-    const float seg[8] = {1.5F, std::numeric_limits<float>::max(), 2.5F, inf,
-                          std::numeric_limits<float>::quiet_NaN(), 3.25F,
-                          -std::numeric_limits<float>::max(), 1e30F};
+    const float seg[8] = {1.5F,
+                          std::numeric_limits<float>::max(),
+                          2.5F,
+                          inf,
+                          std::numeric_limits<float>::quiet_NaN(),
+                          3.25F,
+                          -std::numeric_limits<float>::max(),
+                          1e30F};
     for (std::size_t i = 0; i < 8; ++i) put_f32(b, 256 + 4 * i, seg[i]);
     f += b;
     for (int i = 0; i < 12; ++i) {
@@ -360,8 +366,8 @@ void expect_pixels_are_reflectance(const io::Scan& s) {
     // Format doc: linear reflectance in [0, 1], FLT_MAX = no data.
     std::size_t bad = 0;
     for (const io::BScan& b : s.bscans) {
-        ASSERT_EQ(b.pixels.size(),
-                  static_cast<std::size_t>(s.meta.size_x) * static_cast<std::size_t>(s.meta.size_z));
+        ASSERT_EQ(b.pixels.size(), static_cast<std::size_t>(s.meta.size_x) *
+                                       static_cast<std::size_t>(s.meta.size_z));
         for (float v : b.pixels) bad += (v == io::kNoPixelData || (v >= 0.0F && v <= 1.0F)) ? 0 : 1;
     }
     EXPECT_EQ(bad, 0U);
@@ -451,8 +457,7 @@ TEST(VolRealData, PeripapillaryCircleScansOfRadius1p8) {
         expect_circle_scan(s);
         const io::BScan& b = s.bscans[0];
         // README: radius 1.80 mm (two decimals: +-0.005 mm).
-        EXPECT_NEAR(std::hypot(b.start_x_mm - b.end_x_mm, b.start_y_mm - b.end_y_mm), 1.80,
-                    0.005);
+        EXPECT_NEAR(std::hypot(b.start_x_mm - b.end_x_mm, b.start_y_mm - b.end_y_mm), 1.80, 0.005);
         EXPECT_NEAR(s.meta.scale_x_mm * s.meta.size_x, 2.0 * std::numbers::pi * 1.80,
                     2.0 * std::numbers::pi * 0.005);
         EXPECT_EQ(s.meta.bscan_hdr_size, 55296U);
@@ -517,7 +522,8 @@ TEST(VolRealData, EyepyWrittenFileIsRefusedClearly) {
     }
     // And with Spectralis B-scan magics too (eyepy writes its own at each B-scan start).
     for (std::size_t at = 2048 + 50 * 50; at + 12 <= f.size(); ++at) {
-        if (f.compare(at, 9, "ep-v0.6.8") == 0) f.replace(at, 12, std::string("HSF-BS-103\0\0", 12));
+        if (f.compare(at, 9, "ep-v0.6.8") == 0)
+            f.replace(at, 12, std::string("HSF-BS-103\0\0", 12));
     }
     try {
         (void)read_from_string(f, false);

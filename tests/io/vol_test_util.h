@@ -85,7 +85,8 @@ inline io::Scan make_synthetic_scan(const SyntheticVolParams& p = {}) {
             }
         }
         if (p.pixels) {
-            bs.pixels.resize(static_cast<std::size_t>(p.size_x) * static_cast<std::size_t>(p.size_z));
+            bs.pixels.resize(static_cast<std::size_t>(p.size_x) *
+                             static_cast<std::size_t>(p.size_z));
             for (std::size_t i = 0; i < bs.pixels.size(); ++i) {
                 bs.pixels[i] = (i % 97 == 5) ? io::kNoPixelData
                                              : static_cast<float>((i * 7919 + b) % 1000) / 999.0F;
@@ -95,7 +96,8 @@ inline io::Scan make_synthetic_scan(const SyntheticVolParams& p = {}) {
     }
     if (p.pixels) {
         s.slo.resize(static_cast<std::size_t>(p.slo_x) * static_cast<std::size_t>(p.slo_y));
-        for (std::size_t i = 0; i < s.slo.size(); ++i) s.slo[i] = static_cast<std::uint8_t>(i * 37 + 11);
+        for (std::size_t i = 0; i < s.slo.size(); ++i)
+            s.slo[i] = static_cast<std::uint8_t>(i * 37 + 11);
         s.pixels_loaded = true;
     }
     return s;
@@ -153,7 +155,8 @@ inline bool same_double(double a, double b) {
 inline void expect_same_grid(const io::ThicknessGrid& a, const io::ThicknessGrid& b) {
     EXPECT_EQ(a.type, b.type);
     EXPECT_EQ(a.from_header, b.from_header);
-    for (std::size_t i = 0; i < 3; ++i) EXPECT_TRUE(same_double(a.diameters_mm[i], b.diameters_mm[i]));
+    for (std::size_t i = 0; i < 3; ++i)
+        EXPECT_TRUE(same_double(a.diameters_mm[i], b.diameters_mm[i]));
     EXPECT_TRUE(same_double(a.centre_x_slo_mm, b.centre_x_slo_mm));
     EXPECT_TRUE(same_double(a.centre_y_slo_mm, b.centre_y_slo_mm));
     EXPECT_TRUE(same_float(a.central_thickness_mm, b.central_thickness_mm));
@@ -254,7 +257,8 @@ inline std::string write_to_string(const io::Scan& s) {
     return out.str();
 }
 
-inline io::Scan read_from_string(const std::string& bytes, bool pixels,
+inline io::Scan read_from_string(const std::string& bytes,
+                                 bool pixels,
                                  const std::string& name = "mem.vol") {
     std::istringstream in(bytes, std::ios::binary);
     io::ReadOptions opt;

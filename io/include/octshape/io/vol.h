@@ -22,7 +22,9 @@ inline constexpr std::uint64_t kVolFileHeaderSize = 2048;
 // Never allocates more than the declared sizes, and checks those against `size` first.
 // With options.pixels == false the B-scan pixels and the SLO are skipped (seeked past), but the
 // stream must still be long enough to hold them.
-[[nodiscard]] Scan read_vol(std::istream& in, std::uint64_t size, const std::string& name,
+[[nodiscard]] Scan read_vol(std::istream& in,
+                            std::uint64_t size,
+                            const std::string& name,
                             const ReadOptions& options = {});
 
 // Writes `scan` as HSF-OCT-103. Every header field, segmentation value (NaN -> FLT_MAX) and
