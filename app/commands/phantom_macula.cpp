@@ -90,7 +90,8 @@ void add_phantom_macula_command(CLI::App& parent, RunContext& /*ctx*/) {
         ->capture_default_str();
     cmd->add_option("--depth", p.size_z, "Pixels per A-scan")->capture_default_str();
     cmd->add_option("--scale-x", p.scale_x_mm, "mm per A-scan (default: 8.96623 / (ascans - 1))");
-    cmd->add_option("--distance", p.distance_mm, "mm between B-scans (default: 7.5 / (bscans - 1))");
+    cmd->add_option("--distance", p.distance_mm,
+                    "mm between B-scans (default: 7.5 / (bscans - 1))");
     cmd->add_option("--scale-z", p.scale_z_mm, "mm per pixel in depth")->capture_default_str();
     cmd->add_option("--fovea-dx", p.fovea_dx_mm, "True fovea centre minus scan centre, grid x mm")
         ->capture_default_str();

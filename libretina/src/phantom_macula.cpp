@@ -533,7 +533,8 @@ MaculaTruth macula_truth(const MaculaPhantomParams& p, const MaculaTruthOptions&
     if (bez_family) {
         add("rim_height_mm", "mean of the interior P3.y (closed form)", kRound);
         add("max_slope_deg",
-            "closed form dy/(sqrt(alpha beta) + w - alpha - beta) at t_m = sqrt(a)/(sqrt(a)+sqrt(b))",
+            "closed form dy/(sqrt(alpha beta) + w - alpha - beta) at "
+            "t_m = sqrt(a)/(sqrt(a)+sqrt(b))",
             1e-12);
         add("pit_flat_radius_mm",
             "x(t_f), t_f by bisection to the last bit of 3t^2 - 2t^3 = tau/dy", 1e-14);
@@ -688,8 +689,8 @@ MaculaPhantom make_macula_phantom(const MaculaPhantomParams& p, const MaculaTrut
     std::vector<char> missing(nb * nx, 0);
     if (p.missing_fraction > 0.0) {
         phantom::Rng rng(p.seed, 0x3155ULL);
-        const auto target =
-            static_cast<std::size_t>(std::llround(p.missing_fraction * static_cast<double>(nb * nx)));
+        const double all = static_cast<double>(nb * nx);
+        const auto target = static_cast<std::size_t>(std::llround(p.missing_fraction * all));
         std::size_t count = 0;
         const double edge_mean = 0.25 * p.missing_fraction * static_cast<double>(nx);
         for (std::size_t b = 0; b < nb && count < target; ++b) {

@@ -263,7 +263,8 @@ TEST(MaculaTruth, LeftEyeIsTheMirroredRightEye) {
         const MaculaTruth b = macula_truth(os);
         EXPECT_NEAR(a.centre_x_mm + b.centre_x_mm, 767 * 0.01169, 1e-12);
         for (const auto& [x, y] :
-             {std::pair{a.rim_height_mm, b.rim_height_mm}, {a.max_pit_slope_deg, b.max_pit_slope_deg},
+             {std::pair{a.rim_height_mm, b.rim_height_mm},
+              {a.max_pit_slope_deg, b.max_pit_slope_deg},
               {a.rim.diameter_mm, b.rim.diameter_mm}, {a.rim.area_mm2, b.rim.area_mm2},
               {a.slope.area_mm2, b.slope.area_mm2}, {a.pit_flat.area_mm2, b.pit_flat.area_mm2},
               {a.rim.eigenvalues_mm2[1], b.rim.eigenvalues_mm2[1]},
@@ -340,7 +341,8 @@ TEST(MaculaPhantom, NasalHalfLineLiesWhereTheConventionSays) {
         const MaculaPhantom ph = make_macula_phantom(p);
         const double sx = ph.scan.meta.scale_x_mm;
         const double sign = eye == io::Laterality::kOD ? 1.0 : -1.0;
-        const int a = static_cast<int>(std::lround((t.centre_x_mm + sign * nasal.rim_radius_mm) / sx));
+        const int a =
+            static_cast<int>(std::lround((t.centre_x_mm + sign * nasal.rim_radius_mm) / sx));
         const double th = (ph.scan.depth_px(1, 15, a) - ph.scan.depth_px(0, 15, a)) *
                           ph.scan.meta.scale_z_mm;
         // Within half an A-scan (6 um) of the rim the height is within ~1e-5 mm of its maximum.
@@ -497,8 +499,9 @@ TEST(MaculaPhantom, LineScanThroughTheFovea) {
     const int bm = static_cast<int>(bs.seg[1][a]);
     double vit = 0.0;
     double rpe = 0.0;
-    for (int z = ilm - 40; z < ilm - 20; ++z) vit += bs.pixels[static_cast<std::size_t>(z * 768 + a)];
-    for (int z = bm - 3; z < bm - 1; ++z) rpe += bs.pixels[static_cast<std::size_t>(z * 768 + a)];
+    auto px = [&](int z) { return bs.pixels[static_cast<std::size_t>(z * 768 + a)]; };
+    for (int z = ilm - 40; z < ilm - 20; ++z) vit += px(z);
+    for (int z = bm - 3; z < bm - 1; ++z) rpe += px(z);
     EXPECT_GT(rpe / 2, 100 * vit / 20);
 }
 
