@@ -62,6 +62,7 @@ int main(int argc, char** argv) {
     auto* phantom = app.add_subcommand(
         "phantom", "Write a synthetic Spectralis export whose true shape parameters are known");
     phantom->require_subcommand(1);
+    octshape::app::add_phantom_macula_command(*phantom, ctx);
     octshape::app::add_phantom_onh_command(*phantom, ctx);
 
     try {

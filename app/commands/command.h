@@ -13,6 +13,8 @@ struct RunContext {
 };
 
 void add_info_command(CLI::App& app, RunContext& ctx);
+// `phantom macula` under the `phantom` parent.
+void add_phantom_macula_command(CLI::App& phantom, RunContext& ctx);
 // `phantom onh` under the `phantom` parent command.
 void add_phantom_onh_command(CLI::App& phantom, RunContext& ctx);
 

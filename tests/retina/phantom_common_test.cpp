@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "octshape/io/error.h"
+#include "octshape/retina/scan_geometry.h"
 
 namespace octshape::retina::phantom {
 namespace {
@@ -100,6 +101,22 @@ TEST(PhantomFrame, ScanFramePlacesFirstBscanInferiorAscansLeftToRight) {
     EXPECT_NEAR((s.bscans[0].start_y_mm + s.bscans[4].start_y_mm) / 2, slo_mid, 1e-12);
     EXPECT_EQ(s.meta.scan_position_raw, "OD");
     EXPECT_GE(s.meta.bscan_hdr_size, 256U + 17U * 64U * 4U);
+}
+
+// The analysis reads the orientation back from the B-scan positions (ScanGeometry); it must find
+// the frame the phantom was built in. (The phantom never uses ScanGeometry itself.)
+TEST(PhantomFrame, ScanGeometryRecoversThePlacement) {
+    for (const auto eye : {io::Laterality::kOD, io::Laterality::kOS}) {
+        VolumeLayout l;
+        l.laterality = eye;
+        const io::Scan s = make_scan_frame(l);
+        const ScanGeometry g(s);
+        const GridFrame f = grid_frame(l);
+        EXPECT_TRUE(g.oriented_from_positions());
+        EXPECT_TRUE(g.grid_to_anatomical().isApprox(f.grid_to_anatomical, 1e-12));
+        EXPECT_TRUE(g.spacing().uniform);
+        EXPECT_TRUE(g.spacing().matches_header);
+    }
 }
 
 TEST(PhantomFrame, ValidateNamesTheField) {

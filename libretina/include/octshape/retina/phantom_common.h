@@ -101,8 +101,8 @@ struct RetinaLayers {
     double ez = 0.32;        // ellipsoid zone
     double outer_segments = 0.025;
     double rpe = 0.5;        // RPE/BM complex, display 0.84
-    double choroid = 0.09;   // just below BM, decaying with depth
-    double choroid_decay_mm = 0.25;
+    double choroid = 0.05;   // just below BM (display 0.47), decaying with depth
+    double choroid_decay_mm = 0.08;  // dark (display < 0.2) 0.3 mm below BM
     double outer_mm = 0.20;  // OPL/ONL boundary to BM where the retina is thick enough
     double photoreceptor_mm = 0.085;  // ELM to BM
     // Fractions of the inner retina (ILM to OPL/ONL): RNFL, GCL, IPL, INL, OPL (sum 1).
