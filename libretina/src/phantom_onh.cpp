@@ -910,14 +910,15 @@ namespace octshape::retina {
 namespace {
 
 // Linear reflectance of the neural tissue inside the BMO (and wherever a column meets the ILM
-// more than once): bright nerve-fibre surface fading with the distance e below it; below the
-// BM level the lamina region, dimmer with depth and faintly striated.
+// more than once): a bright nerve-fibre surface fading with the depth e below it, over a dim
+// bulk that, below the BM level, is the lamina region: faintly striated and fading with depth
+// like the choroid beside it.
 double neural_reflectance(double e_mm, double below_bm_mm) {
-    double v = 0.06 + 0.26 * std::exp(-e_mm / 0.08);
-    if (below_bm_mm > 0.0) {
-        v *= std::exp(-below_bm_mm / 0.35) * (1.0 + 0.25 * std::sin(2.0 * kPi * below_bm_mm / 0.04));
-    }
-    return v;
+    const double surface = 0.26 * std::exp(-e_mm / 0.08);
+    if (below_bm_mm <= 0.0) return 0.06 + surface;
+    const double lamina = 0.06 * std::exp(-below_bm_mm / 0.15) *
+                          (1.0 + 0.25 * std::sin(2.0 * kPi * below_bm_mm / 0.04));
+    return surface + lamina;
 }
 
 struct Column {
