@@ -78,8 +78,9 @@ void run(PhantomOnhState& st, const CLI::App& cmd) {
 
     const std::string truth_path =
         st.truth_path.empty() ? default_truth_path(st.output) : st.truth_path;
-    spdlog::info("phantom onh: {} {} disc, {} B-scans x {} A-scans x {} px", p.eye == io::Laterality::kOS ? "OS" : "OD",
-                 retina::to_string(p.shape), p.num_bscans, p.num_ascans, p.depth_px);
+    spdlog::info("phantom onh: {} {} disc, {} B-scans x {} A-scans x {} px",
+                 p.eye == io::Laterality::kOS ? "OS" : "OD", retina::to_string(p.shape),
+                 p.num_bscans, p.num_ascans, p.depth_px);
     const retina::OnhPhantom phantom = retina::make_onh_phantom(p, st.truth);
     const std::string truth_text =
         retina::onh_truth_to_json(p, st.truth, phantom.truth).dump(2) + "\n";
@@ -111,10 +112,8 @@ void add_phantom_onh_command(CLI::App& phantom, RunContext& /*ctx*/) {
         ->capture_default_str();
     cmd->add_option("--seed", st->params.seed, "Speckle seed (same seed, same file)")
         ->capture_default_str();
-    cmd->add_option("--bscans", st->params.num_bscans, "Number of B-scans")
-        ->capture_default_str();
-    cmd->add_option("--ascans", st->params.num_ascans, "A-scans per B-scan")
-        ->capture_default_str();
+    cmd->add_option("--bscans", st->params.num_bscans, "Number of B-scans")->capture_default_str();
+    cmd->add_option("--ascans", st->params.num_ascans, "A-scans per B-scan")->capture_default_str();
     cmd->add_option("--depth", st->params.depth_px, "Pixels per A-scan")->capture_default_str();
     cmd->add_option("--field-mm", st->params.field_mm,
                     "Side of the scanned square (ScaleX = field / A-scans, Distance = field / "
@@ -135,8 +134,9 @@ void add_phantom_onh_command(CLI::App& phantom, RunContext& /*ctx*/) {
     cmd->add_option("--eye-radius-mm", st->params.eye_radius_mm,
                     "Curvature radius of the BM (eye wall); 0 = flat")
         ->capture_default_str();
-    cmd->add_option("--tilt", st->tilt, "BM slopes dz/dx dz/dy at the BMO centre (default 0.03 "
-                                         "-0.02)")
+    cmd->add_option("--tilt", st->tilt,
+                    "BM slopes dz/dx dz/dy at the BMO centre (default 0.03 "
+                    "-0.02)")
         ->expected(2);
     cmd->add_option("--speckle-looks", st->params.speckle_looks,
                     "Speckle Gamma shape (more looks = less speckle)")

@@ -148,9 +148,12 @@ phantom::VolumeLayout layout_of(const OnhPhantomParams& p) {
 
 std::string to_string(OnhShape shape) {
     switch (shape) {
-        case OnhShape::kCupped: return "cupped";
-        case OnhShape::kSwollen: return "swollen";
-        case OnhShape::kOverhang: return "overhang";
+        case OnhShape::kCupped:
+            return "cupped";
+        case OnhShape::kSwollen:
+            return "swollen";
+        case OnhShape::kOverhang:
+            return "overhang";
     }
     return "unknown";
 }
@@ -162,8 +165,7 @@ std::string to_string(CupProfile profile) {
 void OnhProfileParams::validate() const {
     require(std::isfinite(retina_thickness_mm) && retina_thickness_mm >= kMinClearanceMm,
             "retina_thickness_mm", "must be >= 0.01");
-    require(std::isfinite(rim_height_mm) && rim_height_mm >= 0.0, "rim_height_mm",
-            "must be >= 0");
+    require(std::isfinite(rim_height_mm) && rim_height_mm >= 0.0, "rim_height_mm", "must be >= 0");
     require(finite_positive(rim_radius), "rim_radius", "must be > 0");
     require(std::isfinite(swelling_mm) && swelling_mm >= 0.0, "swelling_mm", "must be >= 0");
     require(finite_positive(swelling_width), "swelling_width", "must be > 0");
@@ -183,9 +185,9 @@ void OnhProfileParams::validate() const {
 }
 
 void OnhPhantomParams::validate() const {
-    require(shape == OnhShape::kCupped || shape == OnhShape::kSwollen ||
-                shape == OnhShape::kOverhang,
-            "shape", "is unknown");
+    require(
+        shape == OnhShape::kCupped || shape == OnhShape::kSwollen || shape == OnhShape::kOverhang,
+        "shape", "is unknown");
     require(eye == io::Laterality::kOD || eye == io::Laterality::kOS, "eye", "must be OD or OS");
     require(num_bscans >= 5 && num_bscans <= 1024, "bscans", "must be in 5..1024");
     require(num_ascans >= 16 && num_ascans <= 4096, "ascans", "must be in 16..4096");
@@ -215,8 +217,8 @@ void OnhPhantomParams::validate() const {
     const double height = field_mm;
     const double cx = width / 2 + bmo_offset_x_mm;
     const double cy = height / 2 + bmo_offset_y_mm;
-    require(cx - kDiscRadiusMm >= 0.0 && cx + kDiscRadiusMm <= width &&
-                cy - kDiscRadiusMm >= 0.0 && cy + kDiscRadiusMm <= height,
+    require(cx - kDiscRadiusMm >= 0.0 && cx + kDiscRadiusMm <= width && cy - kDiscRadiusMm >= 0.0 &&
+                cy + kDiscRadiusMm <= height,
             "bmo_offset_mm", "puts the 1.5 mm disc around the BMO centre outside the scan");
 }
 
@@ -270,8 +272,7 @@ OnhPhantomGeometry::OnhPhantomGeometry(const OnhPhantomParams& params)
     const double t = params.bmo_rotation_deg * kPi / 180.0;
     Eigen::Matrix2d rot;
     rot << std::cos(t), -std::sin(t), std::sin(t), std::cos(t);
-    frame_ = rot * Eigen::Vector2d(params.bmo_semi_major_mm, params.bmo_semi_minor_mm)
-                       .asDiagonal();
+    frame_ = rot * Eigen::Vector2d(params.bmo_semi_major_mm, params.bmo_semi_minor_mm).asDiagonal();
     frame_inv_ = frame_.inverse();
     curvature_ = params.eye_radius_mm > 0.0 ? 1.0 / params.eye_radius_mm : 0.0;
     tilt_ = {params.tilt_x, params.tilt_y};
@@ -480,24 +481,24 @@ std::vector<double> OnhPhantomGeometry::kinks() const {
 
 Eigen::Vector3d OnhPhantomGeometry::surface(double s, double phi) const {
     const double r = rho(s);
-    const Eigen::Vector2d xy = centre_ + frame_ * Eigen::Vector2d(r * std::cos(phi),
-                                                                  r * std::sin(phi));
+    const Eigen::Vector2d xy =
+        centre_ + frame_ * Eigen::Vector2d(r * std::cos(phi), r * std::sin(phi));
     return {xy.x(), xy.y(), bm_height(xy.x(), xy.y()) + w(s)};
 }
 
 Eigen::Vector3d OnhPhantomGeometry::surface_ds(double s, double phi) const {
     const double r = rho(s);
     const double dr = drho(s);
-    const Eigen::Vector2d xy = centre_ + frame_ * Eigen::Vector2d(r * std::cos(phi),
-                                                                  r * std::sin(phi));
+    const Eigen::Vector2d xy =
+        centre_ + frame_ * Eigen::Vector2d(r * std::cos(phi), r * std::sin(phi));
     const Eigen::Vector2d d = frame_ * Eigen::Vector2d(dr * std::cos(phi), dr * std::sin(phi));
     return {d.x(), d.y(), bm_gradient(xy.x(), xy.y()).dot(d) + dw(s)};
 }
 
 Eigen::Vector3d OnhPhantomGeometry::surface_dphi(double s, double phi) const {
     const double r = rho(s);
-    const Eigen::Vector2d xy = centre_ + frame_ * Eigen::Vector2d(r * std::cos(phi),
-                                                                  r * std::sin(phi));
+    const Eigen::Vector2d xy =
+        centre_ + frame_ * Eigen::Vector2d(r * std::cos(phi), r * std::sin(phi));
     const Eigen::Vector2d d = frame_ * Eigen::Vector2d(-r * std::sin(phi), r * std::cos(phi));
     return {d.x(), d.y(), bm_gradient(xy.x(), xy.y()).dot(d)};
 }
@@ -551,8 +552,7 @@ struct TruthPass {
 std::vector<double> base_breaks(const OnhPhantomGeometry& g) {
     std::vector<double> b = g.kinks();
     for (double s : g.rho_roots(1.0)) b.push_back(s);
-    for (double s :
-         find_roots([&g](double s) { return g.w(s); }, 0.0, g.s_max(), 40000)) {
+    for (double s : find_roots([&g](double s) { return g.w(s); }, 0.0, g.s_max(), 40000)) {
         b.push_back(s);
     }
     return b;
@@ -569,9 +569,8 @@ double volume_integral(const OnhPhantomGeometry& g,
     for (std::size_t i = 0; i + 1 < breaks.size(); ++i) {
         const double mid = 0.5 * (breaks[i] + breaks[i + 1]);
         if (!keep(g.rho(mid), g.w(mid))) continue;
-        gauss_legendre(breaks[i], breaks[i + 1], step, [&](double s, double wt) {
-            sum += wt * g.w(s) * g.rho(s) * g.drho(s);
-        });
+        gauss_legendre(breaks[i], breaks[i + 1], step,
+                       [&](double s, double wt) { sum += wt * g.w(s) * g.rho(s) * g.drho(s); });
     }
     return sum;
 }
@@ -622,7 +621,8 @@ std::pair<double, double> closest_point(const OnhPhantomGeometry& g,
     std::vector<std::pair<double, std::pair<int, int>>> minima;
     for (int i = 0; i <= ns; ++i) {
         for (int j = 0; j <= np; ++j) {
-            const double v = grid[static_cast<std::size_t>(i) * stride + static_cast<std::size_t>(j)];
+            const double v =
+                grid[static_cast<std::size_t>(i) * stride + static_cast<std::size_t>(j)];
             bool is_min = true;
             for (int di = -1; di <= 1 && is_min; ++di) {
                 for (int dj = -1; dj <= 1; ++dj) {
@@ -713,9 +713,8 @@ TruthPass truth_pass(const OnhPhantomGeometry& g,
         const auto br = breaks_in(b, 0.0, std::min(rd, g.s_max()));
         tv += volume_integral(g, br, o.s_step,
                               [rd](double r, double w) { return r < rd && w >= 0.0; });
-        av += volume_integral(g, br, o.s_step, [rd](double r, double w) {
-            return r >= 1.0 && r < rd && w >= 0.0;
-        });
+        av += volume_integral(g, br, o.s_step,
+                              [rd](double r, double w) { return r >= 1.0 && r < rd && w >= 0.0; });
     }
     t.tv = ab * tv * 2.0 * kPi / o.phi_steps;
     t.av = ab * av * 2.0 * kPi / o.phi_steps;
@@ -756,8 +755,8 @@ TruthPass truth_pass(const OnhPhantomGeometry& g,
         const Eigen::Vector2d d = frame * Eigen::Vector2d(std::cos(tt), std::sin(tt));
         const Eigen::Vector2d xy = g.bmo_centre() + d;
         const Eigen::Vector3d p(xy.x(), xy.y(), g.bm_height(xy.x(), xy.y()));
-        const auto [s, phi] = closest_point(g, p, tt, upper, o.mrw_search_step,
-                                            params.profile.undercut);
+        const auto [s, phi] =
+            closest_point(g, p, tt, upper, o.mrw_search_step, params.profile.undercut);
         const Eigen::Vector3d q = g.surface(s, phi);
         const double m = (q - p).norm();
         const double speed = (frame * Eigen::Vector2d(-std::sin(tt), std::cos(tt))).norm();
@@ -785,9 +784,9 @@ TruthPass truth_pass(const OnhPhantomGeometry& g,
     for (int i = 0; i < n; ++i) {
         const auto a = static_cast<std::size_t>(i);
         const auto b = static_cast<std::size_t>((i + 1) % n);
-        t.mrw_area += 0.5 * (t.mrw_points[b] - t.bmo_points[a])
-                                .cross(t.mrw_points[a] - t.bmo_points[b])
-                                .norm();
+        t.mrw_area +=
+            0.5 *
+            (t.mrw_points[b] - t.bmo_points[a]).cross(t.mrw_points[a] - t.bmo_points[b]).norm();
     }
     return t;
 }
@@ -852,27 +851,29 @@ OnhTruth compute_onh_truth(const OnhPhantomParams& params, const OnhTruthOptions
     t.mrw_mm = fine.mrw;
     t.bmo_anatomical_deg = fine.anatomical;
 
-    const std::string gl = "composite 8-point Gauss-Legendre in s between the break points "
-                           "(profile kinks, rho(s) = 1, rho(s) = disc radius, w(s) = 0)";
-    const std::string vol = "integral of h dA with signed projected area dA = a b rho rho'(s) "
-                            "ds dphi (Eq. 8.8-8.9); ";
+    const std::string gl =
+        "composite 8-point Gauss-Legendre in s between the break points "
+        "(profile kinks, rho(s) = 1, rho(s) = disc radius, w(s) = 0)";
+    const std::string vol =
+        "integral of h dA with signed projected area dA = a b rho rho'(s) "
+        "ds dphi (Eq. 8.8-8.9); ";
     t.accuracy.push_back(accuracy("cup_volume_mm3", vol + "h < 0 anywhere; phi exact (2 pi); " + gl,
                                   fine.cup, coarse.cup));
-    t.accuracy.push_back(accuracy("bmo_volume_mm3",
-                                  vol + "rho < 1, h >= 0; phi exact (2 pi); " + gl, fine.bmo,
-                                  coarse.bmo));
+    t.accuracy.push_back(accuracy(
+        "bmo_volume_mm3", vol + "rho < 1, h >= 0; phi exact (2 pi); " + gl, fine.bmo, coarse.bmo));
     t.accuracy.push_back(accuracy("total_volume_mm3",
                                   vol + "inside the 1.5 mm disc, h >= 0; trapezoid in phi; " + gl,
                                   fine.tv, coarse.tv));
-    t.accuracy.push_back(accuracy(
-        "annular_volume_mm3",
-        vol + "inside the 1.5 mm disc, rho >= 1, h >= 0; trapezoid in phi; " + gl, fine.av,
-        coarse.av));
-    t.accuracy.push_back(accuracy(
-        "bending_energy",
-        "1 - largest eigenvalue of (1/A) integral n n^T dA over the ILM with rho(s) < 1, "
-        "dA = |X_s x X_phi| ds dphi; trapezoid in phi, " + gl,
-        fine.bending, coarse.bending));
+    t.accuracy.push_back(
+        accuracy("annular_volume_mm3",
+                 vol + "inside the 1.5 mm disc, rho >= 1, h >= 0; trapezoid in phi; " + gl, fine.av,
+                 coarse.av));
+    t.accuracy.push_back(
+        accuracy("bending_energy",
+                 "1 - largest eigenvalue of (1/A) integral n n^T dA over the ILM with rho(s) < 1, "
+                 "dA = |X_s x X_phi| ds dphi; trapezoid in phi, " +
+                     gl,
+                 fine.bending, coarse.bending));
     t.accuracy.push_back(accuracy(
         "mrw_mean_mm",
         "closest point on the true ILM: coarse (s, phi) grid over the window that can beat the "
@@ -884,9 +885,9 @@ OnhTruth compute_onh_truth(const OnhPhantomParams& params, const OnhTruthOptions
     for (std::size_t i = 0; i < fine.mrw.size(); ++i) {
         max_point = std::max(max_point, std::fabs(fine.mrw[i] - coarse.mrw[i]));
     }
-    TruthAccuracy per_point = accuracy("mrw_mm (largest per-point change)",
-                                       "as mrw_mean_mm, each BMO point", fine.mrw_max,
-                                       coarse.mrw_max);
+    TruthAccuracy per_point =
+        accuracy("mrw_mm (largest per-point change)", "as mrw_mean_mm, each BMO point",
+                 fine.mrw_max, coarse.mrw_max);
     per_point.abs_change = max_point;
     t.accuracy.push_back(per_point);
     t.accuracy.push_back(accuracy("mrw_area_mm2",
@@ -895,8 +896,8 @@ OnhTruth compute_onh_truth(const OnhPhantomParams& params, const OnhTruthOptions
                                   fine.mrw_area, coarse.mrw_area));
     t.accuracy.push_back(accuracy("conht_mm", "closed form: w at the top crossing of rho = 0",
                                   t.conht_mm, t.conht_mm));
-    t.accuracy.push_back(accuracy("bmo_area_mm2", "closed form pi a b (Eq. 8.24)",
-                                  t.bmo_area_mm2, t.bmo_area_mm2));
+    t.accuracy.push_back(
+        accuracy("bmo_area_mm2", "closed form pi a b (Eq. 8.24)", t.bmo_area_mm2, t.bmo_area_mm2));
     t.seconds = std::chrono::duration<double>(Clock::now() - start).count();
     return t;
 }
@@ -922,10 +923,10 @@ double neural_reflectance(double e_mm, double below_bm_mm) {
 }
 
 struct Column {
-    double r = 0.0;                // normalised radius
-    double dist_bmo_mm = 0.0;      // distance outside the BMO along the ray (0 inside)
-    double bm_z = 0.0;             // BM height
-    std::vector<double> ilm_z;     // ILM crossings, descending (absolute heights)
+    double r = 0.0;             // normalised radius
+    double dist_bmo_mm = 0.0;   // distance outside the BMO along the ray (0 inside)
+    double bm_z = 0.0;          // BM height
+    std::vector<double> ilm_z;  // ILM crossings, descending (absolute heights)
 };
 
 Column column_at(const OnhPhantomGeometry& g, double x, double y) {
@@ -964,8 +965,8 @@ void general_column(const Column& c, double scale_z, std::span<float> out) {
     std::vector<std::pair<double, double>> tissue;
     for (std::size_t k = 0; k < c.ilm_z.size(); k += 2) {
         const double hi = c.ilm_z[k];
-        const double lo = k + 1 < c.ilm_z.size() ? c.ilm_z[k + 1]
-                                                  : -std::numeric_limits<double>::infinity();
+        const double lo =
+            k + 1 < c.ilm_z.size() ? c.ilm_z[k + 1] : -std::numeric_limits<double>::infinity();
         tissue.emplace_back(lo, hi);
     }
     for (std::size_t p = 0; p < out.size(); ++p) {
@@ -1067,11 +1068,9 @@ double slo_brightness(const OnhPhantomGeometry& g,
         }
         for (std::size_t i = 0; i + 1 < vs.line.size(); ++i) {
             const Eigen::Vector2d ab = vs.line[i + 1] - vs.line[i];
-            const double t =
-                std::clamp((grid - vs.line[i]).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+            const double t = std::clamp((grid - vs.line[i]).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
             const double d = (grid - (vs.line[i] + t * ab)).norm();
-            darkest = std::max(darkest,
-                               std::exp(-d * d / (2.0 * kVesselSigmaMm * kVesselSigmaMm)));
+            darkest = std::max(darkest, std::exp(-d * d / (2.0 * kVesselSigmaMm * kVesselSigmaMm)));
         }
     }
     return v * (1.0 - 0.45 * darkest);
@@ -1151,8 +1150,7 @@ io::Scan render_onh_scan(const OnhPhantomParams& params) {
     return scan;
 }
 
-OnhPhantom make_onh_phantom(const OnhPhantomParams& params,
-                            const OnhTruthOptions& truth_options) {
+OnhPhantom make_onh_phantom(const OnhPhantomParams& params, const OnhTruthOptions& truth_options) {
     OnhPhantom p;
     p.scan = render_onh_scan(params);
     p.truth = compute_onh_truth(params, truth_options);
@@ -1169,63 +1167,68 @@ nlohmann::json onh_truth_to_json(const OnhPhantomParams& params,
     j["generator"] = "octshape phantom onh";
     j["octshape_version"] = kVersion;
     j["conventions"] = {
-        {"frame", "grid mm: x = A-scan index * ScaleX, y = B-scan index * Distance "
-                  "(B-scan 0 most inferior), height z = -depth (pixel row * ScaleZ)"},
+        {"frame",
+         "grid mm: x = A-scan index * ScaleX, y = B-scan index * Distance "
+         "(B-scan 0 most inferior), height z = -depth (pixel row * ScaleZ)"},
         {"angles", "anatomical: 0 deg = nasal, 90 deg = superior, for both eyes"},
-        {"volumes", "integral of h = ILM - RPE height with signed projected area (Eq. 8.8-8.9); "
-                    "cup: h < 0 (reported positive); bmo: inside the BMO ellipse, h >= 0; total: "
-                    "inside the 1.5 mm disc around the BMO centre, h >= 0; annular: inside the "
-                    "disc and outside the ellipse, h >= 0"},
-        {"conht", "height of the first ILM crossing from the top of the vertical line through "
-                  "the BMO centre minus the RPE height there"},
-        {"rpe", "the quadratic BM surface, also inside the opening (what a biharmonic fill "
-                "reproduces exactly)"},
-        {"mrw", "distance from each BMO point (ellipse point, z = BM height) to the closest "
-                "point on the true ILM surface; points uniform in the ellipse parameter angle"},
-        {"mrw_sectors", "12 clock-hour sectors centred on anatomical 0, 30, ..., 330 deg; sector "
-                        "k holds the BMO points with angle in [30k - 15, 30k + 15)"},
-        {"bending_energy", "lambda2 + lambda3 (= 1 - lambda1) of the area-weighted normal "
-                           "tensor of the whole ILM region inside the BMO (cup included)"}};
-    j["options"] = {
-        {"shape", to_string(params.shape)},
-        {"eye", std::string(io::to_string(params.eye))},
-        {"seed", params.seed},
-        {"bscans", params.num_bscans},
-        {"ascans", params.num_ascans},
-        {"depth_px", params.depth_px},
-        {"field_mm", params.field_mm},
-        {"scale_x_mm", g.scale_x_mm()},
-        {"distance_mm", g.distance_mm()},
-        {"scale_z_mm", params.scale_z_mm},
-        {"bm_centre_depth_fraction", params.bm_centre_depth_fraction},
-        {"bmo_offset_mm", {params.bmo_offset_x_mm, params.bmo_offset_y_mm}},
-        {"bmo_semi_axes_mm", {params.bmo_semi_major_mm, params.bmo_semi_minor_mm}},
-        {"bmo_rotation_deg", params.bmo_rotation_deg},
-        {"eye_radius_mm", params.eye_radius_mm},
-        {"tilt", {params.tilt_x, params.tilt_y}},
-        {"speckle_looks", params.speckle_looks},
-        {"profile",
-         {{"retina_thickness_mm", pr.retina_thickness_mm},
-          {"rim_height_mm", pr.rim_height_mm},
-          {"rim_radius", pr.rim_radius},
-          {"swelling_mm", pr.swelling_mm},
-          {"swelling_width", pr.swelling_width},
-          {"cup_depth_mm", pr.cup_depth_mm},
-          {"cup_radius", pr.cup_radius},
-          {"cup_exponent", pr.cup_exponent},
-          {"cup_profile", to_string(pr.cup_profile)},
-          {"undercut", pr.undercut},
-          {"undercut_height_mm", pr.undercut_height_mm},
-          {"undercut_halfwidth_mm", pr.undercut_halfwidth_mm}}}};
+        {"volumes",
+         "integral of h = ILM - RPE height with signed projected area (Eq. 8.8-8.9); "
+         "cup: h < 0 (reported positive); bmo: inside the BMO ellipse, h >= 0; total: "
+         "inside the 1.5 mm disc around the BMO centre, h >= 0; annular: inside the "
+         "disc and outside the ellipse, h >= 0"},
+        {"conht",
+         "height of the first ILM crossing from the top of the vertical line through "
+         "the BMO centre minus the RPE height there"},
+        {"rpe",
+         "the quadratic BM surface, also inside the opening (what a biharmonic fill "
+         "reproduces exactly)"},
+        {"mrw",
+         "distance from each BMO point (ellipse point, z = BM height) to the closest "
+         "point on the true ILM surface; points uniform in the ellipse parameter angle"},
+        {"mrw_sectors",
+         "12 clock-hour sectors centred on anatomical 0, 30, ..., 330 deg; sector "
+         "k holds the BMO points with angle in [30k - 15, 30k + 15)"},
+        {"bending_energy",
+         "lambda2 + lambda3 (= 1 - lambda1) of the area-weighted normal "
+         "tensor of the whole ILM region inside the BMO (cup included)"}};
+    j["options"] = {{"shape", to_string(params.shape)},
+                    {"eye", std::string(io::to_string(params.eye))},
+                    {"seed", params.seed},
+                    {"bscans", params.num_bscans},
+                    {"ascans", params.num_ascans},
+                    {"depth_px", params.depth_px},
+                    {"field_mm", params.field_mm},
+                    {"scale_x_mm", g.scale_x_mm()},
+                    {"distance_mm", g.distance_mm()},
+                    {"scale_z_mm", params.scale_z_mm},
+                    {"bm_centre_depth_fraction", params.bm_centre_depth_fraction},
+                    {"bmo_offset_mm", {params.bmo_offset_x_mm, params.bmo_offset_y_mm}},
+                    {"bmo_semi_axes_mm", {params.bmo_semi_major_mm, params.bmo_semi_minor_mm}},
+                    {"bmo_rotation_deg", params.bmo_rotation_deg},
+                    {"eye_radius_mm", params.eye_radius_mm},
+                    {"tilt", {params.tilt_x, params.tilt_y}},
+                    {"speckle_looks", params.speckle_looks},
+                    {"profile",
+                     {{"retina_thickness_mm", pr.retina_thickness_mm},
+                      {"rim_height_mm", pr.rim_height_mm},
+                      {"rim_radius", pr.rim_radius},
+                      {"swelling_mm", pr.swelling_mm},
+                      {"swelling_width", pr.swelling_width},
+                      {"cup_depth_mm", pr.cup_depth_mm},
+                      {"cup_radius", pr.cup_radius},
+                      {"cup_exponent", pr.cup_exponent},
+                      {"cup_profile", to_string(pr.cup_profile)},
+                      {"undercut", pr.undercut},
+                      {"undercut_height_mm", pr.undercut_height_mm},
+                      {"undercut_halfwidth_mm", pr.undercut_halfwidth_mm}}}};
     j["truth_options"] = {{"s_step", options.s_step},
                           {"phi_steps", options.phi_steps},
                           {"mrw_points", options.mrw_points},
                           {"mrw_search_step", options.mrw_search_step}};
     json sectors = json::object();
     for (std::size_t k = 0; k < 12; ++k) {
-        sectors[std::to_string(30 * k)] = truth.mrw_sector_points[k] > 0
-                                              ? json(truth.mrw_sector_mm[k])
-                                              : json(nullptr);
+        sectors[std::to_string(30 * k)] =
+            truth.mrw_sector_points[k] > 0 ? json(truth.mrw_sector_mm[k]) : json(nullptr);
     }
     j["truth"] = {{"has_cup", truth.has_cup},
                   {"cup_volume_mm3", truth.cup_volume_mm3},
@@ -1265,7 +1268,6 @@ nlohmann::json onh_truth_to_json(const OnhPhantomParams& params,
     }
     j["bmo_points"] = points;
     return j;  // no timings: the same options give the same file
-
 }
 
 }  // namespace octshape::retina

@@ -116,9 +116,8 @@ TEST(OnhTruth, FlatTiltedPlaneMrwAreaAndBendingEnergy) {
         const double s = 2.0 * kPi * i / 24;
         const double u = p.bmo_semi_major_mm * std::cos(s);
         const double v = p.bmo_semi_minor_mm * std::sin(s);
-        const Eigen::Vector2d xy =
-            c + Eigen::Vector2d(std::cos(th) * u - std::sin(th) * v,
-                                std::sin(th) * u + std::cos(th) * v);
+        const Eigen::Vector2d xy = c + Eigen::Vector2d(std::cos(th) * u - std::sin(th) * v,
+                                                       std::sin(th) * u + std::cos(th) * v);
         pts.emplace_back(xy.x(), xy.y(), 0.05 * (xy.x() - c.x()) - 0.03 * (xy.y() - c.y()));
     }
     for (int i = 0; i < 24; ++i) {
@@ -555,8 +554,8 @@ TEST(OnhScan, TissueBelowTheTrueIlmIsBrighterThanTheVitreousAbove) {
             const auto h = g.ilm_heights(a * sx, b * dy);
             auto value = [&](double depth_px) {
                 const auto row = static_cast<std::size_t>(std::lround(depth_px));
-                return display(px[row * static_cast<std::size_t>(p.num_ascans) +
-                                  static_cast<std::size_t>(a)]);
+                return display(
+                    px[row * static_cast<std::size_t>(p.num_ascans) + static_cast<std::size_t>(a)]);
             };
             const double top = -h.front() / p.scale_z_mm;
             for (int k = 2; k <= 4; ++k) {

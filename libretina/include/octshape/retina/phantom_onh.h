@@ -49,8 +49,8 @@ struct OnhProfileParams {
     double cup_radius = 0.95;           // rho_c: cup term is zero for s >= rho_c (BMO radii)
     int cup_exponent = 4;               // k (even >= 2): larger = flatter floor, steeper wall
     CupProfile cup_profile = CupProfile::kBowl;
-    double undercut = 0.0;              // B: outward push of the wall (BMO radii); 0 = none
-    double undercut_height_mm = 0.05;   // centre of the pushed height band (above the BM)
+    double undercut = 0.0;                // B: outward push of the wall (BMO radii); 0 = none
+    double undercut_height_mm = 0.05;     // centre of the pushed height band (above the BM)
     double undercut_halfwidth_mm = 0.20;  // half-width of that band
 
     // Throws UsageError naming the bad field.
@@ -62,15 +62,15 @@ struct OnhPhantomParams {
     OnhShape shape = OnhShape::kCupped;
     io::Laterality eye = io::Laterality::kOD;
     std::uint64_t seed = 1;
-    int num_bscans = 145;   // B-scans (first one most inferior)
-    int num_ascans = 384;   // A-scans per B-scan
-    int depth_px = 496;     // pixels per A-scan
-    double field_mm = 4.35;           // scanned square: ScaleX = field / A-scans,
-                                      // Distance = field / (B-scans - 1)
-    double scale_z_mm = 0.0038717;    // ScaleZ of every real Spectralis file
+    int num_bscans = 145;                    // B-scans (first one most inferior)
+    int num_ascans = 384;                    // A-scans per B-scan
+    int depth_px = 496;                      // pixels per A-scan
+    double field_mm = 4.35;                  // scanned square: ScaleX = field / A-scans,
+                                             // Distance = field / (B-scans - 1)
+    double scale_z_mm = 0.0038717;           // ScaleZ of every real Spectralis file
     double bm_centre_depth_fraction = 0.62;  // depth of the BM at the BMO centre / image depth
     // BMO ellipse (grid frame).
-    double bmo_offset_x_mm = 0.06;    // BMO centre minus the field centre
+    double bmo_offset_x_mm = 0.06;  // BMO centre minus the field centre
     double bmo_offset_y_mm = -0.04;
     double bmo_semi_major_mm = 0.92;  // a (BMO area pi a b = 2.20 mm^2 by default)
     double bmo_semi_minor_mm = 0.76;  // b <= a
@@ -81,7 +81,7 @@ struct OnhPhantomParams {
     double tilt_y = -0.02;        // dz/dy
     OnhProfileParams profile;     // ILM meridian profile (see onh_profile_preset)
     // Pixels.
-    int speckle_looks = 4;        // multiplicative speckle ~ Gamma(L, 1/L) (mean 1)
+    int speckle_looks = 4;  // multiplicative speckle ~ Gamma(L, 1/L) (mean 1)
 
     // Throws UsageError naming the bad field (geometry that does not fit the image is
     // reported by make_onh_phantom, which knows every column).
@@ -98,7 +98,7 @@ struct OnhPhantomParams {
 // The generating geometry, evaluated exactly (no sampling). Everything the truth, the pixels
 // and the device lines use comes from here.
 class OnhPhantomGeometry {
-public:
+  public:
     explicit OnhPhantomGeometry(const OnhPhantomParams& params);
 
     // Grid and scales.
@@ -140,7 +140,7 @@ public:
     // Heights (mm, absolute z) where the vertical line at (x, y) meets the ILM, descending.
     [[nodiscard]] std::vector<double> ilm_heights(double x, double y) const;
 
-private:
+  private:
     OnhProfileParams profile_;
     double scale_x_mm_ = 0.0;
     double distance_mm_ = 0.0;
@@ -160,9 +160,9 @@ private:
 // How finely the truth is computed; every value is computed twice, the second time with all
 // steps halved, and the change is reported as its accuracy.
 struct OnhTruthOptions {
-    double s_step = 0.01;          // sub-interval of the 8-point Gauss-Legendre rule in s
-    int phi_steps = 720;           // trapezoid nodes in phi (periodic: spectral accuracy)
-    int mrw_points = 360;          // BMO points, uniform in the ellipse parameter angle
+    double s_step = 0.01;            // sub-interval of the 8-point Gauss-Legendre rule in s
+    int phi_steps = 720;             // trapezoid nodes in phi (periodic: spectral accuracy)
+    int mrw_points = 360;            // BMO points, uniform in the ellipse parameter angle
     double mrw_search_step = 0.008;  // coarse closest-point grid (BMO radii and radians)
 
     void validate() const;
@@ -172,24 +172,24 @@ struct OnhTruthOptions {
 struct TruthAccuracy {
     std::string name;
     std::string method;
-    double value = 0.0;          // with halved steps (the reported value)
-    double value_coarse = 0.0;   // with the options' steps
-    double abs_change = 0.0;     // |value - value_coarse|: bounds the quadrature error
+    double value = 0.0;         // with halved steps (the reported value)
+    double value_coarse = 0.0;  // with the options' steps
+    double abs_change = 0.0;    // |value - value_coarse|: bounds the quadrature error
 };
 
 struct OnhTruth {
     bool has_cup = false;
-    double cup_volume_mm3 = 0.0;       // positive
-    double conht_mm = 0.0;             // top ILM crossing minus RPE at the BMO centre
-    double bmo_volume_mm3 = 0.0;       // inside the BMO, h >= 0
-    double total_volume_mm3 = 0.0;     // 1.5 mm disc around the BMO centre, h >= 0
-    double annular_volume_mm3 = 0.0;   // 1.5 mm disc outside the BMO, h >= 0
-    double bmo_area_mm2 = 0.0;         // pi a b
+    double cup_volume_mm3 = 0.0;      // positive
+    double conht_mm = 0.0;            // top ILM crossing minus RPE at the BMO centre
+    double bmo_volume_mm3 = 0.0;      // inside the BMO, h >= 0
+    double total_volume_mm3 = 0.0;    // 1.5 mm disc around the BMO centre, h >= 0
+    double annular_volume_mm3 = 0.0;  // 1.5 mm disc outside the BMO, h >= 0
+    double bmo_area_mm2 = 0.0;        // pi a b
     std::array<double, 2> bmo_semi_axes_mm{};
-    double bmo_orientation_deg = 0.0;            // major axis from grid +x, [0, 180)
-    double bmo_orientation_anatomical_deg = 0.0; // major axis from nasal towards superior
-    std::array<double, 2> bmo_centre_mm{};       // grid frame
-    double rpe_centre_height_mm = 0.0;           // z of the RPE at the BMO centre
+    double bmo_orientation_deg = 0.0;             // major axis from grid +x, [0, 180)
+    double bmo_orientation_anatomical_deg = 0.0;  // major axis from nasal towards superior
+    std::array<double, 2> bmo_centre_mm{};        // grid frame
+    double rpe_centre_height_mm = 0.0;            // z of the RPE at the BMO centre
     double mrw_mean_mm = 0.0;            // mean over the BMO points (uniform parameter angle)
     double mrw_mean_arclength_mm = 0.0;  // the same weighted by ellipse arclength
     double mrw_min_mm = 0.0;
@@ -198,8 +198,8 @@ struct OnhTruth {
     // 90 = superior); sector k holds the BMO points with angle in [30k - 15, 30k + 15).
     std::array<double, 12> mrw_sector_mm{};
     std::array<int, 12> mrw_sector_points{};
-    double mrw_area_mm2 = 0.0;      // Eq. 8.23
-    double bending_energy = 0.0;    // lambda2 + lambda3 of the BMO-region normal tensor
+    double mrw_area_mm2 = 0.0;    // Eq. 8.23
+    double bending_energy = 0.0;  // lambda2 + lambda3 of the BMO-region normal tensor
     std::vector<Eigen::Vector3d> bmo_points_mm;  // the ellipse points (z = BM height)
     std::vector<Eigen::Vector3d> mrw_points_mm;  // their closest points on the ILM
     std::vector<double> mrw_mm;                  // per point
