@@ -13,5 +13,8 @@ struct RunContext {
 };
 
 void add_info_command(CLI::App& app, RunContext& ctx);
+void add_denoise_command(CLI::App& app, RunContext& ctx);
+void add_metrics_command(CLI::App& app, RunContext& ctx);
+void add_features_command(CLI::App& app, RunContext& ctx);
 
 }  // namespace octshape::app
