@@ -6,6 +6,16 @@ if(OCTSHAPE_SANITIZE)
   target_compile_options(octshape_sanitizers INTERFACE ${_san})
   target_link_options(octshape_sanitizers INTERFACE ${_san})
 endif()
+# libFuzzer preset (clang only): every first-party target gets ASan + UBSan and the fuzzer's
+# coverage instrumentation (fuzzer-no-link); the fuzz executables add -fsanitize=fuzzer.
+if(OCTSHAPE_FUZZ)
+  if(NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+    message(FATAL_ERROR "OCTSHAPE_FUZZ needs clang (libFuzzer): use the 'fuzz' preset")
+  endif()
+  set(_fuzz_san -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer)
+  target_compile_options(octshape_sanitizers INTERFACE ${_fuzz_san} -fsanitize=fuzzer-no-link)
+  target_link_options(octshape_sanitizers INTERFACE ${_fuzz_san})
+endif()
 
 # Every first-party target calls this once.
 function(octshape_target_defaults target)

@@ -11,3 +11,4 @@ for preset in release asan; do
   echo "== tests ($preset)"
   ctest --preset "$preset" -j "$jobs"
 done
+./scripts/fuzz.sh 60
