@@ -58,6 +58,9 @@ int main(int argc, char** argv) {
     app.parse_complete_callback([&] { configure_logging(quiet, verbose); });
 
     octshape::app::RunContext ctx;
+    octshape::app::add_denoise_command(app, ctx);
+    octshape::app::add_metrics_command(app, ctx);
+    octshape::app::add_features_command(app, ctx);
     octshape::app::add_info_command(app, ctx);
     auto* phantom = app.add_subcommand(
         "phantom", "Write a synthetic Spectralis export whose true shape parameters are known");

@@ -13,6 +13,9 @@ struct RunContext {
 };
 
 void add_info_command(CLI::App& app, RunContext& ctx);
+void add_denoise_command(CLI::App& app, RunContext& ctx);
+void add_metrics_command(CLI::App& app, RunContext& ctx);
+void add_features_command(CLI::App& app, RunContext& ctx);
 // `phantom macula` under the `phantom` parent.
 void add_phantom_macula_command(CLI::App& phantom, RunContext& ctx);
 // `phantom onh` under the `phantom` parent command.

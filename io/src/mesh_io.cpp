@@ -1,0 +1,461 @@
+#include "octshape/io/mesh_io.h"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <iomanip>
+#include <limits>
+#include <sstream>
+#include <string_view>
+#include <system_error>
+
+#include <vtkCellArray.h>
+#include <vtkCellData.h>
+#include <vtkCommand.h>
+#include <vtkDoubleArray.h>
+#include <vtkNew.h>
+#include <vtkOBJReader.h>
+#include <vtkOBJWriter.h>
+#include <vtkPLYReader.h>
+#include <vtkPoints.h>
+#include <vtkPolyData.h>
+#include <vtkSTLReader.h>
+#include <vtkSTLWriter.h>
+#include <vtkSmartPointer.h>
+#include <vtkXMLPolyDataReader.h>
+#include <vtkXMLPolyDataWriter.h>
+
+#include "octshape/io/error.h"
+
+namespace octshape::io {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Collects the first error or warning a VTK algorithm reports (instead of printing it).
+class VtkErrorCatcher : public vtkCommand {
+public:
+    static VtkErrorCatcher* New() { return new VtkErrorCatcher; }
+    void Execute(vtkObject* /*caller*/, unsigned long event, void* data) override {
+        if (event == vtkCommand::ErrorEvent && message_.empty()) {
+            message_ = data != nullptr ? static_cast<const char*>(data) : "unknown VTK error";
+            // VTK messages span lines and name source files: keep the first line only.
+            message_ = message_.substr(0, message_.find('\n'));
+        }
+    }
+    [[nodiscard]] const std::string& message() const { return message_; }
+
+private:
+    std::string message_;
+};
+
+std::string lower_extension(const fs::path& path) {
+    std::string ext = path.extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return ext;
+}
+
+void check_input_file(const fs::path& path) {
+    std::error_code ec;
+    const auto status = fs::status(path, ec);
+    if (!fs::exists(status)) throw InputError::missing(path.string());
+    if (!fs::is_regular_file(status)) throw InputError::not_regular(path.string());
+    std::ifstream probe(path, std::ios::binary);
+    if (!probe) throw InputError::unreadable(path.string(), std::strerror(errno));
+}
+
+MeshData from_polydata(vtkPolyData* poly, const std::string& name) {
+    MeshData out;
+    if (poly == nullptr) throw InputError::corrupt(name, "no surface could be read");
+    if (poly->GetNumberOfStrips() > 0) {
+        throw InputError::unsupported(name, "triangle strips");
+    }
+    const vtkIdType n = poly->GetNumberOfPoints();
+    out.V.resize(n, 3);
+    for (vtkIdType i = 0; i < n; ++i) {
+        std::array<double, 3> p{};
+        poly->GetPoint(i, p.data());
+        if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
+            throw InputError::corrupt(name, "vertex " + std::to_string(i) + " is not finite");
+        }
+        out.V.row(i) << p[0], p[1], p[2];
+    }
+    std::vector<std::array<int, 3>> triangles;
+    vtkCellArray* polys = poly->GetPolys();
+    if (polys != nullptr) {
+        triangles.reserve(static_cast<std::size_t>(polys->GetNumberOfCells()));
+        polys->InitTraversal();
+        vtkIdType npts = 0;
+        const vtkIdType* pts = nullptr;
+        vtkIdType cell = 0;
+        while (polys->GetNextCell(npts, pts) != 0) {
+            if (npts < 3) {
+                throw InputError::corrupt(name, "polygon " + std::to_string(cell) + " has " +
+                                                    std::to_string(npts) + " corners");
+            }
+            for (vtkIdType k = 0; k < npts; ++k) {
+                if (pts[k] < 0 || pts[k] >= n) {
+                    throw InputError::corrupt(name, "polygon " + std::to_string(cell) +
+                                                        " refers to a missing vertex");
+                }
+            }
+            for (vtkIdType k = 1; k + 1 < npts; ++k) {  // fan triangulation
+                triangles.push_back({static_cast<int>(pts[0]), static_cast<int>(pts[k]),
+                                     static_cast<int>(pts[k + 1])});
+            }
+            ++cell;
+        }
+    }
+    if (triangles.empty()) throw InputError::corrupt(name, "no triangle in the file");
+    out.F.resize(static_cast<Eigen::Index>(triangles.size()), 3);
+    for (std::size_t f = 0; f < triangles.size(); ++f) {
+        const auto& t = triangles[f];
+        out.F.row(static_cast<Eigen::Index>(f)) << t[0], t[1], t[2];
+    }
+    return out;
+}
+
+template <class Reader>
+MeshData read_with_vtk(const fs::path& path) {
+    vtkNew<Reader> reader;
+    vtkNew<VtkErrorCatcher> catcher;
+    reader->AddObserver(vtkCommand::ErrorEvent, catcher);
+    reader->AddObserver(vtkCommand::WarningEvent, catcher);
+    reader->SetFileName(path.string().c_str());
+    reader->Update();
+    if (!catcher->message().empty()) {
+        throw InputError::corrupt(path.string(), "VTK reader: " + catcher->message());
+    }
+    return from_polydata(reader->GetOutput(), path.string());
+}
+
+// ---------------------------------------------------------------- OFF, by hand
+
+class OffParser {
+public:
+    OffParser(std::string text, std::string name) : text_(std::move(text)), name_(std::move(name)) {}
+
+    std::string_view token() {
+        skip_space();
+        const std::size_t begin = pos_;
+        while (pos_ < text_.size() && !std::isspace(static_cast<unsigned char>(text_[pos_])) &&
+               text_[pos_] != '#') {
+            ++pos_;
+        }
+        if (begin == pos_) throw InputError::truncated(name_, "expected a value", pos_);
+        return std::string_view(text_).substr(begin, pos_ - begin);
+    }
+    template <class T>
+    T number(const char* what) {
+        const std::size_t at = (skip_space(), pos_);
+        const std::string_view t = token();
+        T value{};
+        const auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), value);
+        if (ec != std::errc() || ptr != t.data() + t.size()) {
+            throw InputError::corrupt(name_, std::string("bad ") + what + " '" +
+                                                 std::string(t.substr(0, 32)) + "'", at);
+        }
+        return value;
+    }
+    // Skips the rest of the current line (face colours and the like).
+    void skip_line() {
+        while (pos_ < text_.size() && text_[pos_] != '\n') ++pos_;
+    }
+    [[nodiscard]] std::size_t pos() const { return pos_; }
+    [[nodiscard]] std::size_t remaining() const { return text_.size() - pos_; }
+
+private:
+    void skip_space() {
+        while (pos_ < text_.size()) {
+            if (text_[pos_] == '#') {
+                skip_line();
+            } else if (std::isspace(static_cast<unsigned char>(text_[pos_]))) {
+                ++pos_;
+            } else {
+                break;
+            }
+        }
+    }
+    std::string text_;
+    std::string name_;
+    std::size_t pos_ = 0;
+};
+
+// ---------------------------------------------------------------- writing helpers
+
+vtkSmartPointer<vtkPolyData> to_polydata(const mesh::Vertices& V,
+                                         const mesh::Faces& F,
+                                         const FaceScalars& scalars) {
+    vtkNew<vtkPoints> points;
+    points->SetDataTypeToDouble();
+    points->SetNumberOfPoints(V.rows());
+    for (Eigen::Index i = 0; i < V.rows(); ++i) points->SetPoint(i, V(i, 0), V(i, 1), V(i, 2));
+    vtkNew<vtkCellArray> polys;
+    polys->AllocateExact(F.rows(), F.rows() * 3);
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+        const std::array<vtkIdType, 3> ids{F(f, 0), F(f, 1), F(f, 2)};
+        polys->InsertNextCell(3, ids.data());
+    }
+    auto poly = vtkSmartPointer<vtkPolyData>::New();
+    poly->SetPoints(points);
+    poly->SetPolys(polys);
+    for (const auto& [name, values] : scalars) {
+        vtkNew<vtkDoubleArray> array;
+        array->SetName(name.c_str());
+        array->SetNumberOfValues(values.size());
+        for (Eigen::Index f = 0; f < values.size(); ++f) array->SetValue(f, values(f));
+        poly->GetCellData()->AddArray(array);
+    }
+    return poly;
+}
+
+template <class T>
+void put_le(std::ostream& out, T value) {
+    std::array<char, sizeof(T)> bytes{};
+    std::memcpy(bytes.data(), &value, sizeof(T));
+    if constexpr (std::endian::native == std::endian::big) std::reverse(bytes.begin(), bytes.end());
+    out.write(bytes.data(), sizeof(T));
+}
+
+void write_ply(std::ostream& out,
+               const mesh::Vertices& V,
+               const mesh::Faces& F,
+               const FaceScalars& scalars) {
+    out << "ply\nformat binary_little_endian 1.0\ncomment written by octshape\n"
+        << "element vertex " << V.rows() << "\nproperty double x\nproperty double y\n"
+        << "property double z\nelement face " << F.rows()
+        << "\nproperty list uchar int vertex_indices\n";
+    for (const auto& s : scalars) out << "property double " << s.first << '\n';
+    out << "end_header\n";
+    for (Eigen::Index i = 0; i < V.rows(); ++i) {
+        for (int k = 0; k < 3; ++k) put_le<double>(out, V(i, k));
+    }
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+        put_le<std::uint8_t>(out, 3);
+        for (int k = 0; k < 3; ++k) put_le<std::int32_t>(out, F(f, k));
+        for (const auto& s : scalars) put_le<double>(out, s.second(f));
+    }
+}
+
+template <class Writer>
+void write_with_vtk(const fs::path& tmp,
+                    const fs::path& path,
+                    vtkPolyData* poly,
+                    Writer* writer) {
+    vtkNew<VtkErrorCatcher> catcher;
+    writer->AddObserver(vtkCommand::ErrorEvent, catcher);
+    writer->SetFileName(tmp.string().c_str());
+    writer->SetInputData(poly);
+    if (writer->Write() != 1 || !catcher->message().empty()) {
+        throw OutputError(path.string(), "VTK writer: " + catcher->message());
+    }
+}
+
+}  // namespace
+
+MeshFormat mesh_format_from_extension(const fs::path& path) {
+    const std::string ext = lower_extension(path);
+    if (ext == ".ply") return MeshFormat::kPly;
+    if (ext == ".obj") return MeshFormat::kObj;
+    if (ext == ".off") return MeshFormat::kOff;
+    if (ext == ".stl") return MeshFormat::kStl;
+    if (ext == ".vtp") return MeshFormat::kVtp;
+    throw UsageError(path.string() +
+                     ": unknown mesh file extension (use .ply, .obj, .off, .stl or .vtp)");
+}
+
+MeshData read_off(std::istream& in, const std::string& name) {
+    std::ostringstream buffer;
+    buffer << in.rdbuf();
+    OffParser p(buffer.str(), name);
+    const std::string_view magic = p.token();
+    if (magic != "OFF") throw InputError::corrupt(name, "does not start with 'OFF'", 0);
+    const std::size_t counts_at = p.pos();
+    const auto nv = p.number<long long>("vertex count");
+    const auto nf = p.number<long long>("face count");
+    (void)p.number<long long>("edge count");
+    // Each vertex takes at least 6 bytes ("0 0 0\n"), each face at least 8 ("3 0 1 2\n"):
+    // reject counts the file cannot hold before allocating for them.
+    if (nv < 0 || nf < 0 || nv > static_cast<long long>(p.remaining()) / 6 ||
+        nf > static_cast<long long>(p.remaining()) / 8 ||
+        nv * 6 + nf * 8 > static_cast<long long>(p.remaining()) + 1) {
+        throw InputError::corrupt(name, "vertex/face counts " + std::to_string(nv) + "/" +
+                                            std::to_string(nf) + " do not fit the file size",
+                                  counts_at);
+    }
+    if (nv > std::numeric_limits<int>::max()) {
+        throw InputError::unsupported(name, "more than 2^31 vertices", counts_at);
+    }
+    MeshData out;
+    out.V.resize(nv, 3);
+    for (long long i = 0; i < nv; ++i) {
+        for (int k = 0; k < 3; ++k) {
+            const std::size_t at = p.pos();
+            const auto x = p.number<double>("coordinate");
+            if (!std::isfinite(x)) throw InputError::corrupt(name, "coordinate not finite", at);
+            out.V(i, k) = x;
+        }
+        p.skip_line();
+    }
+    std::vector<std::array<int, 3>> triangles;
+    triangles.reserve(static_cast<std::size_t>(nf));
+    for (long long f = 0; f < nf; ++f) {
+        const std::size_t at = p.pos();
+        const auto k = p.number<long long>("polygon size");
+        if (k < 3 || k > nv) {
+            throw InputError::corrupt(name, "polygon " + std::to_string(f) + " has " +
+                                                std::to_string(k) + " corners", at);
+        }
+        std::vector<int> ids(static_cast<std::size_t>(k));
+        for (auto& id : ids) {
+            const std::size_t id_at = p.pos();
+            const auto v = p.number<long long>("vertex index");
+            if (v < 0 || v >= nv) {
+                throw InputError::corrupt(name, "polygon " + std::to_string(f) +
+                                                    " refers to vertex " + std::to_string(v),
+                                          id_at);
+            }
+            id = static_cast<int>(v);
+        }
+        for (std::size_t j = 1; j + 1 < ids.size(); ++j) triangles.push_back({ids[0], ids[j], ids[j + 1]});
+        p.skip_line();
+    }
+    if (triangles.empty()) throw InputError::corrupt(name, "no triangle in the file");
+    out.F.resize(static_cast<Eigen::Index>(triangles.size()), 3);
+    for (std::size_t f = 0; f < triangles.size(); ++f) {
+        out.F.row(static_cast<Eigen::Index>(f)) << triangles[f][0], triangles[f][1],
+            triangles[f][2];
+    }
+    return out;
+}
+
+MeshData read_mesh(const fs::path& path) {
+    check_input_file(path);
+    const std::string name = path.string();
+    std::error_code ec;
+    const auto size = fs::file_size(path, ec);
+    if (ec) throw InputError::unreadable(name, ec.message());
+    if (size == 0) throw InputError::corrupt(name, "empty file");
+    std::array<char, 84> head{};
+    {
+        std::ifstream in(path, std::ios::binary);
+        in.read(head.data(), head.size());
+    }
+    const std::string_view h(head.data(), static_cast<std::size_t>(std::min<std::uintmax_t>(size, head.size())));
+    std::uint32_t stl_count = 0;
+    std::memcpy(&stl_count, head.data() + 80, sizeof stl_count);
+    if constexpr (std::endian::native == std::endian::big) {
+        stl_count = ((stl_count & 0xffu) << 24) | ((stl_count & 0xff00u) << 8) |
+                    ((stl_count >> 8) & 0xff00u) | (stl_count >> 24);
+    }
+    const bool binary_stl = size >= 84 && size == 84 + 50ull * stl_count;
+
+    MeshFormat format;
+    if (h.starts_with("ply")) {
+        format = MeshFormat::kPly;
+    } else if (h.starts_with("OFF")) {
+        format = MeshFormat::kOff;
+    } else if (h.starts_with("<?xml") || h.starts_with("<VTKFile")) {
+        format = MeshFormat::kVtp;
+    } else if (binary_stl || h.starts_with("solid")) {
+        format = MeshFormat::kStl;
+    } else if (lower_extension(path) == ".obj") {
+        format = MeshFormat::kObj;
+    } else {
+        throw InputError::unsupported(name, "not a PLY, OFF, VTP, STL or OBJ mesh", 0);
+    }
+    switch (format) {
+        case MeshFormat::kOff: {
+            std::ifstream in(path, std::ios::binary);
+            return read_off(in, name);
+        }
+        case MeshFormat::kPly:
+            return read_with_vtk<vtkPLYReader>(path);
+        case MeshFormat::kObj:
+            return read_with_vtk<vtkOBJReader>(path);
+        case MeshFormat::kStl:
+            return read_with_vtk<vtkSTLReader>(path);
+        case MeshFormat::kVtp:
+            return read_with_vtk<vtkXMLPolyDataReader>(path);
+    }
+    throw InputError::unsupported(name, "unknown mesh format");
+}
+
+void write_off(std::ostream& out, const mesh::Vertices& V, const mesh::Faces& F) {
+    out << "OFF\n" << V.rows() << ' ' << F.rows() << " 0\n";
+    out << std::setprecision(17);
+    for (Eigen::Index i = 0; i < V.rows(); ++i) {
+        out << V(i, 0) << ' ' << V(i, 1) << ' ' << V(i, 2) << '\n';
+    }
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+        out << "3 " << F(f, 0) << ' ' << F(f, 1) << ' ' << F(f, 2) << '\n';
+    }
+}
+
+void write_mesh(const fs::path& path,
+                const mesh::Vertices& V,
+                const mesh::Faces& F,
+                const FaceScalars& scalars) {
+    const MeshFormat format = mesh_format_from_extension(path);
+    for (const auto& [name, values] : scalars) {
+        if (values.size() != F.rows()) {
+            throw UsageError("face scalar '" + name + "' has " + std::to_string(values.size()) +
+                             " values for " + std::to_string(F.rows()) + " faces");
+        }
+        if (name.empty() || std::any_of(name.begin(), name.end(), [](unsigned char c) {
+                return std::isspace(c) != 0;
+            })) {
+            throw UsageError("face scalar name '" + name + "' must be one word");
+        }
+    }
+    const fs::path tmp = path.string() + ".partial";
+    try {
+        switch (format) {
+            case MeshFormat::kOff:
+            case MeshFormat::kPly: {
+                std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+                if (!out) throw OutputError(path.string(), std::strerror(errno));
+                if (format == MeshFormat::kOff) {
+                    write_off(out, V, F);
+                } else {
+                    write_ply(out, V, F, scalars);
+                }
+                out.close();
+                if (!out) throw OutputError(path.string(), "write failed");
+                break;
+            }
+            case MeshFormat::kObj: {
+                vtkNew<vtkOBJWriter> writer;
+                write_with_vtk(tmp, path, to_polydata(V, F, {}), writer.Get());
+                break;
+            }
+            case MeshFormat::kStl: {
+                vtkNew<vtkSTLWriter> writer;
+                writer->SetFileTypeToBinary();
+                write_with_vtk(tmp, path, to_polydata(V, F, {}), writer.Get());
+                break;
+            }
+            case MeshFormat::kVtp: {
+                vtkNew<vtkXMLPolyDataWriter> writer;
+                write_with_vtk(tmp, path, to_polydata(V, F, scalars), writer.Get());
+                break;
+            }
+        }
+        std::error_code ec;
+        fs::rename(tmp, path, ec);
+        if (ec) throw OutputError(path.string(), ec.message());
+    } catch (...) {
+        std::error_code ec;
+        fs::remove(tmp, ec);
+        throw;
+    }
+}
+
+}  // namespace octshape::io

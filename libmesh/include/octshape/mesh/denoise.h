@@ -1,0 +1,40 @@
+#pragma once
+// What every denoiser of libmesh returns, and the noise estimate behind `--auto`.
+
+#include <string>
+#include <vector>
+
+#include "octshape/mesh/mesh.h"
+
+namespace octshape::mesh {
+
+// Result of a denoiser (rofi.h, envt.h). The triangulation is the input's (never changed).
+struct DenoiseResult {
+    Vertices V;                         // #V×3 denoised positions
+    int iterations = 0;                 // iterations run
+    double mean_centroid_distance = 0;  // c_a of the input (length unit)
+    double radius = 0;                  // disk radius used for Ω_i (length unit)
+    double mean_neighbourhood = 0;      // mean |Ω_i| (faces, incl. f_i)
+    int fixed_vertices = 0;             // boundary vertices kept in place
+    double seconds_setup = 0;           // adjacency + neighbourhoods
+    double seconds_iterations = 0;      // all iterations
+    std::vector<std::string> warnings;  // e.g. "mesh has non-manifold edges"
+};
+
+// Noise level of a mesh, estimated from the mesh alone (docs/algorithms/rofi.md).
+//
+// For each face, the normals of its edge-neighbours differ from its own by noise plus the
+// true surface bending. On a smooth patch the bending between neighbours is small (≈ c_a κ),
+// so the spread of normals on the quietest half of the surface measures the noise. Per face
+// we take the median angle to its edge-neighbours; the estimate is the median of that over
+// all faces (robust to sharp edges and corners, which are a minority of faces).
+struct NoiseEstimate {
+    double normal_angle_deg = 0;  // median over faces of the median neighbour-normal angle
+    double noise_sigma = 0;       // σ_n / l_e from the vertex offsets (see below)
+    double mean_edge_length = 0;  // l_e (length unit)
+    double mean_centroid_distance = 0;  // c_a (length unit)
+};
+
+[[nodiscard]] NoiseEstimate estimate_noise(const Vertices& V, const Faces& F);
+
+}  // namespace octshape::mesh

@@ -1,0 +1,49 @@
+#pragma once
+// RoFi: robust and high-fidelity mesh denoising (thesis §5.1; SPEC §6).
+//
+// Each iteration: (1) every face normal is replaced by the bilateral average of the normals
+// in its geometric disk Ω_i (Eq. 5.1): weight a_j f(|c_i − c_j|; σ_c) g(|n_i − n_j|; σ_s),
+// f Gaussian, g Tukey's bi-weight (Eq. 5.3) or Gaussian; the centre face is included.
+// (2) every interior vertex takes one gradient step (Eq. 5.9):
+//   v_i ← v_i + 1/(3|F_v(i)|) Σ_{k∈F_v(i)} Σ_{j∈f_k, j≠i} (ñ_k·(v_j − v_i)) ñ_k + λ_I R_i,
+// with the edge term written ñ_k·(v_j − v_i) (the printed v_i − v_j is a sign typo: this sign
+// moves v_i onto the planes of its faces), R_i = D_i + D_t,i (Eq. 5.5–5.8) and
+// w_ij = |v_i − v_j|². (3) λ_I ← decay · λ_I (decay 0.6, §5.1.2).
+// Boundary vertices stay fixed. Every face and vertex is computed from the previous
+// iteration's state only, so the result is bit-identical for any thread count.
+
+#include "octshape/mesh/denoise.h"
+#include "octshape/mesh/mesh.h"
+
+namespace octshape::mesh {
+
+enum class Similarity {
+    kTukey,     // Eq. 5.3: g = ½ (1 − (x/σ_s)²)² for x ≤ σ_s, else 0 (RoFi)
+    kGaussian,  // g = exp(−x² / (2 σ_s²)) (classic bilateral normal filtering, Zheng et al.)
+};
+
+struct RofiParams {
+    double sigma_s = 0.5;       // similarity width σ_s on x = |n_i − n_j| ∈ [0, 2], Eq. 5.3
+    double lambda_i = 0.2;      // initial isotropic (fidelity) factor λ_I, Eq. 5.9; ≥ 0
+    int iterations = 100;       // p; 0 returns the input unchanged
+    double lambda_decay = 0.6;  // λ_I^{p+1} = decay · λ_I^p (§5.1.2); in [0, 1]
+    double radius_factor = 2.0;   // disk radius r = radius_factor · c_a (§5.2); > 0
+    double sigma_c_factor = 1.0;  // closeness width σ_c = sigma_c_factor · c_a (§5.2); > 0
+    Similarity similarity = Similarity::kTukey;
+    bool fix_boundary = true;   // keep boundary / non-manifold vertices in place
+    int threads = 1;            // std::threads; results do not depend on it; ≥ 1
+
+    // Throws std::invalid_argument naming the first bad field.
+    void validate() const;
+};
+
+// Denoises (V, F). Throws std::invalid_argument for bad parameters or an invalid mesh.
+[[nodiscard]] DenoiseResult rofi_denoise(const Vertices& V,
+                                         const Faces& F,
+                                         const RofiParams& params);
+
+// Parameters chosen from a noise estimate (docs/algorithms/rofi.md says how and shows the
+// measurements behind it). `similarity` and `threads` are left at their defaults.
+[[nodiscard]] RofiParams auto_rofi_params(const NoiseEstimate& noise);
+
+}  // namespace octshape::mesh

@@ -1,0 +1,95 @@
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+#include "octshape/mesh/denoise.h"
+#include "octshape/mesh/envt.h"
+#include "octshape/mesh/rofi.h"
+
+namespace octshape::mesh {
+namespace {
+
+double median(std::vector<double>& values) {
+    if (values.empty()) return 0.0;
+    const auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+    std::nth_element(values.begin(), mid, values.end());
+    return *mid;
+}
+
+}  // namespace
+
+NoiseEstimate estimate_noise(const Vertices& V, const Faces& F) {
+    validate_mesh(V, F);
+    NoiseEstimate out;
+    const Adjacency adj = build_adjacency(F, static_cast<int>(V.rows()));
+    const FaceGeometry g = face_geometry(V, F);
+    out.mean_edge_length = mean_edge_length(V, F);
+    out.mean_centroid_distance = mean_centroid_distance(g, adj);
+    std::vector<double> per_face;
+    per_face.reserve(static_cast<std::size_t>(F.rows()));
+    std::vector<double> angles;
+    for (int f = 0; f < adj.face_faces.rows(); ++f) {
+        angles.clear();
+        const Eigen::Vector3d nf = g.normals.row(f);
+        for (int p = adj.face_faces.begin(f); p < adj.face_faces.end(f); ++p) {
+            const Eigen::Vector3d ng = g.normals.row(adj.face_faces.item(p));
+            angles.push_back(std::atan2(nf.cross(ng).norm(), nf.dot(ng)));
+        }
+        if (!angles.empty()) per_face.push_back(median(angles));
+    }
+    out.normal_angle_deg = median(per_face) * 180.0 / std::numbers::pi;
+    // Vertex offsets from the 1-ring centroid along the vertex normal.
+    std::vector<double> offsets;
+    offsets.reserve(static_cast<std::size_t>(V.rows()));
+    for (int i = 0; i < adj.vertex_vertices.rows(); ++i) {
+        if (adj.boundary_vertex[static_cast<std::size_t>(i)] != 0) continue;
+        const int k = adj.vertex_vertices.size(i);
+        if (k < 3) continue;
+        Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+        for (int p = adj.vertex_vertices.begin(i); p < adj.vertex_vertices.end(i); ++p) {
+            centre += V.row(adj.vertex_vertices.item(p)).transpose();
+        }
+        centre /= k;
+        Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+        for (int p = adj.vertex_faces.begin(i); p < adj.vertex_faces.end(i); ++p) {
+            const int f = adj.vertex_faces.item(p);
+            normal += g.areas(f) * g.normals.row(f).transpose();
+        }
+        if (!(normal.norm() > 0.0)) continue;
+        const double offset = std::abs(normal.normalized().dot(V.row(i).transpose() - centre));
+        offsets.push_back(offset / std::sqrt(1.0 + 1.0 / k));
+    }
+    out.noise_sigma = out.mean_edge_length > 0.0
+                          ? median(offsets) / 0.6745 / out.mean_edge_length
+                          : 0.0;
+    return out;
+}
+
+}  // namespace octshape::mesh
+
+namespace octshape::mesh {
+
+// The rules and the measurements behind them: docs/algorithms/rofi.md and envt.md.
+RofiParams auto_rofi_params(const NoiseEstimate& noise) {
+    const double theta = noise.normal_angle_deg * std::numbers::pi / 180.0;  // radians
+    RofiParams p;
+    // Tukey cut-off 1.7× the neighbour-normal spread x ≈ θ of the noise: noisy normals of one
+    // side of an edge fall inside it, the other side (x ≥ 2 sin(feature angle / 2)) outside.
+    p.sigma_s = std::clamp(1.7 * theta, 0.1, 1.0);
+    // λ_I fights flips, which appear when σ_n exceeds ~0.3 l_e (§3.1.5); more above that.
+    p.lambda_i = std::clamp(0.1 + 3.0 * std::max(0.0, noise.noise_sigma - 0.3), 0.0, 0.3);
+    p.iterations = 80;
+    return p;
+}
+
+EnvtParams auto_envt_params(const NoiseEstimate& noise) {
+    EnvtParams p;
+    // τ ∝ σ_n (§3.1.3: λ2, λ3 ∝ σ_n on planes); r = 4 c_a (≈ the thesis's r = 0.2 on Fandisk).
+    p.tau = std::clamp(0.5 * noise.noise_sigma, 0.05, 0.3);
+    p.radius = 4.0 * noise.mean_centroid_distance;
+    p.iterations = 100;
+    return p;
+}
+
+}  // namespace octshape::mesh

@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# Builds Release and runs every benchmark in bench/ (each prints its own tables).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+cmake --preset release >/dev/null
+cmake --build --preset release -j 2 --target read_bench octshape_mesh_bench
+./build/release/bench/read_bench
+./build/release/bench/octshape_mesh_bench

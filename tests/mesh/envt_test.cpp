@@ -1,0 +1,154 @@
+// ENVT denoising (§3.1) and feature analysis (§2.4–2.5).
+
+#include "octshape/mesh/envt.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "mesh/mesh_fixtures.h"
+#include "octshape/mesh/metrics.h"
+
+namespace octshape::test {
+namespace {
+
+mesh::EnvtParams params(int iterations = 30) {
+    mesh::EnvtParams p;
+    p.tau = 0.15;
+    p.iterations = iterations;
+    return p;
+}
+
+TEST(Envt, ZeroIterationsIsTheIdentity) {
+    for (const auto& m : noisy_family()) {
+        EXPECT_EQ(mesh::envt_denoise(m.V, m.F, params(0)).V, m.V) << m.name;
+    }
+}
+
+TEST(Envt, DeterministicBitIdenticalForAnyThreadCountAndBoundaryFixed) {
+    for (const auto& m : noisy_family()) {
+        auto p = params();
+        const auto one = mesh::envt_denoise(m.V, m.F, p);
+        p.threads = 3;
+        const auto three = mesh::envt_denoise(m.V, m.F, p);
+        EXPECT_EQ(one.V, three.V) << m.name;
+        EXPECT_EQ(one.V, mesh::envt_denoise(m.V, m.F, params()).V) << m.name;
+        const auto adj = mesh::build_adjacency(m.F, static_cast<int>(m.V.rows()));
+        for (Eigen::Index i = 0; i < m.V.rows(); ++i) {
+            if (adj.boundary_vertex[static_cast<std::size_t>(i)] != 0) {
+                EXPECT_EQ(one.V.row(i), m.V.row(i)) << m.name;
+            }
+        }
+    }
+}
+
+TEST(Envt, RigidMotionOfTheInputMovesTheOutputTheSameWay) {
+    const Eigen::Matrix3d R =
+        Eigen::AngleAxisd(1.1, Eigen::Vector3d(1.0, 0.2, -0.4).normalized()).toRotationMatrix();
+    const Eigen::RowVector3d t(-1.0, 4.0, 2.0);
+    for (const auto& m : noisy_family()) {
+        const auto base = mesh::envt_denoise(m.V, m.F, params());
+        const mesh::Vertices moved = (m.V * R.transpose()).rowwise() + t;
+        const auto out = mesh::envt_denoise(moved, m.F, params());
+        const mesh::Vertices expected = (base.V * R.transpose()).rowwise() + t;
+        // Eigenvectors are unique up to sign; Eq. 3.5 uses e_k e_kᵀ, so only rounding differs.
+        EXPECT_LT((out.V - expected).cwiseAbs().maxCoeff(), 1e-8) << m.name;
+    }
+}
+
+TEST(Envt, NoisyPlaneBecomesAPlaneAndCubeKeepsItsFaces) {
+    auto m = plane_grid(24);
+    Gaussian g(13);
+    const auto adj = mesh::build_adjacency(m.F, static_cast<int>(m.V.rows()));
+    for (Eigen::Index i = 0; i < m.V.rows(); ++i) {
+        if (adj.boundary_vertex[static_cast<std::size_t>(i)] == 0) m.V(i, 2) = 0.25 / 24 * g();
+    }
+    const double before = std::sqrt(m.V.col(2).squaredNorm() / m.V.rows());
+    const auto r = mesh::envt_denoise(m.V, m.F, params(60));
+    // As for RoFi (rofi_test.cpp): white-noise wavelengths beyond the disk hold ≤ ½ the RMS.
+    EXPECT_LT(std::sqrt(r.V.col(2).squaredNorm() / r.V.rows()), 0.5 * before);
+    const auto flat = plane_grid(24);
+    EXPECT_LT(mesh::mean_angle_error_deg(r.V, m.F, flat.V, flat.F),
+              0.25 * mesh::mean_angle_error_deg(m.V, m.F, flat.V, flat.F));
+
+    const auto clean = cube(8);
+    const auto noisy = with_noise(clean, 0.02);
+    const auto c = mesh::envt_denoise(noisy.V, noisy.F, params(60));
+    // Normals back within ~2° of the cube's on average (input: ~5°).
+    const double in = mesh::mean_angle_error_deg(noisy.V, noisy.F, clean.V, clean.F);
+    const double out = mesh::mean_angle_error_deg(c.V, noisy.F, clean.V, clean.F);
+    EXPECT_LT(out, 0.4 * in) << in << " -> " << out;
+}
+
+TEST(Envt, ValidateNamesTheBadField) {
+    mesh::EnvtParams p;
+    p.tau = 0.0;
+    EXPECT_THROW(p.validate(), std::invalid_argument);
+    p = {};
+    p.radius = -1.0;
+    try {
+        p.validate();
+        FAIL();
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("radius"), std::string::npos);
+    }
+    p = {};
+    p.rho = 4.0;
+    EXPECT_THROW(p.validate(), std::invalid_argument);
+}
+
+TEST(Features, PlaneHasOneEigenvalueNoStrengthNoCurvature) {
+    const auto m = plane_grid(8);
+    const auto f = mesh::face_features(m.V, m.F);
+    for (Eigen::Index i = 0; i < m.F.rows(); ++i) {
+        EXPECT_NEAR(f.eigenvalues(i, 0), 1.0, 1e-12);
+        EXPECT_NEAR(f.strength(i), 0.0, 1e-12);
+        EXPECT_NEAR(f.mean_curvature(i), 0.0, 1e-12);
+    }
+}
+
+TEST(Features, CubeEdgesAndCornersStandOut) {
+    // §2.4: an edge face sees two orthogonal normals, λ2 > 0, λ3 ≈ 0; a face in the middle of a
+    // side sees one normal; corner faces see three.
+    const auto m = cube(6);
+    mesh::FeatureParams p;
+    p.radius = 0.35;  // reaches over an edge from its last strip of faces only (side 1/3)
+    const auto f = mesh::face_features(m.V, m.F, p);
+    const auto g = mesh::face_geometry(m.V, m.F);
+    for (Eigen::Index i = 0; i < m.F.rows(); ++i) {
+        const Eigen::Vector3d c = g.centroids.row(i).cwiseAbs();
+        const int near_edges = (c.array() > 0.75).count();  // coordinates near ±1
+        EXPECT_NEAR(f.eigenvalues.row(i).sum(), 1.0, 1e-12);  // trace of the ENVT
+        if (near_edges == 1) {
+            EXPECT_NEAR(f.strength(i), 0.0, 1e-12);
+        } else if (near_edges == 2) {
+            EXPECT_GT(f.eigenvalues(i, 1), 0.01);
+            EXPECT_NEAR(f.eigenvalues(i, 2), 0.0, 1e-12);
+        } else {
+            EXPECT_GT(f.eigenvalues(i, 2), 0.01);
+        }
+    }
+}
+
+TEST(Features, DualMeanCurvatureOfASphereIsMinusOneOverR) {
+    // Eq. 2.32 with outward normals: κ_ij = 2⟨n_i, c_j − c_i⟩/|c_j − c_i|² = −1/R for points of
+    // a sphere with n_i radial. Centroids of the icosphere lie at radius ≈ R(1 − l_e²/(6R²))
+    // and face normals deviate from radial by O(l_e/R): a few % at level 4 (l_e ≈ 0.066 R).
+    for (const double R : {1.0, 2.5}) {
+        const auto m = icosphere(4, R);
+        const auto f = mesh::face_features(m.V, m.F);
+        double sum = 0.0;
+        double worst = 0.0;
+        for (Eigen::Index i = 0; i < f.mean_curvature.size(); ++i) {
+            sum += f.mean_curvature(i);
+            worst = std::max(worst, std::abs(f.mean_curvature(i) + 1.0 / R));
+        }
+        EXPECT_NEAR(sum / static_cast<double>(m.F.rows()), -1.0 / R, 0.03 / R) << R;
+        EXPECT_LT(worst, 0.1 / R) << R;
+    }
+}
+
+}  // namespace
+}  // namespace octshape::test

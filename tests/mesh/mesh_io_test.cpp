@@ -1,0 +1,172 @@
+// Mesh files (io/mesh_io.h): round trips in every format, face scalars, bad files.
+
+#include "octshape/io/mesh_io.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "mesh/mesh_fixtures.h"
+#include "octshape/io/error.h"
+#include "test_paths.h"
+
+namespace octshape::test {
+namespace {
+
+std::string slurp(const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+void write_text(const std::filesystem::path& p, const std::string& text) {
+    std::ofstream(p, std::ios::binary) << text;
+}
+
+TEST(MeshIo, RoundTripInEveryFormatKeepsVerticesAndFaces) {
+    TempDir tmp;
+    const auto m = with_noise(icosphere(2), 0.01);
+    for (const std::string ext : {".off", ".ply", ".vtp", ".obj", ".stl"}) {
+        const auto path = tmp / ("m" + ext);
+        io::write_mesh(path, m.V, m.F);
+        const io::MeshData back = io::read_mesh(path);
+        ASSERT_EQ(back.F.rows(), m.F.rows()) << ext;
+        ASSERT_EQ(back.V.rows(), m.V.rows()) << ext;
+        // OFF and VTP keep doubles; PLY is read through VTK in single precision, OBJ and STL
+        // are single precision (relative 6e-8 of coordinates ≤ 1.1).
+        const double tol = (ext == ".off" || ext == ".vtp") ? 0.0 : 2e-7;
+        if (ext == ".stl") {
+            // STL has no shared vertices: the reader merges equal points, in its own order.
+            for (Eigen::Index f = 0; f < m.F.rows(); ++f) {
+                for (int k = 0; k < 3; ++k) {
+                    EXPECT_LE((back.V.row(back.F(f, k)) - m.V.row(m.F(f, k))).cwiseAbs().maxCoeff(),
+                              tol);
+                }
+            }
+        } else {
+            EXPECT_EQ(back.F, m.F) << ext;
+            EXPECT_LE((back.V - m.V).cwiseAbs().maxCoeff(), tol) << ext;
+        }
+        EXPECT_FALSE(std::filesystem::exists(path.string() + ".partial"));
+    }
+}
+
+TEST(MeshIo, FaceScalarsAreWrittenToVtpAndPly) {
+    TempDir tmp;
+    const auto m = cube(2);
+    Eigen::VectorXd s(m.F.rows());
+    for (Eigen::Index f = 0; f < s.size(); ++f) s(f) = 0.25 * static_cast<double>(f);
+    io::write_mesh(tmp / "s.ply", m.V, m.F, {{"feature_strength", s}});
+    const std::string header = slurp(tmp / "s.ply");
+    EXPECT_NE(header.find("element face 48\nproperty list uchar int vertex_indices\n"
+                          "property double feature_strength\n"),
+              std::string::npos);
+    io::write_mesh(tmp / "s.vtp", m.V, m.F, {{"feature_strength", s}});
+    const std::string xml = slurp(tmp / "s.vtp");
+    EXPECT_NE(xml.find("<CellData"), std::string::npos);
+    EXPECT_NE(xml.find("Name=\"feature_strength\""), std::string::npos);
+    EXPECT_THROW(io::write_mesh(tmp / "bad.vtp", m.V, m.F, {{"x", Eigen::VectorXd(3)}}),
+                 UsageError);
+}
+
+TEST(MeshIo, OffPolygonsAreFanTriangulatedAndCommentsSkipped) {
+    std::istringstream in("OFF\n# a square\n4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3 255 0 0\n");
+    const io::MeshData m = io::read_off(in, "square.off");
+    ASSERT_EQ(m.F.rows(), 2);
+    EXPECT_EQ(m.F.row(0), Eigen::RowVector3i(0, 1, 2));
+    EXPECT_EQ(m.F.row(1), Eigen::RowVector3i(0, 2, 3));
+}
+
+TEST(MeshIo, EveryTruncationOfAnOffFileIsATypedError) {
+    std::ostringstream out;
+    const auto m = plane_grid(2);
+    io::write_off(out, m.V, m.F);
+    const std::string good = out.str();
+    // Cutting inside the last number still parses (a shorter number); cut before the last
+    // face's last index instead, and at every earlier byte.
+    const std::size_t last = good.find_last_of(' ');
+    for (std::size_t n = 0; n <= last; ++n) {
+        std::istringstream in(good.substr(0, n));
+        EXPECT_THROW((void)io::read_off(in, "cut.off"), InputError) << n;
+    }
+}
+
+TEST(MeshIo, HostileOffCountsAreRejectedBeforeAllocating) {
+    std::istringstream in("OFF\n2000000000 2000000000 0\n0 0 0\n");
+    try {
+        (void)io::read_off(in, "huge.off");
+        FAIL();
+    } catch (const InputError& e) {
+        EXPECT_EQ(e.kind(), InputError::Kind::kCorrupt);
+        EXPECT_EQ(e.path(), "huge.off");
+        EXPECT_TRUE(e.offset().has_value());
+    }
+    std::istringstream bad_index("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
+    EXPECT_THROW((void)io::read_off(bad_index, "index.off"), InputError);
+}
+
+TEST(MeshIo, BadFilesGiveInputErrorsNamingThePath) {
+    TempDir tmp;
+    const auto expect_kind = [](const std::filesystem::path& p, InputError::Kind kind) {
+        try {
+            (void)io::read_mesh(p);
+            FAIL() << p;
+        } catch (const InputError& e) {
+            EXPECT_EQ(e.kind(), kind) << p << ": " << e.what();
+            EXPECT_EQ(e.path(), p.string());
+        }
+    };
+    expect_kind(tmp / "missing.ply", InputError::Kind::kMissing);
+    expect_kind(tmp.path(), InputError::Kind::kNotRegular);
+    write_text(tmp / "empty.obj", "");
+    expect_kind(tmp / "empty.obj", InputError::Kind::kCorrupt);
+    write_text(tmp / "text.obj", "hello world\n");
+    expect_kind(tmp / "text.obj", InputError::Kind::kCorrupt);
+    write_text(tmp / "noface.obj", "v 0 0 0\nv 1 0 0\n");
+    expect_kind(tmp / "noface.obj", InputError::Kind::kCorrupt);
+    write_text(tmp / "junk.ply", "ply\nformat nonsense\n");
+    expect_kind(tmp / "junk.ply", InputError::Kind::kCorrupt);
+    write_text(tmp / "junk.vtp", "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\">\n");
+    expect_kind(tmp / "junk.vtp", InputError::Kind::kCorrupt);
+    write_text(tmp / "junk.xyz", "1 2 3\n");
+    expect_kind(tmp / "junk.xyz", InputError::Kind::kUnsupported);
+}
+
+TEST(MeshIo, UnknownOutputExtensionIsAUsageError) {
+    TempDir tmp;
+    const auto m = plane_grid(1);
+    EXPECT_THROW(io::write_mesh(tmp / "m.xyz", m.V, m.F), UsageError);
+    EXPECT_THROW(io::write_mesh(tmp / "no" / "dir" / "m.off", m.V, m.F), OutputError);
+}
+
+TEST(MeshCommands, DenoiseThenMetricsAndFeatures) {
+    TempDir tmp;
+    const auto clean = cube(6);
+    const auto noisy = with_noise(clean, 0.03);
+    io::write_mesh(tmp / "noisy.off", noisy.V, noisy.F);
+    io::write_mesh(tmp / "clean.off", clean.V, clean.F);
+    const auto in = (tmp / "noisy.off").string();
+    const auto out = (tmp / "out.vtp").string();
+    auto r = run_octshape("denoise '" + in + "' -o '" + out + "' --threads 2 --json");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("\"auto\": true"), std::string::npos) << r.out;
+    r = run_octshape("metrics '" + out + "' --reference '" + (tmp / "clean.off").string() +
+                     "' --json");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("\"msae_deg\""), std::string::npos);
+    EXPECT_NE(r.out.find("\"flipped_faces\": 0"), std::string::npos) << r.out;
+    r = run_octshape("features '" + out + "' -o '" + (tmp / "f.vtp").string() + "'");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(std::filesystem::exists(tmp / "f.vtp"));
+    // Errors map to the documented exit codes.
+    EXPECT_EQ(run_octshape("denoise '" + (tmp / "none.off").string() + "' -o x.off").exit_code,
+              66);
+    EXPECT_EQ(run_octshape("denoise '" + in + "' -o x.off --sigma-s -1").exit_code, 64);
+    EXPECT_EQ(run_octshape("features '" + in + "' -o x.obj").exit_code, 64);
+    EXPECT_FALSE(std::filesystem::exists("x.off"));
+}
+
+}  // namespace
+}  // namespace octshape::test

@@ -1,0 +1,5 @@
+# Included by ctest after the discovered gtest tests: labels the tests on ../shared/meshes.
+foreach(_t RofiAutoFandisk RofiAutoBlock RofiAutoTwelveImpulsive RofiAutoSharpSphere
+           RofiTunedFandisk RofiTunedSharpSphere EnvtAutoFandisk BilateralFandisk)
+  set_tests_properties(SharedMeshes.${_t} PROPERTIES LABELS slow)
+endforeach()
