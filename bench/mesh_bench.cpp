@@ -1,14 +1,16 @@
 // Denoiser benchmark: one table per mesh (../shared/meshes pairs, plus a ~52k-face subdivided
 // Fandisk and a ~120k-face torus, both with Gaussian noise of 0.3 l_e): time per iteration and
-// total for RoFi (1 and 2 threads), bilateral normal filtering and ENVT, beside VTK's
-// vtkWindowedSincPolyDataFilter at the same iteration count (ratio = our time / VTK's), and
-// the accuracy of each against the noise-free mesh (MSAE, E_v, Q, flipped faces).
+// total (wall clock and CPU time) for RoFi (1 and 2 threads, auto p and p = 100), bilateral
+// normal filtering and ENVT, beside VTK's vtkWindowedSincPolyDataFilter at the auto iteration
+// count (ratio = our time / VTK's) and bilateral filtering (ratio to it), and the accuracy of
+// each against the noise-free mesh (MSAE, E_v, Q, flipped faces).
 //
 // Usage: octshape_mesh_bench [SHARED_MESHES_DIR]   (scripts/bench.sh runs it on Release)
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <map>
 #include <random>
@@ -124,13 +126,37 @@ double vtk_sinc_seconds(const Vertices& V, const Faces& F, int iterations) {
     return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-void row(const Case& c, const char* method, const octshape::mesh::DenoiseResult& r,
-         double vtk_seconds) {
+// CPU seconds of the whole process (all threads): on a shared machine the wall clock of a
+// one-thread run includes time slices given to other processes, its CPU time does not.
+double cpu_seconds() {
+    timespec t{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+struct Timed {
+    const char* method;
+    octshape::mesh::DenoiseResult result;
+    double cpu = 0.0;
+};
+
+template <class Run>
+Timed timed(const char* method, const Run& run) {
+    const double c0 = cpu_seconds();
+    Timed t{method, run(), 0.0};
+    t.cpu = cpu_seconds() - c0;
+    return t;
+}
+
+void row(const Case& c, const Timed& t, double vtk_seconds, double bilateral_seconds) {
+    const auto& r = t.result;
     const auto m = octshape::mesh::compare_meshes(r.V, c.F, c.clean, c.F);
     const double total = r.seconds_setup + r.seconds_iterations;
-    std::printf("| %-18s | %5d | %9.3f | %8.3f | %7.2f | %7.3f | %9.5f | %6.3f | %6d |\n", method,
-                r.iterations, 1e3 * r.seconds_iterations / std::max(1, r.iterations), total,
-                total / vtk_seconds, m.msae_deg, m.vertex_error, m.quality, m.flipped_faces);
+    std::printf("| %-19s | %5d | %8.2f | %7.3f | %6.3f | %6.2f | %6.2f | %6.3f | %8.5f | %5.3f | "
+                "%5d |\n",
+                t.method, r.iterations, 1e3 * r.seconds_iterations / std::max(1, r.iterations),
+                total, t.cpu, total / vtk_seconds, total / bilateral_seconds, m.msae_deg,
+                m.vertex_error, m.quality, m.flipped_faces);
 }
 
 void run(const Case& c) {
@@ -143,29 +169,45 @@ void run(const Case& c) {
                 "flips %d; truth Q %.3f\n",
                 c.name.c_str(), static_cast<long>(c.noisy.rows()), static_cast<long>(c.F.rows()),
                 in.msae_deg, in.vertex_error, in.quality, in.flipped_faces, in.reference_quality);
-    std::printf("| %-18s | %5s | %9s | %8s | %7s | %7s | %9s | %6s | %6s |\n", "method", "iter",
-                "ms/iter", "total s", "vs VTK", "MSAE", "E_v", "Q", "flips");
-    std::printf("| %-18s | %5d | %9.3f | %8.3f | %7.2f | %7s | %9s | %6s | %6s |\n",
-                "VTK windowed sinc", rofi.iterations, 1e3 * vtk / rofi.iterations, vtk, 1.0, "-",
-                "-", "-", "-");
-    row(c, "RoFi auto, 1 thr", om::rofi_denoise(c.noisy, c.F, rofi), vtk);
-    rofi.threads = 2;
-    row(c, "RoFi auto, 2 thr", om::rofi_denoise(c.noisy, c.F, rofi), vtk);
     om::RofiParams bilateral = rofi;
     bilateral.similarity = om::Similarity::kGaussian;
     bilateral.sigma_s = 0.35;
     bilateral.lambda_i = 0.0;
-    bilateral.threads = 1;
-    row(c, "bilateral, 1 thr", om::rofi_denoise(c.noisy, c.F, bilateral), vtk);
-    row(c, "ENVT auto, 1 thr", om::envt_denoise(c.noisy, c.F, om::auto_envt_params(noise)), vtk);
+    std::vector<Timed> rows;
+    rows.push_back(timed("bilateral, 1 thr", [&] {
+        return om::rofi_denoise(c.noisy, c.F, bilateral);
+    }));
+    rows.push_back(timed("RoFi auto, 1 thr", [&] { return om::rofi_denoise(c.noisy, c.F, rofi); }));
+    om::RofiParams two = rofi;
+    two.threads = 2;
+    rows.push_back(timed("RoFi auto, 2 thr", [&] { return om::rofi_denoise(c.noisy, c.F, two); }));
+    om::RofiParams hundred = rofi;
+    hundred.iterations = 100;
+    rows.push_back(timed("RoFi p=100, 1 thr", [&] {
+        return om::rofi_denoise(c.noisy, c.F, hundred);
+    }));
+    rows.push_back(timed("ENVT auto, 1 thr", [&] {
+        return om::envt_denoise(c.noisy, c.F, om::auto_envt_params(noise));
+    }));
+    const auto& b = rows.front().result;
+    const double bilateral_total = b.seconds_setup + b.seconds_iterations;
+    std::printf("| %-19s | %5s | %8s | %7s | %6s | %6s | %6s | %6s | %8s | %5s | %5s |\n",
+                "method", "iter", "ms/iter", "total s", "cpu s", "vs VTK", "vs bil", "MSAE",
+                "E_v", "Q", "flips");
+    std::printf("| %-19s | %5d | %8.2f | %7.3f | %6s | %6.2f | %6.2f | %6s | %8s | %5s | %5s |\n",
+                "VTK windowed sinc", rofi.iterations, 1e3 * vtk / rofi.iterations, vtk, "-", 1.0,
+                vtk / bilateral_total, "-", "-", "-", "-");
+    for (const auto& t : rows) row(c, t, vtk, bilateral_total);
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
     const std::filesystem::path dir = argc > 1 ? argv[1] : OCTSHAPE_SHARED_MESHES;
-    std::printf("Times: wall clock, ratio = (set-up + iterations) / VTK windowed sinc at the "
-                "same iteration count. Accuracy against the noise-free mesh.\n");
+    std::printf("Times: wall clock (ms/iter, total = set-up + iterations) and CPU seconds of "
+                "the call; vs VTK = total / VTK windowed sinc at the auto iteration count, vs bil "
+                "= total / bilateral at the auto iteration count. Accuracy against the noise-free "
+                "mesh.\n");
     for (const char* name : {"Fandisk0.3", "Block0.4", "Twelve0.5Impulsive", "SharpSphere0.3"}) {
         const auto noisy = octshape::io::read_mesh(dir / name / "Noisy.obj");
         const auto clean = octshape::io::read_mesh(dir / name / "Original.obj");

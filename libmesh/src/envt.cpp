@@ -9,7 +9,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "parallel.h"
-#include "vertex_update.h"
+#include "denoise_setup.h"
 
 namespace octshape::mesh {
 namespace {
@@ -69,65 +69,59 @@ DenoiseResult envt_denoise(const Vertices& V, const Faces& F, const EnvtParams& 
     params.validate();
     validate_mesh(V, F);
     DenoiseResult result;
-    result.V = V;
-    const auto t0 = Clock::now();
-    const auto n = static_cast<int>(V.rows());
-    const auto m = static_cast<int>(F.rows());
-    const Adjacency adj = build_adjacency(F, n);
-    if (adj.nonmanifold_edges > 0) {
-        result.warnings.push_back(std::to_string(adj.nonmanifold_edges) +
-                                  " non-manifold edges: their vertices are kept fixed");
-    }
-    FaceGeometry geometry = face_geometry(V, F);
-    const double ca = mean_centroid_distance(geometry, adj);
-    result.mean_centroid_distance = ca;
-    result.radius = params.radius.value_or(2.0 * ca);
-    std::vector<std::uint8_t> fixed(static_cast<std::size_t>(n), 0);
-    if (params.fix_boundary) fixed = adj.boundary_vertex;
-    for (const auto f : fixed) result.fixed_vertices += f;
-    if (params.iterations == 0 || m == 0 || !(result.radius > 0.0)) {
-        result.seconds_setup = seconds_since(t0);
-        return result;
-    }
-    const Csr omega = disk_neighbourhoods(F, geometry, adj, result.radius, params.threads);
-    result.mean_neighbourhood = static_cast<double>(omega.items.size()) / m;
-    result.seconds_setup = seconds_since(t0);
+    const detail::DenoiseSetup setup =
+        detail::prepare_denoise(V, F, params.radius, 2.0, params.fix_boundary, params.iterations,
+                                params.threads, result);
+    if (!setup.run) return result;
 
     const auto t1 = Clock::now();
+    const auto n = static_cast<int>(V.rows());
+    const auto m = static_cast<int>(F.rows());
+    const Csr& omega = setup.omega;
     const double cos_rho = std::cos(params.rho);
-    Vertices filtered(m, 3);
+    std::vector<detail::FaceState> faces(static_cast<std::size_t>(m));
+    Vertices normals(m, 3);  // current normals n_j (faces[].normal receives the filtered ones)
     Vertices next(n, 3);
     for (int it = 0; it < params.iterations; ++it) {
-        if (it > 0) compute_face_geometry(result.V, F, geometry);
+        detail::parallel_for(m, params.threads, [&](int begin, int end) {
+            detail::update_faces(result.V, F, begin, end, faces.data());
+            for (int f = begin; f < end; ++f) {
+                const double* nf = faces[static_cast<std::size_t>(f)].normal;
+                normals.row(f) << nf[0], nf[1], nf[2];
+            }
+        });
         detail::parallel_for(m, params.threads, [&](int begin, int end) {
             for (int i = begin; i < end; ++i) {
-                const Eigen::Vector3d ni = geometry.normals.row(i);
+                const Eigen::Vector3d ni = normals.row(i);
                 Eigen::Matrix3d c = Eigen::Matrix3d::Zero();
                 double weight = 0.0;
                 for (int p = omega.begin(i); p < omega.end(i); ++p) {
                     const int j = omega.item(p);
-                    const Eigen::Vector3d nj = geometry.normals.row(j);
-                    const double w = (ni.dot(nj) >= cos_rho ? 1.0 : 0.1) * geometry.areas(j);
+                    const Eigen::Vector3d nj = normals.row(j);
+                    const double w = (ni.dot(nj) >= cos_rho ? 1.0 : 0.1) *
+                                     faces[static_cast<std::size_t>(j)].area;
                     c.noalias() += w * nj * nj.transpose();  // Eq. 3.1, 3.2
                     weight += w;
                 }
-                if (!(weight > 0.0)) {
-                    filtered.row(i) = ni;
-                    continue;
-                }
+                double* filtered = faces[static_cast<std::size_t>(i)].normal;
+                if (!(weight > 0.0)) continue;  // keep n_i
                 const Eigen3 e = decompose(c / weight);
                 // §3.1.3 binary optimisation, then Eq. 3.4–3.5.
-                const int kept = e.values(2) >= params.tau ? 3 : (e.values(1) >= params.tau ? 2 : 1);
+                const int kept =
+                    e.values(2) >= params.tau ? 3 : (e.values(1) >= params.tau ? 2 : 1);
                 Eigen::Vector3d out = params.damping * ni;
                 for (int k = 0; k < kept; ++k) {
                     out += e.vectors.col(k).dot(ni) * e.vectors.col(k);
                 }
                 const double len = out.norm();
-                filtered.row(i) = len > 0.0 ? Eigen::Vector3d(out / len) : ni;
+                if (len > 0.0) {
+                    for (int k = 0; k < 3; ++k) filtered[k] = out(k) / len;
+                }
             }
         });
         detail::parallel_for(n, params.threads, [&](int begin, int end) {
-            detail::vertex_step(result.V, filtered, geometry, adj, fixed, 0.0, begin, end, next);
+            detail::vertex_step(result.V, faces.data(), setup.adjacency, setup.fixed, 0.0, begin,
+                                end, next);
         });
         result.V.swap(next);
         ++result.iterations;

@@ -1,12 +1,13 @@
 #include "octshape/mesh/rofi.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
 #include "parallel.h"
-#include "vertex_update.h"
+#include "denoise_setup.h"
 
 namespace octshape::mesh {
 namespace {
@@ -15,6 +16,42 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) {
     return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// Current normal, area and centroid of a face, packed in one cache line: the filter reads them
+// for ~10–20 neighbours per face.
+struct alignas(64) FaceRecord {
+    double n[3];
+    double area;
+    double c[3];
+    double unused;
+};
+
+// For each slot p of Ω (row i, item j): the slot of i in row j if j < i and i ∈ Ω_j (this row
+// computes the pair and also writes there), −2 if j > i and j's row will write slot p, −1
+// otherwise (this row computes the pair for itself alone; also the centre face j = i).
+// Rows list f_i first and then ascending indices (mesh.h), so row j is searched by bisection.
+std::vector<int> mirror_slots(const Csr& omega) {
+    std::vector<int> out(omega.items.size(), -1);
+    const auto find = [&](int row, int item) {
+        const auto first = omega.items.begin() + omega.begin(row) + 1;
+        const auto last = omega.items.begin() + omega.end(row);
+        const auto it = std::lower_bound(first, last, item);
+        return it != last && *it == item ? static_cast<int>(it - omega.items.begin()) : -1;
+    };
+    for (int i = 0; i < omega.rows(); ++i) {
+        for (int p = omega.begin(i) + 1; p < omega.end(i); ++p) {
+            const int j = omega.item(p);
+            if (j < i) {
+                const int q = find(j, i);
+                if (q >= 0) {
+                    out[static_cast<std::size_t>(p)] = q;
+                    out[static_cast<std::size_t>(q)] = -2;
+                }
+            }
+        }
+    }
+    return out;
 }
 
 void require(bool ok, const std::string& field, const std::string& rule, double value) {
@@ -43,79 +80,55 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
     params.validate();
     validate_mesh(V, F);
     DenoiseResult result;
-    result.V = V;
-    const auto t0 = Clock::now();
-    const auto n = static_cast<int>(V.rows());
-    const auto m = static_cast<int>(F.rows());
-    const Adjacency adj = build_adjacency(F, n);
-    if (adj.nonmanifold_edges > 0) {
-        result.warnings.push_back(std::to_string(adj.nonmanifold_edges) +
-                                  " non-manifold edges: their vertices are kept fixed");
-    }
-    FaceGeometry geometry = face_geometry(V, F);
-    const double ca = mean_centroid_distance(geometry, adj);
-    result.mean_centroid_distance = ca;
-    result.radius = params.radius_factor * ca;
-    std::vector<std::uint8_t> fixed(static_cast<std::size_t>(n), 0);
-    if (params.fix_boundary) fixed = adj.boundary_vertex;
-    for (const auto f : fixed) result.fixed_vertices += f;
-    if (params.iterations == 0 || m == 0 || !(ca > 0.0)) {
-        result.seconds_setup = seconds_since(t0);
-        return result;
-    }
-    const Csr omega = disk_neighbourhoods(F, geometry, adj, result.radius, params.threads);
-    result.mean_neighbourhood = static_cast<double>(omega.items.size()) / m;
-    result.seconds_setup = seconds_since(t0);
+    const detail::DenoiseSetup setup =
+        detail::prepare_denoise(V, F, std::nullopt, params.radius_factor, params.fix_boundary,
+                                params.iterations, params.threads, result);
+    if (!setup.run) return result;
 
     const auto t1 = Clock::now();
-    const double sigma_c = params.sigma_c_factor * ca;
+    const auto n = static_cast<int>(V.rows());
+    const auto m = static_cast<int>(F.rows());
+    const Csr& omega = setup.omega;
+    const double sigma_c = params.sigma_c_factor * result.mean_centroid_distance;
     const double inv_two_sc2 = 1.0 / (2.0 * sigma_c * sigma_c);
     const double s2 = params.sigma_s * params.sigma_s;
     const double inv_s2 = 1.0 / s2;
     const double inv_two_s2 = 1.0 / (2.0 * s2);
     const bool tukey = params.similarity == Similarity::kTukey;
-    Vertices filtered(m, 3);
+    std::vector<detail::FaceState> faces(static_cast<std::size_t>(m));
+    std::vector<FaceRecord> current(static_cast<std::size_t>(m));
     Vertices next(n, 3);
-    // Normal, centroid and area of each face packed in one cache line: the filter reads them
-    // for ~10–20 neighbours per face.
-    struct alignas(64) FaceRecord {
-        double n[3];
-        double c[3];
-        double area;
-    };
-    std::vector<FaceRecord> faces(static_cast<std::size_t>(m));
+    // The weight f g of a pair (Eq. 5.1 without a_j) is symmetric in i and j, and bit for bit
+    // so (|c_i − c_j|² and |n_i − n_j|² square the same differences up to sign). Where j ∈ Ω_i
+    // and i ∈ Ω_j (nearly always), the row of the larger index computes it once and writes
+    // both slots; `mirror[p]` is the slot of the pair in row j (−1 if i ∉ Ω_j, −2 if the other
+    // row computes it). Each slot has one writer, so any thread count gives the same bits.
+    const std::vector<int> mirror = mirror_slots(omega);
+    std::vector<double> pair_weight(omega.items.size());
     double lambda = params.lambda_i;
     for (int it = 0; it < params.iterations; ++it) {
         detail::parallel_for(m, params.threads, [&](int begin, int end) {
+            detail::update_faces(result.V, F, begin, end, faces.data());
             for (int f = begin; f < end; ++f) {
-                if (it > 0) {
-                    const Eigen::Vector3d a = result.V.row(F(f, 0));
-                    const Eigen::Vector3d b = result.V.row(F(f, 1));
-                    const Eigen::Vector3d c = result.V.row(F(f, 2));
-                    const Eigen::Vector3d cross = (b - a).cross(c - a);
-                    const double norm = cross.norm();
-                    geometry.areas(f) = 0.5 * norm;
-                    geometry.normals.row(f) =
-                        norm > 0.0 ? Eigen::Vector3d(cross / norm) : Eigen::Vector3d::Zero();
-                    geometry.centroids.row(f) = (a + b + c) / 3.0;  // Eq. 2.31
-                }
-                FaceRecord& r = faces[static_cast<std::size_t>(f)];
-                for (int k = 0; k < 3; ++k) {
-                    r.n[k] = geometry.normals(f, k);
-                    r.c[k] = geometry.centroids(f, k);
-                }
-                r.area = geometry.areas(f);
+                const detail::FaceState& s = faces[static_cast<std::size_t>(f)];
+                current[static_cast<std::size_t>(f)] = {
+                    {s.normal[0], s.normal[1], s.normal[2]}, s.area,
+                    {s.centroid[0], s.centroid[1], s.centroid[2]}, 0.0};
             }
         });
-        // Eq. 5.1: bilateral average of the normals of Ω_i.
+        // f(|c_i − c_j|; σ_c) g(|n_i − n_j|; σ_s) for every pair of Ω.
         detail::parallel_for(m, params.threads, [&](int begin, int end) {
+            const int* off = omega.offsets.data();
+            const int* items = omega.items.data();
+            const int* mir = mirror.data();
+            const FaceRecord* rec = current.data();
+            double* weight = pair_weight.data();
             for (int i = begin; i < end; ++i) {
-                const FaceRecord& fi = faces[static_cast<std::size_t>(i)];
-                double sx = 0.0;
-                double sy = 0.0;
-                double sz = 0.0;
-                for (int p = omega.begin(i); p < omega.end(i); ++p) {
-                    const FaceRecord& fj = faces[static_cast<std::size_t>(omega.item(p))];
+                const FaceRecord& fi = rec[i];
+                for (int p = off[i]; p < off[i + 1]; ++p) {
+                    const int q = mir[p];
+                    if (q == -2) continue;  // written by row items[p]
+                    const FaceRecord& fj = rec[items[p]];
                     const double dx = fi.n[0] - fj.n[0];
                     const double dy = fi.n[1] - fj.n[1];
                     const double dz = fi.n[2] - fj.n[2];
@@ -126,28 +139,48 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
                     const double d2 = cx * cx + cy * cy + cz * cz;  // |c_i − c_j|²
                     double w = 0.0;
                     if (tukey) {
-                        if (x2 > s2) continue;  // Eq. 5.3: no diffusion across the cut-off
+                        // Eq. 5.3 without its constant ½ (it cancels in K_i): (1 − x²/σ_s²)²
+                        // for x ≤ σ_s, else 0 — no diffusion across the cut-off.
                         const double t = 1.0 - x2 * inv_s2;
-                        w = fj.area * 0.5 * t * t * std::exp(-d2 * inv_two_sc2);
+                        if (t > 0.0) w = t * t * std::exp(-d2 * inv_two_sc2);
                     } else {
-                        w = fj.area * std::exp(-d2 * inv_two_sc2 - x2 * inv_two_s2);
+                        w = std::exp(-d2 * inv_two_sc2 - x2 * inv_two_s2);
                     }
+                    weight[p] = w;
+                    if (q >= 0) weight[q] = w;
+                }
+            }
+        });
+        // Eq. 5.1: bilateral average of the normals of Ω_i (K_i cancels in the normalisation).
+        detail::parallel_for(m, params.threads, [&](int begin, int end) {
+            const int* off = omega.offsets.data();
+            const int* items = omega.items.data();
+            const FaceRecord* rec = current.data();
+            const double* weight = pair_weight.data();
+            for (int i = begin; i < end; ++i) {
+                double sx = 0.0;
+                double sy = 0.0;
+                double sz = 0.0;
+                for (int p = off[i]; p < off[i + 1]; ++p) {
+                    const FaceRecord& fj = rec[items[p]];
+                    const double w = fj.area * weight[p];
                     sx += w * fj.n[0];
                     sy += w * fj.n[1];
                     sz += w * fj.n[2];
                 }
                 const double len = std::sqrt(sx * sx + sy * sy + sz * sz);
+                double* out = faces[static_cast<std::size_t>(i)].normal;
                 if (len > 0.0) {
-                    filtered.row(i) << sx / len, sy / len, sz / len;
-                } else {
-                    filtered.row(i) << fi.n[0], fi.n[1], fi.n[2];
-                }
+                    out[0] = sx / len;
+                    out[1] = sy / len;
+                    out[2] = sz / len;
+                }  // else: keep n_i (already in faces[i].normal)
             }
         });
         // Eq. 5.9.
         detail::parallel_for(n, params.threads, [&](int begin, int end) {
-            detail::vertex_step(result.V, filtered, geometry, adj, fixed, lambda, begin, end,
-                                next);
+            detail::vertex_step(result.V, faces.data(), setup.adjacency, setup.fixed, lambda,
+                                begin, end, next);
         });
         result.V.swap(next);
         lambda *= params.lambda_decay;

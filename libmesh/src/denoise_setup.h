@@ -1,0 +1,63 @@
+#pragma once
+// Private to libmesh: what RoFi (rofi.cpp) and ENVT (envt.cpp) share — the set-up before the
+// first iteration, the packed per-face state of an iteration and the vertex step (Eq. 5.9 /
+// Eq. 3.7).
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "octshape/mesh/denoise.h"
+#include "octshape/mesh/mesh.h"
+
+namespace octshape::mesh::detail {
+
+// Everything a denoiser needs before its first iteration.
+struct DenoiseSetup {
+    Adjacency adjacency;               // of F
+    FaceGeometry geometry;             // of the input V
+    std::vector<std::uint8_t> fixed;   // #V, 1 = kept in place (boundary / non-manifold)
+    Csr omega;                         // disk neighbourhoods Ω_i (f_i first); empty if !run
+    bool run = false;                  // false: nothing to iterate (return result.V = V)
+};
+
+// Builds adjacency, geometry, c_a, the fixed vertices and (when there is something to
+// iterate) Ω_i of radius `radius` if given, else radius_factor · c_a. Fills result.V = V and
+// the set-up fields of `result` (c_a, radius, |Ω_i|, fixed count, warnings, seconds_setup).
+[[nodiscard]] DenoiseSetup prepare_denoise(const Vertices& V,
+                                           const Faces& F,
+                                           std::optional<double> radius,
+                                           double radius_factor,
+                                           bool fix_boundary,
+                                           int iterations,
+                                           int threads,
+                                           DenoiseResult& result);
+
+// Per-face state of one iteration read by the vertex step: the filtered unit normal ñ_k, the
+// current area a_k and centroid c_k, packed in one cache line.
+struct alignas(64) FaceState {
+    double normal[3];
+    double area;
+    double centroid[3];
+    double unused;
+};
+
+// Recomputes normal (into `normal`), area and centroid of faces [begin, end) from V.
+void update_faces(const Vertices& V, const Faces& F, int begin, int end, FaceState* faces);
+
+// One Jacobi step for vertices [begin, end): out.row(i) from V, the per-face state (normal =
+// the FILTERED normal ñ_k) and λ_I (0 = ENVT / plain orthogonality step):
+//   v_i + 1/|F_v(i)| Σ_k (ñ_k·(c_k − v_i)) ñ_k + λ_I R_i
+// which equals 1/(3|F_v(i)|) Σ_k Σ_{j∈f_k, j≠i} (ñ_k·(v_j − v_i)) ñ_k (Eq. 5.9, 3.7) because
+// Σ_{j∈f_k, j≠i} (v_j − v_i) = 3 (c_k − v_i). R_i = D_i + D_t,i (Eq. 5.5–5.8). Fixed vertices
+// and vertices without faces are copied.
+void vertex_step(const Vertices& V,
+                 const FaceState* faces,
+                 const Adjacency& adjacency,
+                 const std::vector<std::uint8_t>& fixed,
+                 double lambda_i,
+                 int begin,
+                 int end,
+                 Vertices& out);
+
+}  // namespace octshape::mesh::detail
