@@ -3,12 +3,14 @@
 
 #include <spdlog/spdlog.h>
 
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "commands/command.h"
+#include "commands/macula_qc.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/io/sha256.h"
@@ -24,6 +26,7 @@ struct MaculaOptions {
     std::string file;
     std::string json_out;
     std::string csv_out;
+    std::string qc_dir;
     retina::CubeParams params;
     double tau_um = 5.0;
 };
@@ -63,6 +66,9 @@ void run(MaculaOptions& o) {
     const std::string csv = csv_line(header) + csv_line(row);
 
     // Write the CSV first and the JSON last: neither appears half-written (atomic rename).
+    if (!o.qc_dir.empty()) {
+        write_macula_qc(r, o.qc_dir, std::filesystem::path(o.file).stem().string());
+    }
     if (!o.csv_out.empty()) io::write_text_atomically(o.csv_out, csv);
     if (!o.json_out.empty()) io::write_text_atomically(o.json_out, j.dump(2) + "\n");
     if (o.json_out.empty() && o.csv_out.empty()) std::cout << j.dump(2) << '\n';
@@ -82,6 +88,9 @@ void add_macula_command(CLI::App& app, RunContext& /*ctx*/) {
     cmd->add_option("-o,--output", opts->json_out,
                     "Write the per-eye JSON here (default: print it on stdout)");
     cmd->add_option("--csv", opts->csv_out, "Write one CSV row (with header) here");
+    cmd->add_option("--qc", opts->qc_dir,
+                    "Write QC pictures here: STEM_thickness.png (map, centre, rim/slope/pit-flat "
+                    "disks) and STEM_profiles.png (half-lines with their fitted Beziers)");
     auto& p = opts->params;
     cmd->add_option("--half-lines", p.num_half_lines, "Number of radial half-lines n (even)")
         ->capture_default_str();
