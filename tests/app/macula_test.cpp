@@ -116,7 +116,7 @@ TEST(MaculaCli, LineScanOmitsTheThreeDimensionalParameters) {
     test::TempDir dir;
     const auto r =
         test::run_octshape("macula " + vol.string() + " --csv " + (dir / "eye.csv").string() +
-                           " -o " + (dir / "eye.json").string());
+                           " -o " + (dir / "eye.json").string() + " --qc " + (dir / "qc").string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const json j = json::parse(slurp(dir / "eye.json"));
     EXPECT_FALSE(j["parameters"].contains("rim_volume_mm3"));
