@@ -1,0 +1,171 @@
+#pragma once
+// CuBe: the cubic-Bezier model of the fovea (thesis §7.1-7.3, SPEC §4, docs/algorithms/cube.md).
+//
+// Pipeline: thickness map ILM - BM (Eq. 7.13 step 1) -> centre (minimum near the device centre,
+// Eq. 7.13) -> n radial half-lines by bilinear interpolation (§7.2.1 step 2) -> split at the rim
+// (the maximum) -> least-squares cubic Beziers, interior (Eq. 7.5, 7.7-7.10) and exterior
+// (Eq. 7.6, 7.11-7.12) -> the §7.3 parameters.
+//
+// Frames: grid mm (x along a B-scan, y across B-scans) for positions and disk points; half-line
+// angles are anatomical (0 deg nasal, 90 deg superior, both eyes) through ScanGeometry.
+// Missing values are NaN in every double of the results below (kMissing); writers turn them
+// into JSON null / CSV "NA". Nothing here logs or exits.
+
+#include <Eigen/Core>
+#include <array>
+#include <limits>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "octshape/io/scan.h"
+
+namespace octshape::retina {
+
+inline constexpr double kMissing = std::numeric_limits<double>::quiet_NaN();
+
+// Retinal thickness M(x, y) = ILM height - BM height in mm on the scan grid (row b = B-scan,
+// column a = A-scan); NaN where either boundary is missing (SPEC §4.1).
+struct ThicknessMap {
+    int rows = 0;            // B-scans
+    int cols = 0;            // A-scans
+    double dx_mm = 0.0;      // ScaleX
+    double dy_mm = 0.0;      // Distance (0 for a line scan)
+    std::vector<double> mm;  // rows * cols, row-major
+    int num_missing = 0;
+
+    [[nodiscard]] double at(int b, int a) const {
+        return mm[static_cast<std::size_t>(b) * static_cast<std::size_t>(cols) +
+                  static_cast<std::size_t>(a)];
+    }
+    // Bilinear interpolation at grid mm (x, y) (SPEC §4.3): NaN outside the grid or when one of
+    // the four surrounding nodes is missing. One row: linear along x (y must be 0).
+    [[nodiscard]] double sample(double x_mm, double y_mm) const;
+};
+
+// Throws AnalysisError when the scan has no ILM/BM lines or no valid thickness at all.
+[[nodiscard]] ThicknessMap thickness_map(const io::Scan& scan);
+
+struct CubeParams {
+    int num_half_lines = 24;           // n, even (opposite half-lines pair up, Eq. 7.18); 15 deg
+    double radius_mm = 2.0;            // R, length of each half-line (§7.2.1: 2 mm)
+    double sample_spacing_mm = 0.0;    // radial sample spacing; 0 = the scan's ScaleX
+    double tau_mm = 0.005;             // pit-flat threshold above CFT (Eq. 7.24; 5 um)
+    double inner_radius_mm = 0.5;      // r_u of the inner rim volume (Eq. 7.28; ETDRS centre)
+    double search_radius_mm = 1.0;     // centre search around the device centre (§7.2.1, 1 mm)
+    double tie_tolerance_mm = 0.0005;  // minima within 0.5 um are ties -> median (SPEC §4.2)
+    int max_rounds = 100;              // alternating LS / foot-point rounds (SPEC §4.5)
+    double energy_tolerance = 1e-10;   // stop on relative energy change below this
+    double rmse_warning_um = 10.0;     // QC "fit RMSE high" above this (thesis: 1.0-7.1 um)
+    // Forces the centre (grid mm) instead of searching: validation from a known centre.
+    std::optional<Eigen::Vector2d> centre_mm;
+    // Throws UsageError naming the bad field.
+    void validate() const;
+};
+
+// One fitted cubic Bezier and how the fit went.
+struct BezierFit {
+    std::array<Eigen::Vector2d, 4> control{};  // (r, thickness) mm
+    std::vector<double> t;                     // foot-point parameter of each sample
+    double sse_mm2 = 0.0;                      // sum of squared distances to the curve
+    int num_samples = 0;
+    int rounds = 0;
+    bool converged = false;  // stopped on the energy criterion (not on max_rounds)
+};
+
+struct FitSettings {
+    int max_rounds = 100;
+    double energy_tolerance = 1e-10;
+};
+
+// Interior fit (Eq. 7.5, 7.7-7.10): P0 = first sample, P3 = last sample, P1 = P0 + alpha (1,0),
+// P2 = P3 - beta (1,0), 0 <= alpha, beta and alpha + beta <= P3.x - P0.x. Samples ordered by r.
+[[nodiscard]] BezierFit fit_interior(std::span<const Eigen::Vector2d> samples,
+                                     const FitSettings& s = {});
+// Exterior fit (Eq. 7.6, 7.11-7.12): P0 = first sample (the rim), P1 = P0 + alpha (1,0), P2 free,
+// P3 = last sample; kept a graph (P0.x <= P1.x <= P2.x <= P3.x).
+[[nodiscard]] BezierFit fit_exterior(std::span<const Eigen::Vector2d> samples,
+                                     const FitSettings& s = {});
+
+[[nodiscard]] Eigen::Vector2d bezier_point(const std::array<Eigen::Vector2d, 4>& p, double t);
+[[nodiscard]] Eigen::Vector2d bezier_derivative(const std::array<Eigen::Vector2d, 4>& p, double t);
+
+// Maximum slope of an interior CuBe curve (SPEC §4.6, replacing the misprinted Eq. 7.20):
+// s = dy / (sqrt(alpha beta) + w - alpha - beta) at t_m = sqrt(alpha) / (sqrt(alpha) +
+// sqrt(beta)); w = P3.x - P0.x, dy = P3.y - P0.y. Infinite slope -> +inf.
+struct MaxSlope {
+    double slope = 0.0;  // dy/dx
+    double t = 0.5;
+};
+[[nodiscard]] MaxSlope interior_max_slope(const std::array<Eigen::Vector2d, 4>& interior);
+
+// Integral of y x dx/dt over [0, t1] (Eq. 7.27-7.28), exact (degree-8 polynomial).
+[[nodiscard]] double bezier_volume_integral(const std::array<Eigen::Vector2d, 4>& p, double t1);
+
+struct CubeHalfLine {
+    double angle_deg = 0.0;                               // anatomical
+    Eigen::Vector2d direction = Eigen::Vector2d::Zero();  // unit, grid frame
+    bool valid = false;  // the fit was possible (else `problem` says why)
+    std::string problem;
+    std::vector<double> r_mm;  // samples along the half-line
+    std::vector<double> h_mm;  // thickness, NaN = missing
+    int num_missing = 0;
+    int num_missing_interior = 0;
+    double rim_radius_mm = kMissing;
+    double rim_height_mm = kMissing;
+    double alpha_mm = kMissing;
+    double beta_mm = kMissing;
+    double max_slope_deg = kMissing;
+    double slope_t = kMissing;
+    Eigen::Vector2d slope_point{kMissing, kMissing};  // (r, h)
+    double pit_flat_radius_mm = kMissing;             // NaN when the pit is shallower than tau
+    double rim_volume_mm3 = kMissing;                 // this line's integral (before 2 pi / n)
+    double inner_rim_volume_mm3 = kMissing;
+    double rmse_um = kMissing;
+    BezierFit interior;
+    BezierFit exterior;
+};
+
+struct CubeDisk {
+    double diameter_mm = kMissing;  // mean 3-D distance of opposite points (Eq. 7.18/7.23)
+    double area_mm2 = kMissing;     // A_3D = A_2D / |cos(normal, z)| (Eq. 7.17)
+    std::array<double, 3> eigenvalues_mm2{kMissing, kMissing, kMissing};  // major, minor, normal
+    std::array<double, 2> semi_axes_mm{kMissing, kMissing};               // sqrt(2 lambda)
+    std::array<double, 3> normal{kMissing, kMissing, kMissing};           // grid frame, z >= 0
+    std::vector<Eigen::Vector3d> points;  // grid mm, in angular order
+};
+
+struct CubeResult {
+    bool line_scan = false;     // 2-D parameters only (SPEC §4.8)
+    std::string centre_source;  // "device thickness grid", "scan centre" or "given"
+    Eigen::Vector2d search_centre_mm = Eigen::Vector2d::Zero();
+    Eigen::Vector2d centre_mm = Eigen::Vector2d::Zero();  // grid mm
+    int num_tied_minima = 0;
+    double sample_spacing_mm = 0.0;
+    double cft_mm = kMissing;                // Eq. 7.14
+    double rim_height_mm = kMissing;         // Eq. 7.15
+    double pit_depth_mm = kMissing;          // Eq. 7.19
+    double max_pit_slope_deg = kMissing;     // mean of atan(s_i) (Eq. 7.20-7.21)
+    double pit_flat_diameter_mm = kMissing;  // Eq. 7.26
+    CubeDisk rim;                            // rim_diameter_mm, rim_disk_* (Eq. 7.16-7.18)
+    CubeDisk slope;                          // slope_diameter_mm, slope_disk_* (Eq. 7.22-7.23)
+    CubeDisk pit_flat;                       // pit_flat_disk_* (Eq. 7.24-7.26)
+    double rim_volume_mm3 = kMissing;        // Eq. 7.27
+    double inner_rim_volume_mm3 = kMissing;  // Eq. 7.28
+    double pit_volume_mm3 = kMissing;        // Eq. 7.29
+    double alpha_mean_mm = kMissing;
+    double beta_mean_mm = kMissing;
+    double rmse_um = kMissing;  // over every sample of every valid half-line
+    std::vector<CubeHalfLine> half_lines;
+    std::vector<std::string> qc_flags;  // short, stable phrases
+    std::vector<std::string> notes;
+    ThicknessMap map;
+};
+
+// The whole analysis of one scan: a volume (ScanPattern 3/4 or unknown with > 1 B-scan) or a
+// line through the fovea (ScanPattern 1). Throws AnalysisError for other patterns or unusable
+// segmentation, UsageError for bad params.
+[[nodiscard]] CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params = {});
+
+}  // namespace octshape::retina

@@ -1,0 +1,200 @@
+#include "octshape/retina/cube_report.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace octshape::retina {
+namespace {
+
+using J = nlohmann::ordered_json;
+
+J num(double v) { return std::isfinite(v) ? J(v) : J(nullptr); }
+
+template <std::size_t N>
+J arr(const std::array<double, N>& a) {
+    J j = J::array();
+    for (const double v : a) j.push_back(num(v));
+    return j;
+}
+
+J points(const std::array<Eigen::Vector2d, 4>& c) {
+    J j = J::array();
+    for (const auto& p : c) j.push_back(J::array({p.x(), p.y()}));
+    return j;
+}
+
+std::string csv_num(double v) {
+    if (!std::isfinite(v)) return "NA";
+    std::ostringstream s;
+    s.precision(10);
+    s << v;
+    return s.str();
+}
+
+struct Column {
+    const char* name;
+    double (*get)(const CubeResult&);
+};
+
+// The stable CSV columns, in order (docs/outputs.md).
+const std::vector<Column>& columns() {
+    static const std::vector<Column> c{
+        {"centre_x_mm", [](const CubeResult& r) { return r.centre_mm.x(); }},
+        {"centre_y_mm", [](const CubeResult& r) { return r.centre_mm.y(); }},
+        {"cft_mm", [](const CubeResult& r) { return r.cft_mm; }},
+        {"rim_height_mm", [](const CubeResult& r) { return r.rim_height_mm; }},
+        {"pit_depth_mm", [](const CubeResult& r) { return r.pit_depth_mm; }},
+        {"max_pit_slope_deg", [](const CubeResult& r) { return r.max_pit_slope_deg; }},
+        {"pit_flat_diameter_mm", [](const CubeResult& r) { return r.pit_flat_diameter_mm; }},
+        {"rim_diameter_mm", [](const CubeResult& r) { return r.rim.diameter_mm; }},
+        {"rim_disk_area_mm2", [](const CubeResult& r) { return r.rim.area_mm2; }},
+        {"rim_disk_major_eigenvalue_mm2",
+         [](const CubeResult& r) { return r.rim.eigenvalues_mm2[0]; }},
+        {"rim_disk_minor_eigenvalue_mm2",
+         [](const CubeResult& r) { return r.rim.eigenvalues_mm2[1]; }},
+        {"rim_disk_major_semi_axis_mm", [](const CubeResult& r) { return r.rim.semi_axes_mm[0]; }},
+        {"rim_disk_minor_semi_axis_mm", [](const CubeResult& r) { return r.rim.semi_axes_mm[1]; }},
+        {"slope_diameter_mm", [](const CubeResult& r) { return r.slope.diameter_mm; }},
+        {"slope_disk_area_mm2", [](const CubeResult& r) { return r.slope.area_mm2; }},
+        {"slope_disk_major_eigenvalue_mm2",
+         [](const CubeResult& r) { return r.slope.eigenvalues_mm2[0]; }},
+        {"slope_disk_minor_eigenvalue_mm2",
+         [](const CubeResult& r) { return r.slope.eigenvalues_mm2[1]; }},
+        {"slope_disk_major_semi_axis_mm",
+         [](const CubeResult& r) { return r.slope.semi_axes_mm[0]; }},
+        {"slope_disk_minor_semi_axis_mm",
+         [](const CubeResult& r) { return r.slope.semi_axes_mm[1]; }},
+        {"pit_flat_disk_area_mm2", [](const CubeResult& r) { return r.pit_flat.area_mm2; }},
+        {"pit_flat_disk_major_eigenvalue_mm2",
+         [](const CubeResult& r) { return r.pit_flat.eigenvalues_mm2[0]; }},
+        {"pit_flat_disk_minor_eigenvalue_mm2",
+         [](const CubeResult& r) { return r.pit_flat.eigenvalues_mm2[1]; }},
+        {"pit_flat_disk_major_semi_axis_mm",
+         [](const CubeResult& r) { return r.pit_flat.semi_axes_mm[0]; }},
+        {"pit_flat_disk_minor_semi_axis_mm",
+         [](const CubeResult& r) { return r.pit_flat.semi_axes_mm[1]; }},
+        {"rim_volume_mm3", [](const CubeResult& r) { return r.rim_volume_mm3; }},
+        {"inner_rim_volume_mm3", [](const CubeResult& r) { return r.inner_rim_volume_mm3; }},
+        {"pit_volume_mm3", [](const CubeResult& r) { return r.pit_volume_mm3; }},
+        {"alpha_mean_mm", [](const CubeResult& r) { return r.alpha_mean_mm; }},
+        {"beta_mean_mm", [](const CubeResult& r) { return r.beta_mean_mm; }},
+        {"rmse_um", [](const CubeResult& r) { return r.rmse_um; }},
+    };
+    return c;
+}
+
+void disk_json(J& v, const std::string& diameter, const std::string& prefix, const CubeDisk& d) {
+    if (!diameter.empty()) v[diameter] = num(d.diameter_mm);
+    v[prefix + "_area_mm2"] = num(d.area_mm2);
+    v[prefix + "_eigenvalues_mm2"] = arr(d.eigenvalues_mm2);
+    v[prefix + "_semi_axes_mm"] = arr(d.semi_axes_mm);
+    v[prefix + "_normal"] = arr(d.normal);
+}
+
+}  // namespace
+
+J cube_json(const CubeResult& r, const CubeParams& p) {
+    J j;
+    j["analysis"] = r.line_scan ? "line scan (2-D, SPEC 4.8)" : "volume (3-D)";
+    j["orientation"] =
+        "angles anatomical: 0 deg nasal, 90 deg superior, for both eyes; positions and disk "
+        "points in grid mm (x along a B-scan = A-scan index * ScaleX, y across B-scans = "
+        "B-scan index * Distance); heights are retinal thickness ILM - BM in mm; disk normals "
+        "in the grid frame with z >= 0";
+    J o;
+    o["num_half_lines"] = r.line_scan ? 2 : p.num_half_lines;
+    o["radius_mm"] = p.radius_mm;
+    o["sample_spacing_mm"] = r.sample_spacing_mm;
+    o["tau_mm"] = p.tau_mm;
+    o["inner_radius_mm"] = p.inner_radius_mm;
+    o["search_radius_mm"] = p.search_radius_mm;
+    o["tie_tolerance_mm"] = p.tie_tolerance_mm;
+    o["max_rounds"] = p.max_rounds;
+    o["energy_tolerance"] = p.energy_tolerance;
+    j["options"] = o;
+    J c;
+    c["source"] = r.centre_source;
+    c["search_centre_x_mm"] = r.search_centre_mm.x();
+    c["search_centre_y_mm"] = r.search_centre_mm.y();
+    c["tied_minima"] = r.num_tied_minima;
+    j["centre"] = c;
+    J v;
+    v["centre_x_mm"] = r.centre_mm.x();
+    v["centre_y_mm"] = r.line_scan ? J(nullptr) : J(r.centre_mm.y());
+    v["cft_mm"] = num(r.cft_mm);
+    v["rim_height_mm"] = num(r.rim_height_mm);
+    v["pit_depth_mm"] = num(r.pit_depth_mm);
+    v["max_pit_slope_deg"] = num(r.max_pit_slope_deg);
+    v["pit_flat_diameter_mm"] = num(r.pit_flat_diameter_mm);
+    if (!r.line_scan) {
+        disk_json(v, "rim_diameter_mm", "rim_disk", r.rim);
+        disk_json(v, "slope_diameter_mm", "slope_disk", r.slope);
+        disk_json(v, "", "pit_flat_disk", r.pit_flat);
+        v["rim_volume_mm3"] = num(r.rim_volume_mm3);
+        v["inner_rim_volume_mm3"] = num(r.inner_rim_volume_mm3);
+        v["pit_volume_mm3"] = num(r.pit_volume_mm3);
+    }
+    v["alpha_mean_mm"] = num(r.alpha_mean_mm);
+    v["beta_mean_mm"] = num(r.beta_mean_mm);
+    v["rmse_um"] = num(r.rmse_um);
+    j["parameters"] = v;
+    J hl = J::array();
+    for (const auto& h : r.half_lines) {
+        J e;
+        e["angle_deg"] = h.angle_deg;
+        e["direction_grid"] = J::array({h.direction.x(), h.direction.y()});
+        e["valid"] = h.valid;
+        if (!h.valid) e["problem"] = h.problem;
+        e["rim_radius_mm"] = num(h.rim_radius_mm);
+        e["rim_height_mm"] = num(h.rim_height_mm);
+        e["alpha_mm"] = num(h.alpha_mm);
+        e["beta_mm"] = num(h.beta_mm);
+        e["max_slope_deg"] = num(h.max_slope_deg);
+        e["slope_point_mm"] = J::array({num(h.slope_point.x()), num(h.slope_point.y())});
+        e["pit_flat_radius_mm"] = num(h.pit_flat_radius_mm);
+        e["rmse_um"] = num(h.rmse_um);
+        e["missing_samples"] = h.num_missing;
+        if (h.valid) {
+            e["interior_control_points_mm"] = points(h.interior.control);
+            e["exterior_control_points_mm"] = points(h.exterior.control);
+            e["fit_rounds"] = J::array({h.interior.rounds, h.exterior.rounds});
+        }
+        hl.push_back(std::move(e));
+    }
+    j["half_lines"] = std::move(hl);
+    j["qc_flags"] = r.qc_flags;
+    j["notes"] = r.notes;
+    return j;
+}
+
+std::vector<std::string> cube_csv_header() {
+    std::vector<std::string> h{"analysis", "centre_source"};
+    for (const auto& c : columns()) h.emplace_back(c.name);
+    h.emplace_back("qc_flags");
+    return h;
+}
+
+std::vector<std::string> cube_csv_values(const CubeResult& r) {
+    std::vector<std::string> v{r.line_scan ? "line" : "volume", r.centre_source};
+    for (const auto& c : columns()) {
+        const double x = c.get(r);
+        // A line scan has no y across B-scans: NA, as in the JSON.
+        v.push_back(r.line_scan && std::string(c.name) == "centre_y_mm" ? "NA" : csv_num(x));
+    }
+    std::string flags;
+    for (const auto& f : r.qc_flags) flags += (flags.empty() ? "" : ";") + f;
+    v.push_back(flags);
+    return v;
+}
+
+std::string csv_field(const std::string& s) {
+    if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
+    std::string out = "\"";
+    for (const char ch : s) {
+        if (ch == '"') out += '"';
+        out += ch;
+    }
+    return out + "\"";
+}
+
+}  // namespace octshape::retina

@@ -1,0 +1,172 @@
+// `octshape macula` end to end: the bundled phantoms against their truth, the JSON and CSV
+// outputs, and the refusals (exit 69).
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "octshape/io/sha256.h"
+#include "octshape/io/vol.h"
+#include "octshape/retina/phantom_macula.h"
+#include "retina/macula_bounds.h"
+#include "test_paths.h"
+
+namespace octshape {
+namespace {
+
+using nlohmann::json;
+
+std::string slurp(const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+std::vector<std::string> split_line(const std::string& line) {
+    std::vector<std::string> out;
+    std::string cur;
+    bool quoted = false;
+    for (const char c : line) {
+        if (c == '"') {
+            quoted = !quoted;
+        } else if (c == ',' && !quoted) {
+            out.push_back(cur);
+            cur.clear();
+        } else {
+            cur += c;
+        }
+    }
+    out.push_back(cur);
+    return out;
+}
+
+TEST(MaculaCli, BezierSampleMatchesItsTruth) {
+    const auto vol = test::source_dir() / "sample_scans/macula_bezier_od.vol";
+    const json truth =
+        json::parse(slurp(test::source_dir() / "sample_scans/macula_bezier_od.truth.json"));
+    test::TempDir dir;
+    const auto r =
+        test::run_octshape("macula " + vol.string() + " -o " + (dir / "eye.json").string() +
+                           " --csv " + (dir / "eye.csv").string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const json j = json::parse(slurp(dir / "eye.json"));
+    EXPECT_EQ(j["input"]["sha256"], io::sha256_file(vol.string()));
+    EXPECT_FALSE(j["octshape_version"].get<std::string>().empty());
+    EXPECT_EQ(slurp(dir / "eye.json").find("FAKE-PHANTOM"), std::string::npos);  // no identifiers
+    EXPECT_NE(j["orientation"].get<std::string>().find("0 deg nasal"), std::string::npos);
+    EXPECT_EQ(j["centre"]["source"], "device thickness grid");
+    ASSERT_EQ(j["half_lines"].size(), 24U);
+    EXPECT_EQ(j["half_lines"][0]["interior_control_points_mm"].size(), 4U);
+
+    // This sample is coarse: 128 A-scans (ScaleX 70.6 um) x 61 B-scans (125 um). The bounds
+    // follow from that grid (tests/retina/macula_bounds.h): centre within e, CFT within the
+    // node rise + bilinear error, rim height within eps + the angular shift of the crest, rim
+    // points within e + s/2 + sqrt(4 eps / |T''_rim|) (s = ScaleX is the radial step).
+    retina::MaculaPhantomParams p;  // the sample's surface: Bezier, not flat, fovea centred
+    const double dx = truth["generator"]["scale_x_mm"].get<double>();
+    const double dy = truth["generator"]["distance_mm"].get<double>();
+    const auto sb = retina::sampling_bounds(p, dx, dy, 0.0005);
+    const json& v = j["parameters"];
+    const json& t = truth["parameters"];
+    const double ec = std::hypot(v["centre_x_mm"].get<double>() - t["centre_x_mm"].get<double>(),
+                                 v["centre_y_mm"].get<double>() - t["centre_y_mm"].get<double>());
+    EXPECT_LE(ec, sb.centre_mm);
+    EXPECT_NEAR(v["cft_mm"].get<double>(), t["cft_mm"].get<double>(),
+                sb.node_rise_mm + 0.0005 + sb.bilinear_mm);
+    EXPECT_NEAR(v["rim_height_mm"].get<double>(), t["rim_height_mm"].get<double>(),
+                sb.bilinear_mm +
+                    sb.rim_theta_slope * sb.centre_mm / (sb.min_rim_radius - sb.centre_mm) +
+                    dx * dx / 4);
+    const double rim_pos = sb.centre_mm + dx / 2 + std::sqrt(4 * sb.bilinear_mm / sb.rim_curv);
+    EXPECT_NEAR(v["rim_diameter_mm"].get<double>(), t["rim_diameter_mm"].get<double>(),
+                2 * rim_pos);
+    EXPECT_NEAR(v["rim_volume_mm3"].get<double>(), t["rim_volume_mm3"].get<double>(),
+                2 * rim_pos / sb.min_rim_radius * t["rim_volume_mm3"].get<double>());
+
+    // CSV: one header, one row, same width, the JSON's values.
+    std::istringstream csv(slurp(dir / "eye.csv"));
+    std::string h;
+    std::string row;
+    std::string extra;
+    ASSERT_TRUE(std::getline(csv, h));
+    ASSERT_TRUE(std::getline(csv, row));
+    EXPECT_FALSE(std::getline(csv, extra));
+    const auto hv = split_line(h);
+    const auto rv = split_line(row);
+    ASSERT_EQ(hv.size(), rv.size());
+    for (std::size_t i = 0; i < hv.size(); ++i) {
+        if (hv[i] == "cft_mm") {
+            EXPECT_NEAR(std::stod(rv[i]), v["cft_mm"].get<double>(), 1e-9);
+        }
+        if (hv[i] == "eye") {
+            EXPECT_EQ(rv[i], "OD");
+        }
+        if (hv[i].ends_with("_mm") || hv[i].ends_with("_mm2") || hv[i].ends_with("_mm3")) {
+            EXPECT_NE(rv[i], "NA") << hv[i];
+        }
+    }
+}
+
+TEST(MaculaCli, LineScanOmitsTheThreeDimensionalParameters) {
+    const auto vol = test::source_dir() / "sample_scans/macula_line_od.vol";
+    test::TempDir dir;
+    const auto r =
+        test::run_octshape("macula " + vol.string() + " --csv " + (dir / "eye.csv").string() +
+                           " -o " + (dir / "eye.json").string() + " --qc " + (dir / "qc").string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const json j = json::parse(slurp(dir / "eye.json"));
+    EXPECT_FALSE(j["parameters"].contains("rim_volume_mm3"));
+    EXPECT_EQ(j["half_lines"].size(), 2U);
+    EXPECT_FALSE(j["notes"].empty());
+    const std::string csv = slurp(dir / "eye.csv");
+    EXPECT_NE(csv.find(",NA,"), std::string::npos);  // R reads NA as missing
+    // QC pictures: two PNG files named after the input.
+    for (const char* name : {"macula_line_od_thickness.png", "macula_line_od_profiles.png"}) {
+        const std::string png = slurp(dir / "qc" / name);
+        ASSERT_GT(png.size(), 1000U) << name;
+        EXPECT_EQ(png.substr(1, 3), "PNG") << name;
+    }
+}
+
+TEST(MaculaCli, CircleScanAndMissingBmExit69WithoutOutput) {
+    retina::MaculaPhantomParams p;
+    p.line = true;
+    p.pixels = false;
+    p.size_x = 256;
+    retina::MaculaPhantom ph = retina::make_macula_phantom(p);
+    test::TempDir dir;
+    io::Scan circle = ph.scan;
+    circle.meta.pattern = io::ScanPattern::kCircle;
+    circle.meta.scan_pattern_code = 2;
+    io::write_vol_file(circle, (dir / "circle.vol").string());
+    auto r = test::run_octshape("macula " + (dir / "circle.vol").string() + " -o " +
+                                (dir / "c.json").string());
+    EXPECT_EQ(r.exit_code, 69) << r.err;
+    EXPECT_NE(r.err.find("circle"), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir / "c.json"));
+
+    io::Scan no_bm = ph.scan;
+    for (auto& b : no_bm.bscans) {
+        std::fill(b.seg[1].begin(), b.seg[1].end(), std::numeric_limits<float>::quiet_NaN());
+    }
+    io::write_vol_file(no_bm, (dir / "nobm.vol").string());
+    r = test::run_octshape("macula " + (dir / "nobm.vol").string() + " -o " +
+                           (dir / "n.json").string());
+    EXPECT_EQ(r.exit_code, 69) << r.err;
+    EXPECT_NE(r.err.find("BM"), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir / "n.json"));
+}
+
+TEST(MaculaCli, BadOptionIsAUsageError) {
+    const auto vol = test::source_dir() / "sample_scans/macula_line_od.vol";
+    const auto r = test::run_octshape("macula " + vol.string() + " --half-lines 23");
+    EXPECT_EQ(r.exit_code, 64) << r.err;
+    EXPECT_NE(r.err.find("num_half_lines"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace octshape

@@ -1,0 +1,536 @@
+// CuBe fovea analysis (retina/cube.h) against closed forms, dense numerics and the macula
+// phantoms, whose truth comes from the generating functions (phantom_macula.h), not from cube.
+
+#include "octshape/retina/cube.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "octshape/io/error.h"
+#include "octshape/io/scan_reader.h"
+#include "octshape/retina/phantom_macula.h"
+#include "retina/macula_bounds.h"
+#include "test_paths.h"
+
+namespace octshape::retina {
+namespace {
+
+using V2 = Eigen::Vector2d;
+using Ctrl = std::array<V2, 4>;
+constexpr double kDeg = 180.0 / std::numbers::pi;
+
+Ctrl interior_curve(double cft, double w, double h, double alpha, double beta) {
+    return {V2(0.0, cft), V2(alpha, cft), V2(w - beta, h), V2(w, h)};
+}
+
+// Samples of a curve at equal x steps (x monotone), found by bisection on x(t).
+std::vector<V2> sample_by_x(const Ctrl& c, int n) {
+    std::vector<V2> out;
+    for (int k = 0; k <= n; ++k) {
+        const double x = c[0].x() + (c[3].x() - c[0].x()) * k / n;
+        double lo = 0.0;
+        double hi = 1.0;
+        for (int i = 0; i < 200; ++i) {
+            const double mid = 0.5 * (lo + hi);
+            if (mid == lo || mid == hi) break;
+            (bezier_point(c, mid).x() < x ? lo : hi) = mid;
+        }
+        out.push_back(bezier_point(c, 0.5 * (lo + hi)));
+    }
+    return out;
+}
+
+TEST(CubeMaxSlope, ClosedFormMatchesDenseEvaluation) {
+    // SPEC §4.6: s = dy / (sqrt(ab) + w - a - b) at t_m = sqrt(a) / (sqrt(a) + sqrt(b)). The
+    // dense maximum of y'(t)/x'(t) over 200 000 steps is independent of that derivation; the
+    // slope is flat at its maximum, so a t-step of 5e-6 changes it by ~1e-10 relative.
+    const std::array<std::array<double, 5>, 5> cases{{{0.225, 1.1, 0.35, 0.26, 0.55},
+                                                      {0.2, 0.9, 0.33, 0.05, 0.8},
+                                                      {0.24, 1.3, 0.36, 0.6, 0.4},
+                                                      {0.22, 1.0, 0.3, 0.5, 0.5},
+                                                      {0.21, 1.2, 0.37, 0.01, 0.02}}};
+    for (const auto& cs : cases) {
+        const Ctrl c = interior_curve(cs[0], cs[1], cs[2], cs[3], cs[4]);
+        double best = 0.0;
+        double best_t = 0.0;
+        constexpr int kSteps = 200000;
+        for (int i = 1; i < kSteps; ++i) {
+            const double t = static_cast<double>(i) / kSteps;
+            const V2 d = bezier_derivative(c, t);
+            if (d.y() / d.x() > best) {
+                best = d.y() / d.x();
+                best_t = t;
+            }
+        }
+        const MaxSlope m = interior_max_slope(c);
+        EXPECT_NEAR(m.slope, best, 1e-9 * best) << cs[3] << " " << cs[4];
+        EXPECT_NEAR(m.t, best_t, 1e-3) << cs[3] << " " << cs[4];
+        // The thesis' printed Eq. 7.20 (-dy / (a - b - sqrt(ab) - w)) differs whenever a != b.
+        const double printed =
+            -(cs[2] - cs[0]) / (cs[3] - cs[4] - std::sqrt(cs[3] * cs[4]) - cs[1]);
+        if (std::fabs(cs[3] - cs[4]) > 0.05) {
+            EXPECT_GT(std::fabs(printed - best), 1e-3);
+        }
+    }
+}
+
+TEST(CubeVolume, ExactPolynomialIntegralMatchesSimpson) {
+    // Simpson with 20 000 intervals on a degree-8 integrand: error ~ h^4 f'''' ~ 1e-17.
+    const Ctrl c{V2(0.0, 0.22), V2(0.3, 0.22), V2(0.6, 0.37), V2(1.2, 0.31)};
+    for (const double t1 : {1.0, 0.37}) {
+        constexpr int kN = 20000;
+        double sum = 0.0;
+        for (int i = 0; i <= kN; ++i) {
+            const double t = t1 * i / kN;
+            const double f =
+                bezier_point(c, t).y() * bezier_point(c, t).x() * bezier_derivative(c, t).x();
+            sum += f * ((i == 0 || i == kN) ? 1.0 : (i % 2 == 1 ? 4.0 : 2.0));
+        }
+        EXPECT_NEAR(bezier_volume_integral(c, t1), sum * t1 / kN / 3.0, 1e-13);
+    }
+}
+
+TEST(CubeFit, InteriorAndExteriorRecoverExactCurves) {
+    // Samples lie exactly on a CuBe curve: the least-squares minimum is that curve (energy 0),
+    // so control points come back to rounding and the RMSE is ~0.
+    const Ctrl in = interior_curve(0.225, 1.1, 0.35, 0.26, 0.55);
+    const BezierFit fi = fit_interior(sample_by_x(in, 94));
+    EXPECT_TRUE(fi.converged);
+    EXPECT_NEAR(fi.control[1].x(), 0.26, 1e-9);
+    EXPECT_NEAR(fi.control[2].x(), 1.1 - 0.55, 1e-9);
+    EXPECT_LT(std::sqrt(fi.sse_mm2 / fi.num_samples), 1e-9);
+    const Ctrl ex{V2(1.1, 0.35), V2(1.4, 0.35), V2(1.7, 0.27), V2(2.0, 0.29)};
+    const BezierFit fe = fit_exterior(sample_by_x(ex, 77));
+    EXPECT_NEAR(fe.control[1].x(), 1.4, 1e-8);
+    EXPECT_NEAR(fe.control[2].x(), 1.7, 1e-8);
+    EXPECT_NEAR(fe.control[2].y(), 0.27, 1e-8);
+    EXPECT_LT(std::sqrt(fe.sse_mm2 / fe.num_samples), 1e-9);
+}
+
+TEST(CubeFit, InteriorStaysAGraph) {
+    // A step-like profile wants alpha + beta > w; the constraint keeps the curve a graph.
+    std::vector<V2> step;
+    for (int k = 0; k <= 40; ++k) {
+        const double x = 0.025 * k;
+        step.emplace_back(x, x < 0.5 ? 0.2 : 0.35);
+    }
+    step.back() = V2(1.0, 0.35);
+    const BezierFit f = fit_interior(step);
+    const double a = f.control[1].x() - f.control[0].x();
+    const double b = f.control[3].x() - f.control[2].x();
+    EXPECT_GE(a, 0.0);
+    EXPECT_GE(b, 0.0);
+    EXPECT_LE(a + b, 1.0 + 1e-12);
+    for (int i = 1; i <= 1000; ++i) EXPECT_GE(bezier_derivative(f.control, i / 1000.0).x(), 0.0);
+}
+
+TEST(CubeParams, ValidateNamesTheField) {
+    CubeParams p;
+    EXPECT_NO_THROW(p.validate());
+    p.num_half_lines = 23;
+    try {
+        p.validate();
+        FAIL();
+    } catch (const UsageError& e) {
+        EXPECT_NE(std::string(e.what()).find("num_half_lines"), std::string::npos);
+    }
+    p = {};
+    p.inner_radius_mm = 3.0;
+    EXPECT_THROW(p.validate(), UsageError);
+    p = {};
+    p.tau_mm = 0.0;
+    EXPECT_THROW(p.validate(), UsageError);
+}
+
+TEST(CubeThicknessMap, BilinearExactOnPlanesAndMissingRespected) {
+    ThicknessMap m;
+    m.rows = 3;
+    m.cols = 4;
+    m.dx_mm = 0.01;
+    m.dy_mm = 0.1;
+    for (int b = 0; b < 3; ++b) {
+        for (int a = 0; a < 4; ++a) m.mm.push_back(0.2 + 0.5 * a * 0.01 - 0.3 * b * 0.1);
+    }
+    EXPECT_NEAR(m.sample(0.017, 0.13), 0.2 + 0.5 * 0.017 - 0.3 * 0.13, 1e-15);
+    EXPECT_NEAR(m.sample(0.03, 0.2), 0.2 + 0.5 * 0.03 - 0.3 * 0.2, 1e-15);  // far corner
+    EXPECT_TRUE(std::isnan(m.sample(0.031, 0.1)));                          // outside
+    m.mm[5] = kMissing;                                                     // node (b 1, a 1)
+    EXPECT_TRUE(std::isnan(m.sample(0.005, 0.05)));
+    EXPECT_TRUE(std::isnan(m.sample(0.015, 0.15)));
+    EXPECT_FALSE(std::isnan(m.sample(0.025, 0.05)));
+}
+
+// ---- phantoms ---------------------------------------------------------------------------------
+
+MaculaPhantomParams volume_params(MaculaFamily f, int bscans, bool flat = false) {
+    MaculaPhantomParams p;
+    p.family = f;
+    p.flat = flat;
+    p.num_bscans = bscans;
+    p.pixels = false;
+    // Off every grid node so that the sampling error is not artificially zero.
+    p.fovea_dx_mm = 0.0237;
+    p.fovea_dy_mm = -0.0311;
+    return p;
+}
+
+struct Errors {
+    double centre = 0, cft = 0, rim_height = 0, rim_diameter = 0, rim_area_rel = 0,
+           slope_diameter = 0, slope_deg = 0, flat_diameter = 0, vr_rel = 0, vir_rel = 0,
+           vp_rel = 0, alpha = 0, beta = 0, rmse_um = 0;
+};
+
+Errors errors(const CubeResult& r, const MaculaPhantom& ph) {
+    const MaculaTruth& t = ph.truth;
+    Errors e;
+    e.centre = (r.centre_mm - ph.centre_mm).norm();
+    e.cft = std::fabs(r.cft_mm - t.cft_mm);
+    e.rim_height = std::fabs(r.rim_height_mm - t.rim_height_mm);
+    e.rim_diameter = std::fabs(r.rim.diameter_mm - t.rim.diameter_mm);
+    e.rim_area_rel = std::fabs(r.rim.area_mm2 / t.rim.area_mm2 - 1.0);
+    e.slope_diameter = std::fabs(r.slope.diameter_mm - t.slope.diameter_mm);
+    e.slope_deg = std::fabs(r.max_pit_slope_deg - t.max_pit_slope_deg);
+    e.flat_diameter = std::fabs(r.pit_flat_diameter_mm - t.pit_flat_diameter_mm);
+    e.vr_rel = std::fabs(r.rim_volume_mm3 / t.rim_volume_mm3 - 1.0);
+    e.vir_rel = std::fabs(r.inner_rim_volume_mm3 / t.inner_rim_volume_mm3 - 1.0);
+    e.vp_rel = std::fabs(r.pit_volume_mm3 / t.pit_volume_mm3 - 1.0);
+    if (t.alpha_mean_mm) e.alpha = std::fabs(r.alpha_mean_mm - *t.alpha_mean_mm);
+    if (t.beta_mean_mm) e.beta = std::fabs(r.beta_mean_mm - *t.beta_mean_mm);
+    e.rmse_um = r.rmse_um;
+    return e;
+}
+
+void record(const std::string& tag, const Errors& e) {
+    ::testing::Test::RecordProperty(
+        tag,
+        "centre " + std::to_string(e.centre * 1e3) + " um, cft " + std::to_string(e.cft * 1e3) +
+            " um, rim_h " + std::to_string(e.rim_height * 1e3) + " um, rim_d " +
+            std::to_string(e.rim_diameter * 1e3) + " um, slope " + std::to_string(e.slope_deg) +
+            " deg, slope_d " + std::to_string(e.slope_diameter * 1e3) + " um, flat_d " +
+            std::to_string(e.flat_diameter * 1e3) + " um, Vr " + std::to_string(e.vr_rel * 100) +
+            " %, Vir " + std::to_string(e.vir_rel * 100) + " %, Vp " +
+            std::to_string(e.vp_rel * 100) + " %, rmse " + std::to_string(e.rmse_um) + " um");
+}
+
+TEST(CubePhantom, BezierIdealSamplingFitsExactly) {
+    // Ideal sampling: an isotropic grid (Distance = ScaleX = 11.69 um, 401 B-scans over
+    // 4.68 mm) and the analysis started from the true centre. Bilinear interpolation then errs
+    // by <= (2 dx^2) max|T''| / 8 = 0.06 um (max |T''| ~ 1.8 /mm in the pit), the only error
+    // left: the model represents the surface exactly.
+    MaculaPhantomParams p = volume_params(MaculaFamily::kBezier, 401);
+    p.distance_mm = 0.01169;
+    p.scale_x_mm = 0.01169;
+    const MaculaPhantom ph = make_macula_phantom(p);
+    CubeParams cp;
+    cp.centre_mm = ph.centre_mm;
+    const CubeResult r = analyse_macula(ph.scan, cp);
+    const SamplingBounds sb = sampling_bounds(p, 0.01169, 0.01169, 0.0);
+    ASSERT_LT(sb.bilinear_mm, 1e-4);
+    const Errors e = errors(r, ph);
+    record("bezier_ideal", e);
+    // RMSE ~0: samples within eps of an exactly representable curve.
+    EXPECT_LT(r.rmse_um, 1e3 * sb.bilinear_mm);
+    EXPECT_NEAR(r.cft_mm, ph.truth.cft_mm, sb.bilinear_mm + 1e-6);  // f32 depths: 2e-7 mm
+    // Rim height: the best sample is within s/2 of the crest: T'' (s/2)^2 / 2 + eps.
+    EXPECT_LT(e.rim_height, sb.bilinear_mm + 2.0 * 0.00585 * 0.00585 / 2);
+    // Rim points: the crest of each half-line is found to within s/2 plus the argmax shift
+    // sqrt(4 eps / |T''_rim|) that a perturbation eps can cause; diameters pair two of them.
+    const double rim_pos = 0.00585 + std::sqrt(4.0 * sb.bilinear_mm / sb.rim_curv);
+    EXPECT_LT(e.rim_diameter, 2.0 * rim_pos);
+    // Rim area: the rim polygon's radii move by <= rim_pos: relative area change 2 rim_pos / r.
+    EXPECT_LT(e.rim_area_rel, 2.0 * rim_pos / sb.min_rim_radius);
+    // With the rim at most rim_pos off, the interior fit has P3 off by rim_pos: parameters that
+    // scale with the rim radius (alpha, beta, slope point, pit flat) move by the same fraction
+    // rim_pos / r_rim (< 1 %); the slope s ~ dy / w moves by that fraction of itself.
+    const double frac = rim_pos / sb.min_rim_radius;
+    EXPECT_LT(e.alpha, frac * 0.3 + 1e-4);
+    EXPECT_LT(e.beta, frac * 0.6 + 1e-4);
+    EXPECT_LT(e.slope_deg, frac * ph.truth.max_pit_slope_deg);
+    EXPECT_LT(e.slope_diameter, frac * ph.truth.slope.diameter_mm + 2 * rim_pos);
+    EXPECT_LT(e.flat_diameter, frac * ph.truth.pit_flat_diameter_mm + 1e-4);
+    // Volumes: V_r integrates y r dr up to the rim: relative change <= 2 frac; V_IR stops at
+    // r_u inside every rim and only feels the shape change (frac); V_p = A h - V_r is a small
+    // difference of two terms each known to ~2 frac, so its bound scales by V_r / V_p (~14).
+    EXPECT_LT(e.vr_rel, 2.0 * frac);
+    EXPECT_LT(e.vir_rel, frac);
+    EXPECT_LT(e.vp_rel, 4.0 * frac * ph.truth.rim_volume_mm3 / ph.truth.pit_volume_mm3);
+    for (std::size_t i = 0; i < r.half_lines.size(); ++i) {
+        EXPECT_NEAR(r.half_lines[i].angle_deg, ph.truth.half_lines[i].angle_deg, 1e-12);
+        EXPECT_NEAR(r.half_lines[i].rim_radius_mm, ph.truth.half_lines[i].rim_radius_mm, rim_pos);
+    }
+    EXPECT_TRUE(r.qc_flags.empty());
+}
+
+// Errors of the full pipeline (centre searched) at 61, 97 and 193 B-scans.
+std::array<Errors, 3> run_family(MaculaFamily f,
+                                 bool flat,
+                                 std::array<SamplingBounds, 3>* sb,
+                                 std::array<MaculaPhantom, 3>* keep = nullptr) {
+    std::array<Errors, 3> out;
+    const std::array<int, 3> counts{61, 97, 193};
+    for (std::size_t i = 0; i < 3; ++i) {
+        const MaculaPhantomParams p = volume_params(f, counts[i], flat);
+        MaculaPhantom ph = make_macula_phantom(p);
+        const CubeResult r = analyse_macula(ph.scan);
+        EXPECT_EQ(r.centre_source, "device thickness grid");
+        EXPECT_TRUE(r.qc_flags.empty());
+        out[i] = errors(r, ph);
+        record(to_string(f) + (flat ? "_flat_" : "_") + std::to_string(counts[i]), out[i]);
+        if (sb != nullptr) {
+            (*sb)[i] = sampling_bounds(p, ph.scan.meta.scale_x_mm, ph.scan.meta.distance_mm,
+                                       CubeParams{}.tie_tolerance_mm);
+        }
+        if (keep != nullptr) (*keep)[i] = std::move(ph);
+    }
+    return out;
+}
+
+TEST(CubePhantom, BezierErrorsWithinSamplingBoundsAndShrinkWithBScans) {
+    std::array<SamplingBounds, 3> sb;
+    const auto e = run_family(MaculaFamily::kBezier, false, &sb);
+    const double s2 = 0.5 * 0.01169;  // half a radial sample
+    for (std::size_t i = 0; i < 3; ++i) {
+        SCOPED_TRACE(i);
+        // Centre within the bound argued in sampling_bounds().
+        EXPECT_LE(e[i].centre, sb[i].centre_mm);
+        // CFT is the value at the picked node (or of bilinear between tied nodes): it exceeds
+        // the true minimum by at most delta + tie + eps.
+        EXPECT_LE(e[i].cft, sb[i].node_rise_mm + 0.0005 + sb[i].bilinear_mm);
+        // Rim height: the max along a ray from a centre e off sees the crest at an angle off by
+        // <= e / (r_rim - e), i.e. |dh/dtheta| e / (r - e), plus eps and the discrete-sample
+        // loss T'' s^2 / 8.
+        EXPECT_LE(e[i].rim_height, sb[i].bilinear_mm +
+                                       sb[i].rim_theta_slope * sb[i].centre_mm /
+                                           (sb[i].min_rim_radius - sb[i].centre_mm) +
+                                       2.0 * s2 * s2);
+        // Rim diameter: each rim point moves by e (centre) + s/2 + sqrt(4 eps / |T''_rim|).
+        const double rim_pos =
+            sb[i].centre_mm + s2 + std::sqrt(4 * sb[i].bilinear_mm / sb[i].rim_curv);
+        EXPECT_LE(e[i].rim_diameter, 2.0 * rim_pos);
+        EXPECT_LE(e[i].rim_area_rel, 2.0 * rim_pos / sb[i].min_rim_radius);
+        EXPECT_LE(e[i].vr_rel, 2.0 * rim_pos / sb[i].min_rim_radius);
+        // Fit RMSE: the samples are within eps (+ the sample-to-centre mismatch) of a CuBe
+        // curve; the fit cannot do worse than that curve.
+        EXPECT_LE(e[i].rmse_um, 1e3 * (sb[i].bilinear_mm + sb[i].node_rise_mm));
+    }
+    // The error shrinks as the B-scans get denser (61 -> 97 -> 193). CFT depends only on the
+    // picked node, which is the same row at 61 and 97 here (the fovea is 31 um off a row shared
+    // by both grids): non-increasing, and strictly smaller at 193.
+    EXPECT_LE(e[1].cft, e[0].cft + 1e-9);
+    EXPECT_LT(e[2].cft, e[1].cft);
+    for (auto get : {+[](const Errors& x) { return x.rim_diameter; },
+                     +[](const Errors& x) { return x.rim_area_rel; },
+                     +[](const Errors& x) { return x.vr_rel; },
+                     +[](const Errors& x) { return x.slope_diameter; },
+                     +[](const Errors& x) { return x.rmse_um; }}) {
+        EXPECT_LT(get(e[1]), get(e[0]));
+        EXPECT_LT(get(e[2]), get(e[1]));
+    }
+}
+
+TEST(CubePhantom, ScheibeWithinOnePercentAt193) {
+    std::array<MaculaPhantom, 3> ph;
+    const auto e = run_family(MaculaFamily::kScheibe, false, nullptr, &ph);
+    const Errors& x = e[2];
+    const MaculaTruth& t = ph[2].truth;
+    // Targets (issue 3): 1 % (lengths: 2 um absolute where 1 % is smaller; slope 0.2 deg).
+    auto tol = [](double v) { return std::max(0.01 * std::fabs(v), 0.002); };
+    EXPECT_LE(x.cft, tol(t.cft_mm));
+    EXPECT_LE(x.rim_height, tol(t.rim_height_mm));
+    EXPECT_LE(x.rim_diameter, tol(t.rim.diameter_mm));
+    EXPECT_LE(x.rim_area_rel, 0.01);
+    EXPECT_LE(x.slope_diameter, tol(t.slope.diameter_mm));
+    EXPECT_LE(x.slope_deg, 0.2);
+    EXPECT_LE(x.vr_rel, 0.01);
+    EXPECT_LE(x.vir_rel, 0.01);
+    EXPECT_LE(x.vp_rel, 0.01);
+    // Model limit (SPEC §4.7): a cubic cannot follow Scheibe's pit bottom; the pit-flat
+    // diameter errs by 1-17 %. Assert that bound, and that the RMSE stays in the model's
+    // 0.3-1.2 um band (plus the sampling of a 39 um grid, < 0.1 um here).
+    EXPECT_LE(x.flat_diameter, 0.17 * t.pit_flat_diameter_mm);
+    EXPECT_LE(x.rmse_um, 1.2);
+}
+
+TEST(CubePhantom, ScheibeFlatPitsHitTheModelLimit) {
+    // Flat Scheibe pits (gamma 3.2): the documented model limit. Measured from the true centre
+    // so that sampling plays no part: what remains is the model's own error.
+    MaculaPhantomParams p = volume_params(MaculaFamily::kScheibe, 193, true);
+    const MaculaPhantom ph = make_macula_phantom(p);
+    CubeParams cp;
+    cp.centre_mm = ph.centre_mm;
+    const CubeResult r = analyse_macula(ph.scan, cp);
+    const Errors e = errors(r, ph);
+    record("scheibe_flat_true_centre", e);
+    // Rim, CFT and volumes stay well under 1 % (SPEC §4.7).
+    EXPECT_LE(e.rim_height, 0.01 * ph.truth.rim_height_mm);
+    EXPECT_LE(e.rim_diameter, 0.01 * ph.truth.rim.diameter_mm);
+    EXPECT_LE(e.vr_rel, 0.01);
+    // Pit-flat diameter and maximum slope are where the cubic cannot follow Scheibe's pit
+    // (SPEC §4.7); their errors here (recorded above, reported in docs/algorithms/cube.md)
+    // exceed both the issue's targets and SPEC's indicative 17 % / 0.25 deg: no bound is
+    // asserted for them rather than one fitted to the output.
+}
+
+TEST(CubePhantom, SegmentationNoiseGivesRmseOfTheNoiseLevel) {
+    // 1 axial pixel of thickness noise: ILM and BM each carry sigma / sqrt(2) so that ILM - BM
+    // has SD sigma = 3.87 um. A radial sample is a bilinear mix of 4 nodes with weights w:
+    // its noise SD is sigma sqrt(sum w^2), sqrt(4/9) = 0.67 sigma on average over positions,
+    // between 0.5 sigma and sigma; the fit absorbs little (4 of ~170 degrees of freedom).
+    const double sigma_um = 3.8717;
+    MaculaPhantomParams p = volume_params(MaculaFamily::kBezier, 193);
+    p.noise_um = sigma_um / std::sqrt(2.0);
+    p.seed = 7;
+    const MaculaPhantom ph = make_macula_phantom(p);
+    const CubeResult r = analyse_macula(ph.scan);
+    const Errors e = errors(r, ph);
+    record("bezier_noise_193", e);
+    EXPECT_GT(r.rmse_um, 0.5 * sigma_um);
+    EXPECT_LT(r.rmse_um, 1.0 * sigma_um);
+    // Parameters within 2 %, for those that do not hinge on where the flat crest's maximum
+    // lies. The rim is the maximum sample (SPEC §4.4): on a crest that drops only
+    // |T''| d^2 / 2 = 5 um over d = 0.2 mm, ~2.6 um sample noise moves the argmax by
+    // ~sqrt(4 eps / |T''|) ~ 0.2 mm, so the rim radius, rim disk, V_r, V_p and beta miss 2 %
+    // under this noise (recorded above, left to a robust rim split; docs/algorithms/cube.md).
+    // Pit depth (0.125 mm) is the difference of a noisy minimum (CFT, biased low) and noisy
+    // maxima (rims, biased high): each bias is within 2 % of its own value but together they
+    // reach ~2.7 % of the depth, so the depth is not held to 2 % either.
+    const MaculaTruth& t = ph.truth;
+    EXPECT_LE(e.cft, 0.02 * t.cft_mm);
+    EXPECT_LE(e.rim_height, 0.02 * t.rim_height_mm);
+    EXPECT_LE(e.slope_diameter, 0.02 * t.slope.diameter_mm);
+    EXPECT_LE(e.slope_deg, 0.02 * t.max_pit_slope_deg);
+    EXPECT_LE(e.vir_rel, 0.02);
+    EXPECT_LE(e.alpha, 0.02 * *t.alpha_mean_mm);
+}
+
+TEST(CubePhantom, OsGivesTheParametersOfItsMirroredOdTwin) {
+    // The OS twin is the OD volume mirrored in x (fovea and grid hint offsets mirrored); its
+    // thickness map equals the mirrored OD map to f32 rounding (1e-6 mm), so every parameter and
+    // every anatomical half-line must agree to that rounding.
+    MaculaPhantomParams od = volume_params(MaculaFamily::kBezier, 61);
+    od.grid_hint_dx_mm = 0.0;
+    od.grid_hint_dy_mm = 0.0;
+    MaculaPhantomParams os = od;
+    os.eye = io::Laterality::kOS;
+    os.fovea_dx_mm = -od.fovea_dx_mm;
+    const CubeResult a = analyse_macula(make_macula_phantom(od).scan);
+    const CubeResult b = analyse_macula(make_macula_phantom(os).scan);
+    const double tol = 1e-5;
+    EXPECT_NEAR(a.cft_mm, b.cft_mm, tol);
+    EXPECT_NEAR(a.rim_height_mm, b.rim_height_mm, tol);
+    EXPECT_NEAR(a.rim.diameter_mm, b.rim.diameter_mm, tol);
+    EXPECT_NEAR(a.rim.area_mm2, b.rim.area_mm2, tol);
+    EXPECT_NEAR(a.max_pit_slope_deg, b.max_pit_slope_deg, 1e-3);
+    EXPECT_NEAR(a.rim_volume_mm3, b.rim_volume_mm3, tol);
+    EXPECT_NEAR(a.pit_volume_mm3, b.pit_volume_mm3, tol);
+    // Normals in the grid frame mirror in x.
+    EXPECT_NEAR(a.rim.normal[0], -b.rim.normal[0], 1e-4);
+    EXPECT_NEAR(a.rim.normal[1], b.rim.normal[1], 1e-4);
+    ASSERT_EQ(a.half_lines.size(), b.half_lines.size());
+    for (std::size_t i = 0; i < a.half_lines.size(); ++i) {
+        EXPECT_NEAR(a.half_lines[i].rim_radius_mm, b.half_lines[i].rim_radius_mm, tol);
+        EXPECT_NEAR(a.half_lines[i].rim_height_mm, b.half_lines[i].rim_height_mm, tol);
+        EXPECT_NEAR(a.half_lines[i].direction.x(), -b.half_lines[i].direction.x(), 1e-12);
+        EXPECT_NEAR(a.half_lines[i].direction.y(), b.half_lines[i].direction.y(), 1e-12);
+    }
+    // Anatomy: OD half-line 0 (nasal) points along grid +x, OS along grid -x.
+    EXPECT_GT(a.half_lines[0].direction.x(), 0.99);
+    EXPECT_LT(b.half_lines[0].direction.x(), -0.99);
+    EXPECT_GT(a.half_lines[6].direction.y(), 0.99);  // 90 deg superior = grid +y
+}
+
+TEST(CubeLine, PhantomLineScanGivesTheTwoDimensionalParameters) {
+    // The bundled line phantom (768 A-scans, ScaleX 11.69 um, fovea 30 um off the scan centre,
+    // i.e. off every node by 0.4 samples). The centre node is within 5.9 um of the true centre:
+    // CFT rises by < dy (r/3a)^2 ~ 0.1 um; rims are found within s/2 + e = 12 um; the slope
+    // changes by that fraction of the rim radius (1 %) at most.
+    const io::Scan scan =
+        io::read_scan((test::source_dir() / "sample_scans/macula_line_od.vol").string());
+    MaculaPhantomParams p;
+    p.line = true;
+    p.fovea_dx_mm = 0.03;
+    const MaculaTruth t = macula_truth(p);
+    const CubeResult r = analyse_macula(scan);
+    EXPECT_TRUE(r.line_scan);
+    ASSERT_EQ(r.half_lines.size(), 2U);
+    EXPECT_NEAR(r.cft_mm, t.cft_mm, 0.0005);
+    EXPECT_NEAR(r.rim_height_mm, t.rim_height_mm, 0.0005);
+    for (std::size_t i = 0; i < 2; ++i) {
+        EXPECT_EQ(r.half_lines[i].angle_deg, t.half_lines[i].angle_deg);
+        EXPECT_NEAR(r.half_lines[i].rim_radius_mm, t.half_lines[i].rim_radius_mm, 0.012);
+        EXPECT_NEAR(r.half_lines[i].max_slope_deg, t.half_lines[i].max_slope_deg,
+                    0.01 * t.half_lines[i].max_slope_deg);
+    }
+    EXPECT_LT(r.rmse_um, 0.5);  // exactly representable, 1-D interpolation only
+    EXPECT_TRUE(std::isnan(r.rim_volume_mm3));
+    EXPECT_TRUE(std::isnan(r.rim.area_mm2));
+    EXPECT_FALSE(r.notes.empty());
+}
+
+TEST(CubeLine, RealFovealLineScanIsPhysiological) {
+    const io::Scan scan = io::read_scan(test::realdata("fovea_line_716_0.vol").string());
+    const CubeResult r = analyse_macula(scan);
+    ASSERT_TRUE(r.line_scan);
+    // Anatomical ranges (thesis Table 7.3: CFT 0.19-0.27 mm, rim 0.29-0.39 mm).
+    EXPECT_GE(r.cft_mm, 0.15);
+    EXPECT_LE(r.cft_mm, 0.35);
+    for (const auto& h : r.half_lines) {
+        ASSERT_TRUE(h.valid) << h.problem;
+        EXPECT_GE(h.rim_height_mm, 0.25);
+        EXPECT_LE(h.rim_height_mm, 0.45);
+        EXPECT_GE(h.rim_radius_mm, 0.5);
+        EXPECT_LE(h.rim_radius_mm, 2.0);
+        EXPECT_GT(h.max_slope_deg, 3.0);
+        EXPECT_LT(h.max_slope_deg, 25.0);
+    }
+    // Thesis: 1.0-7.1 um on real scans.
+    EXPECT_LT(r.rmse_um, 7.1);
+    RecordProperty("real_line", "cft " + std::to_string(r.cft_mm) + " rim " +
+                                    std::to_string(r.half_lines[0].rim_height_mm) + "/" +
+                                    std::to_string(r.half_lines[1].rim_height_mm) + " rmse " +
+                                    std::to_string(r.rmse_um));
+}
+
+TEST(CubeBadInput, CircleScanAndMissingBmAreRefused) {
+    MaculaPhantomParams p = volume_params(MaculaFamily::kBezier, 61);
+    MaculaPhantom ph = make_macula_phantom(p);
+    io::Scan circle = ph.scan;
+    circle.meta.pattern = io::ScanPattern::kCircle;
+    try {
+        (void)analyse_macula(circle);
+        FAIL();
+    } catch (const AnalysisError& e) {
+        EXPECT_NE(std::string(e.what()).find("circle"), std::string::npos) << e.what();
+    }
+    io::Scan no_bm = ph.scan;
+    for (auto& b : no_bm.bscans) {
+        std::fill(b.seg[1].begin(), b.seg[1].end(), std::numeric_limits<float>::quiet_NaN());
+    }
+    try {
+        (void)analyse_macula(no_bm);
+        FAIL();
+    } catch (const AnalysisError& e) {
+        EXPECT_NE(std::string(e.what()).find("BM"), std::string::npos) << e.what();
+    }
+}
+
+TEST(CubePhantom, MissingValuesInThePitAreFlagged) {
+    MaculaPhantomParams p = volume_params(MaculaFamily::kBezier, 61);
+    MaculaPhantom ph = make_macula_phantom(p);
+    // Remove a few A-scans next to the fovea on its B-scan.
+    const int b = static_cast<int>(std::lround(ph.centre_mm.y() / ph.scan.meta.distance_mm));
+    const int a = static_cast<int>(std::lround(ph.centre_mm.x() / ph.scan.meta.scale_x_mm));
+    for (int k = a + 10; k < a + 14; ++k) {
+        ph.scan.bscans[static_cast<std::size_t>(b)].seg[0][static_cast<std::size_t>(k)] =
+            std::numeric_limits<float>::quiet_NaN();
+    }
+    const CubeResult r = analyse_macula(ph.scan);
+    EXPECT_NE(std::find(r.qc_flags.begin(), r.qc_flags.end(), "missing values in the pit"),
+              r.qc_flags.end());
+}
+
+}  // namespace
+}  // namespace octshape::retina
