@@ -42,6 +42,7 @@ vtkSmartPointer<vtkPolyData> polydata(const mesh::Vertices& V, const mesh::Faces
 
 void IcpParams::validate() const {
     if (max_iterations < 1) throw std::invalid_argument("max_iterations must be >= 1");
+    if (max_landmarks < 0) throw std::invalid_argument("max_landmarks must be >= 0");
     if (!(tolerance > 0.0) || !std::isfinite(tolerance)) {
         throw std::invalid_argument("tolerance must be > 0");
     }
@@ -72,8 +73,10 @@ IcpResult icp_rigid(const mesh::Vertices& source_V,
     icp->SetTarget(target);
     icp->GetLandmarkTransform()->SetModeToRigidBody();
     icp->SetMaximumNumberOfIterations(params.max_iterations);
-    // Every vertex is a landmark (VTK's default is 200).
-    icp->SetMaximumNumberOfLandmarks(static_cast<int>(source_V.rows()));
+    // VTK's default is 200 landmarks; 0 asks for every vertex.
+    const auto nv = static_cast<int>(source_V.rows());
+    icp->SetMaximumNumberOfLandmarks(params.max_landmarks == 0 ? nv
+                                                                : std::min(nv, params.max_landmarks));
     icp->SetStartByMatchingCentroids(params.match_centroids ? 1 : 0);
     icp->SetCheckMeanDistance(1);
     icp->SetMeanDistanceModeToRMS();

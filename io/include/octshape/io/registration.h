@@ -16,6 +16,8 @@ struct IcpParams {
     // Stop when the RMS movement of the landmarks between two iterations falls below
     // tolerance × the target's bounding-box diagonal (dimensionless); > 0.
     double tolerance = 1e-9;
+    // Landmarks: VTK uses every ⌈#V / max_landmarks⌉-th source vertex; 0 = every vertex.
+    int max_landmarks = 5000;
     bool match_centroids = true;    // start by moving the source centroid onto the target's
 
     // Throws std::invalid_argument naming the first bad field.
