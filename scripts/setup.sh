@@ -8,3 +8,5 @@ cmake --preset release >/dev/null
 cmake --build --preset release
 echo "== octshape built: build/release/app/octshape"
 ./build/release/app/octshape --version
+echo "== main job on a bundled sample scan"
+./build/release/app/octshape info sample_scans/macula_bezier_od.vol
