@@ -72,7 +72,7 @@ double rotation_error_deg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b
 }
 
 TEST(Icp, RecoversKnownRotations) {
-    const mesh::Surface ref = ilm_surface(40);
+    const mesh::Surface ref = ilm_surface(30);
     const std::vector<Eigen::Isometry3d> moves{
         rigid(2.0, {0, 0, 1}, {0.05, -0.02, 0.01}), rigid(5.0, {1, 0.3, 0}, {-0.1, 0.0, 0.05}),
         rigid(10.0, {0.2, -1, 0.5}, {0.2, 0.1, -0.1}), rigid(15.0, {0, 0.4, 1}, {0, 0.3, 0})};
@@ -90,7 +90,7 @@ TEST(Icp, RecoversKnownRotations) {
                     r.rms_distance, r.iterations);
         // Exact copies: the true alignment has zero residual, so ICP converges to it up to its
         // stopping tolerance (1e-9 of the 3 mm diagonal per iteration). 0.01° over a 1.5 mm
-        // lever arm is 0.26 µm, a hundredth of the 75 µm grid step.
+        // lever arm is 0.26 µm, a four-hundredth of the 100 µm grid step.
         EXPECT_LT(angle_err, 0.01);
         EXPECT_LT(aligned_err, 1e-3);
         EXPECT_LT(r.rms_distance, 1e-4);
@@ -98,7 +98,7 @@ TEST(Icp, RecoversKnownRotations) {
 }
 
 TEST(MeanShape, RigidCopiesGiveTheOriginalWithZeroSd) {
-    const mesh::Surface ref = ilm_surface(40);
+    const mesh::Surface ref = ilm_surface(30);
     std::vector<mesh::Surface> others;
     for (const auto& T : {rigid(4.0, {0, 0, 1}, {0.1, 0, 0}), rigid(7.0, {1, 1, 0}, {0, 0.1, 0}),
                           rigid(3.0, {0, 1, 1}, {0, 0, 0.2})}) {
