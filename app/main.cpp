@@ -61,6 +61,7 @@ int main(int argc, char** argv) {
     octshape::app::add_denoise_command(app, ctx);
     octshape::app::add_metrics_command(app, ctx);
     octshape::app::add_features_command(app, ctx);
+    octshape::app::add_meanshape_command(app, ctx);
     octshape::app::add_info_command(app, ctx);
     octshape::app::add_macula_command(app, ctx);
     auto* phantom = app.add_subcommand(

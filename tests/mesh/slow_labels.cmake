@@ -3,3 +3,6 @@ foreach(_t RofiAutoFandisk RofiAutoBlock RofiAutoTwelveImpulsive RofiAutoSharpSp
            RofiTunedFandisk RofiTunedSharpSphere EnvtAutoFandisk BilateralFandisk)
   set_tests_properties(SharedMeshes.${_t} PROPERTIES LABELS slow)
 endforeach()
+# VTK's ICP runs hundreds of iterations per registration (tests/mesh/meanshape_test.cpp).
+set_tests_properties(Icp.RecoversKnownRotations MeanShape.RigidCopiesGiveTheOriginalWithZeroSd
+  MeanShape.CommandWritesMeanWithSdAndReportsIcpResiduals PROPERTIES LABELS slow)

@@ -54,4 +54,13 @@ void write_mesh(const std::filesystem::path& path,
 // OFF text to a stream (full double precision).
 void write_off(std::ostream& out, const mesh::Vertices& V, const mesh::Faces& F);
 
+// Per-vertex scalars (#V values each), e.g. {"sd_mm", sd}: written as VTP point data or PLY
+// vertex properties (the only formats that carry them; others give a UsageError). Same
+// temporary-name-and-rename and errors as write_mesh.
+using VertexScalars = std::vector<std::pair<std::string, Eigen::VectorXd>>;
+void write_mesh_vertex_scalars(const std::filesystem::path& path,
+                               const mesh::Vertices& V,
+                               const mesh::Faces& F,
+                               const VertexScalars& scalars);
+
 }  // namespace octshape::io

@@ -1,0 +1,118 @@
+// Point-set and shape-analysis benchmark: one table (case, size, time, ratio).
+//  - point-set NVT denoising (libmesh pointset.h, 30 iterations) of a ~50k-point noisy cube
+//    with 1 and 2 threads (ratio = time / 1-thread time);
+//  - VTK ICP of a 5°-rotated copy of a ~50k-vertex ILM-like surface (io/registration.h) and the
+//    mean shape of 3 aligned surfaces (mesh/meanshape.h; ratio = time / ICP time).
+//
+// Usage: octshape_shape_bench   (scripts/bench.sh runs it on Release)
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <vector>
+
+#include "octshape/io/registration.h"
+#include "octshape/mesh/meanshape.h"
+#include "octshape/mesh/pointset.h"
+
+namespace {
+
+using octshape::mesh::Faces;
+using octshape::mesh::Vertices;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) {
+    return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// m×m cell-centred points on each face of the unit cube, Gaussian noise 0.3 × spacing.
+Vertices noisy_cube(int m) {
+    Vertices P(6 * m * m, 3);
+    std::mt19937 rng(1);
+    std::normal_distribution<double> gauss(0.0, 0.3 / m);
+    int i = 0;
+    for (int face = 0; face < 6; ++face) {
+        const int axis = face / 2;
+        for (int a = 0; a < m; ++a) {
+            for (int b = 0; b < m; ++b) {
+                Eigen::Vector3d p;
+                p(axis) = face % 2 == 0 ? 0.5 : -0.5;
+                p((axis + 1) % 3) = (a + 0.5) / m - 0.5;
+                p((axis + 2) % 3) = (b + 0.5) / m - 0.5;
+                for (int k = 0; k < 3; ++k) p(k) += gauss(rng);
+                P.row(i++) = p.transpose();
+            }
+        }
+    }
+    return P;
+}
+
+octshape::mesh::Surface ilm(int n) {
+    octshape::mesh::Surface s;
+    s.V.resize((n + 1) * (n + 1), 3);
+    s.F.resize(2 * n * n, 3);
+    const double h = 3.0 / n;
+    for (int j = 0; j <= n; ++j) {
+        for (int i = 0; i <= n; ++i) {
+            const double x = -1.5 + i * h;
+            const double y = -1.5 + j * h;
+            const double pit = std::exp(-(std::pow(x - 0.2, 2) / (2 * 0.45 * 0.45) +
+                                          std::pow(y + 0.1, 2) / (2 * 0.3 * 0.3)));
+            s.V.row(j * (n + 1) + i) << x, y, 0.3 - 0.12 * pit + 0.05 * x + 0.03 * y * y;
+        }
+    }
+    int f = 0;
+    for (int j = 0; j < n; ++j) {
+        for (int i = 0; i < n; ++i) {
+            const int a = j * (n + 1) + i;
+            s.F.row(f++) << a, a + 1, a + n + 2;
+            s.F.row(f++) << a, a + n + 2, a + n + 1;
+        }
+    }
+    return s;
+}
+
+}  // namespace
+
+int main() {
+    std::printf("%-34s %10s %10s %8s\n", "case", "size", "time_s", "ratio");
+    const Vertices cube = noisy_cube(91);  // 6 × 91² = 49 686 points
+    double t1 = 0.0;
+    for (const int threads : {1, 2}) {
+        octshape::mesh::PointSetParams p;
+        p.threads = threads;
+        const auto t0 = Clock::now();
+        const auto r = octshape::mesh::pointset_denoise(cube, p);
+        const double t = seconds_since(t0);
+        if (threads == 1) t1 = t;
+        std::printf("%-34s %10lld %10.3f %8.2f\n",
+                    threads == 1 ? "pointset denoise p=30, 1 thread" :
+                                   "pointset denoise p=30, 2 threads",
+                    static_cast<long long>(cube.rows()), t, t / t1);
+        std::printf("%-34s %10s %10.3f %8.2f\n", "  of which set-up (tree, normals)", "",
+                    r.seconds_setup, r.seconds_setup / t1);
+    }
+
+    const octshape::mesh::Surface ref = ilm(223);  // 224² = 50 176 vertices
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(5.0 * M_PI / 180.0, Eigen::Vector3d(0.3, 0.2, 1.0).normalized())
+                     .toRotationMatrix();
+    T.translation() << 0.05, -0.03, 0.02;
+    const Vertices moved = octshape::io::transformed(ref.V, T);
+    auto t0 = Clock::now();
+    const auto icp = octshape::io::icp_rigid(moved, ref.V, ref.F);
+    const double t_icp = seconds_since(t0);
+    const double err = Eigen::AngleAxisd(icp.transform.linear() * T.linear()).angle() * 180 / M_PI;
+    std::printf("%-34s %10lld %10.3f %8.2f   (%d iterations, rotation error %.1e deg)\n",
+                "VTK ICP, 5000 landmarks", static_cast<long long>(ref.V.rows()), t_icp, 1.0,
+                icp.iterations, err);
+    const std::vector<octshape::mesh::Surface> others{
+        {octshape::io::transformed(moved, icp.transform), ref.F}, {ref.V, ref.F}};
+    t0 = Clock::now();
+    const auto mean = octshape::mesh::mean_shape(ref, others);
+    const double t_mean = seconds_since(t0);
+    std::printf("%-34s %10lld %10.3f %8.2f   (max SD %.1e mm)\n", "mean shape of 3, 1 thread",
+                static_cast<long long>(ref.V.rows()), t_mean, t_mean / t_icp, mean.sd.maxCoeff());
+    return 0;
+}
