@@ -32,10 +32,24 @@ std::size_t AllocProbe::largest() const { return g_largest.load(); }
 
 }  // namespace octshape::test
 
-// Replaceable global allocation functions ([new.delete.single], [new.delete.array]). The
-// nothrow and aligned forms keep their library definitions, which pair with each other.
+// Replaceable global allocation functions ([new.delete.single], [new.delete.array]). The nothrow
+// forms are replaced too: libstdc++ frees memory from `new(n, nothrow)` (std::stable_sort's
+// temporary buffer) with plain `operator delete`, so both must use the same allocator. The
+// aligned forms keep their library definitions, which pair only with each other.
 void* operator new(std::size_t n) { return allocate(n); }
 void* operator new[](std::size_t n) { return allocate(n); }
+void* operator new(std::size_t n, const std::nothrow_t& /*tag*/) noexcept {
+    try {
+        return allocate(n);
+    } catch (const std::bad_alloc&) {
+        return nullptr;
+    }
+}
+void* operator new[](std::size_t n, const std::nothrow_t& tag) noexcept {
+    return operator new(n, tag);
+}
+void operator delete(void* p, const std::nothrow_t& /*tag*/) noexcept { std::free(p); }
+void operator delete[](void* p, const std::nothrow_t& /*tag*/) noexcept { std::free(p); }
 void operator delete(void* p) noexcept { std::free(p); }
 void operator delete[](void* p) noexcept { std::free(p); }
 void operator delete(void* p, std::size_t /*n*/) noexcept { std::free(p); }
