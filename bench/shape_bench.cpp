@@ -80,9 +80,10 @@ int main() {
     const auto icp = octshape::io::icp_rigid(moved, ref.V, ref.F);
     const double t_icp = seconds_since(t0);
     const double err = Eigen::AngleAxisd(icp.transform.linear() * T.linear()).angle() * 180 / M_PI;
-    std::printf("%-34s %10lld %10.3f %8.2f   (%d iterations, rotation error %.1e deg)\n",
-                "VTK ICP, 5000 landmarks", static_cast<long long>(ref.V.rows()), t_icp, 1.0,
-                icp.iterations, err);
+    std::printf("%-34s %10lld %10.3f %8.2f   (%d VTK + %d point-to-plane iterations, "
+                "rotation error %.1e deg)\n",
+                "ICP (VTK, 5000 landmarks; refined)", static_cast<long long>(ref.V.rows()), t_icp,
+                1.0, icp.iterations, icp.refine_iterations, err);
     const std::vector<octshape::mesh::Surface> others{
         {octshape::io::transformed(moved, icp.transform), ref.F}, {ref.V, ref.F}};
     t0 = Clock::now();
