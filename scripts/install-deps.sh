@@ -13,6 +13,7 @@ PKGS=(
   libopencv-dev
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  snakemake                           # workflow/Snakefile (cohort scale-out) and its test
 
 )
 missing=()
