@@ -11,10 +11,10 @@ PKGS=(
   libeigen3-dev
   libvtk9-dev
   libopencv-dev
+  libssl-dev                          # libcrypto: SHA-256 (CPU SHA extensions), HMAC
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   snakemake                           # workflow/Snakefile (cohort scale-out) and its test
-
 )
 missing=()
 for p in "${PKGS[@]}"; do
