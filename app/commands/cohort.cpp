@@ -75,6 +75,7 @@ public:
         }
     }
     ~DirLock() { ::close(fd_); }
+    [[nodiscard]] int fd() const { return fd_; }
     DirLock(const DirLock&) = delete;
     DirLock& operator=(const DirLock&) = delete;
 
@@ -442,6 +443,9 @@ void run(CohortOptions& o, RunContext& ctx) {
                 ::prctl(PR_SET_PDEATHSIG, SIGKILL);
                 if (::getppid() != parent) ::_exit(static_cast<int>(ExitCode::kInternal));
                 ::close(fds[0]);
+                // The lock is the batch's: an eye outliving a killed batch must not block the
+                // re-run (its atomic write of the same result is harmless).
+                ::close(lock.fd());
                 spdlog::set_level(child_level);
                 child_main(o, subjects, items[idx], out, fds[1]);
             }

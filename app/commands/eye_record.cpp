@@ -101,32 +101,6 @@ std::pair<std::string, std::vector<std::pair<std::string, std::string>>> read_ma
     return {key_name, rows};
 }
 
-// HMAC-SHA256 (RFC 2104) until io::hmac_sha256_hex lands on main.
-std::string hmac_hex(std::string_view key, std::string_view msg) {
-    std::string k(key);
-    if (k.size() > 64) {
-        io::Sha256 h;
-        h.update(k.data(), k.size());
-        const auto d = h.finish();
-        k.assign(d.begin(), d.end());
-    }
-    k.resize(64, '\0');
-    std::string ipad(64, '\0');
-    std::string opad(64, '\0');
-    for (std::size_t i = 0; i < 64; ++i) {
-        ipad[i] = static_cast<char>(k[i] ^ 0x36);
-        opad[i] = static_cast<char>(k[i] ^ 0x5c);
-    }
-    io::Sha256 inner;
-    inner.update(ipad.data(), ipad.size());
-    inner.update(msg.data(), msg.size());
-    const auto id = inner.finish();
-    io::Sha256 outer;
-    outer.update(opad.data(), opad.size());
-    outer.update(id.data(), id.size());
-    return outer.hex();
-}
-
 std::string str_or_na(const nlohmann::json& j) {
     if (j.is_string()) return j.get<std::string>();
     return "NA";
@@ -177,7 +151,7 @@ SubjectSource SubjectSource::from_options(const SubjectOptions& o) {
         s.key_ = key;
         // Reveals nothing of the key, but changes when it changes.
         s.fingerprint_ =
-            "hmac:" + hmac_hex(key, "octshape subject key check").substr(0, 16);
+            "hmac:" + io::hmac_sha256_hex(key, "octshape subject key check").substr(0, 16);
         return s;
     }
     if (!o.map_file.empty()) {
@@ -209,7 +183,7 @@ std::optional<std::string> SubjectSource::subject_id(const io::Scan& scan,
         case Kind::kKeyedHash: {
             const std::string p = patient_key(scan);
             if (p.empty()) return std::nullopt;
-            return hmac_hex(key_, p).substr(0, kSubjectHexChars);
+            return io::hmac_sha256_hex(key_, p).substr(0, kSubjectHexChars);
         }
         case Kind::kMap: {
             if (!by_file_.empty() || by_patient_.empty()) {

@@ -413,14 +413,36 @@ TEST(CohortKill, SigkillAtRandomMomentsThenRerunGivesTheUninterruptedTables) {
 
     std::mt19937 rng(20261122);  // fixed: the same "random" moments on every run
     std::uniform_real_distribution<double> moment(0.0, 1.1 * full_s);
+    std::uniform_int_distribution<std::size_t> finished_before_kill(1, 14);
+    std::uniform_int_distribution<int> jitter_ms(0, 30);
     int interrupted_midway = 0;  // kills that left some but not all eyes done
     for (int trial = 0; trial < 6; ++trial) {
         const fs::path out = dir / ("run" + std::to_string(trial));
-        // Two kills in a row (the second one hits a resumed run), then a run to the end.
+        // Two kills in a row, then a run to the end. The first kill waits until a random number
+        // of eyes is finished (plus a random few ms, so it also lands inside writes): most of a
+        // run is process start-up, and a purely timed kill would often miss the batch. The
+        // second kill, of the resumed run, is at a random moment of the whole run time.
         std::map<std::string, std::int64_t> survived;
         for (int kill = 0; kill < 2; ++kill) {
             const pid_t pid = spawn_octshape(args(out));
-            std::this_thread::sleep_for(std::chrono::duration<double>(moment(rng)));
+            if (kill == 0) {
+                const std::size_t target = finished_before_kill(rng);
+                const auto deadline = std::chrono::steady_clock::now() +
+                                      std::chrono::duration<double>(10.0 * full_s + 5.0);
+                for (;;) {
+                    std::size_t n = 0;
+                    std::error_code ec;
+                    for (fs::directory_iterator it(out / "eyes", ec), end; !ec && it != end;
+                         it.increment(ec)) {
+                        n += it->path().filename().string()[0] != '.' ? 1 : 0;
+                    }
+                    if (n >= target || std::chrono::steady_clock::now() > deadline) break;
+                    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+                }
+                std::this_thread::sleep_for(std::chrono::milliseconds(jitter_ms(rng)));
+            } else {
+                std::this_thread::sleep_for(std::chrono::duration<double>(moment(rng)));
+            }
             ::kill(pid, SIGKILL);
             wait_exit(pid);
             std::this_thread::sleep_for(std::chrono::milliseconds(50));  // orphans die too
@@ -451,7 +473,7 @@ TEST(CohortKill, SigkillAtRandomMomentsThenRerunGivesTheUninterruptedTables) {
         }
     }
     // The kills did land in the middle of batches (else the test would prove nothing).
-    EXPECT_GE(interrupted_midway, 3);
+    EXPECT_GE(interrupted_midway, 4);
 }
 
 }  // namespace
