@@ -211,8 +211,9 @@ std::string signal_name(int sig) {
             eo.qc_stem = item.key;
         }
         const MaculaEye r = analyse_macula_eye(item.path, facts, scan, eo, subjects);
+        // Atomic, not fsync'ed: the parent syncs the file system once before the tables.
         io::write_text_atomically((out / "eyes" / (item.key + ".json")).string(),
-                                  r.json.dump(2) + "\n");
+                                  r.json.dump(2) + "\n", {.durable = false});
     } catch (const Error& e) {
         code = static_cast<int>(e.exit_code());
         message = e.what();
@@ -319,7 +320,7 @@ void record_failure(Item& item, const fs::path& out, const std::string& options_
     f["reason"] = reason;
     f["exit_code"] = exit_code;
     io::write_text_atomically((out / "failures" / (item.key + ".json")).string(),
-                              f.dump(2) + "\n");
+                              f.dump(2) + "\n", {.durable = false});
     item.failed = true;
     item.failure = f;
 }
@@ -493,7 +494,10 @@ void run(CohortOptions& o, RunContext& ctx) {
     }
     progress.end();
 
-    // The tables, rebuilt from the records of this run's inputs, each written atomically.
+    // Every record of this run reaches the disk before the tables that list them (one syncfs
+    // instead of two fsyncs per eye); the tables are rebuilt from the records of this run's
+    // inputs, each written atomically and durably.
+    if (::syncfs(lock.fd()) != 0) throw OutputError(out.string(), std::strerror(errno));
     std::vector<nlohmann::json> eyes;
     std::vector<std::string> names;
     std::size_t failed = skipped.size();

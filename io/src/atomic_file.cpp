@@ -46,7 +46,8 @@ void fsync_path(const fs::path& p, const std::string& dest) {
 }  // namespace
 
 void write_file_atomically(const std::string& path,
-                           const std::function<void(std::ostream&)>& write) {
+                           const std::function<void(std::ostream&)>& write,
+                           const AtomicWriteOptions& options) {
     const fs::path dest(path);
     if (dest.filename().empty()) throw OutputError(path, "not a file name");
     fs::path dir = dest.parent_path();
@@ -75,11 +76,12 @@ void write_file_atomically(const std::string& path,
         out.close();
         if (out.fail()) throw OutputError(path, "close failed");
     }
-    fsync_path(tmp, path);
+    if (options.durable) fsync_path(tmp, path);
     if (::rename(tmp.c_str(), dest.c_str()) != 0) {
         throw OutputError(path, std::string("rename failed: ") + std::strerror(errno));
     }
     guard.release();
+    if (!options.durable) return;
     // Make the rename itself durable.
     const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
     if (dfd >= 0) {
@@ -88,10 +90,13 @@ void write_file_atomically(const std::string& path,
     }
 }
 
-void write_text_atomically(const std::string& path, std::string_view text) {
-    write_file_atomically(path, [&](std::ostream& out) {
-        out.write(text.data(), static_cast<std::streamsize>(text.size()));
-    });
+void write_text_atomically(const std::string& path,
+                           std::string_view text,
+                           const AtomicWriteOptions& options) {
+    write_file_atomically(
+        path,
+        [&](std::ostream& out) { out.write(text.data(), static_cast<std::streamsize>(text.size())); },
+        options);
 }
 
 }  // namespace octshape::io
