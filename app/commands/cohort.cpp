@@ -206,6 +206,7 @@ std::string signal_name(int sig) {
                                 "): the ONH analysis is not part of this octshape build");
         }
         MaculaEyeOptions eo = o.eye;
+        eo.check_scan_type = false;  // decided above
         if (o.qc) {
             eo.qc_dir = (out / "qc").string();
             eo.qc_stem = item.key;

@@ -49,6 +49,9 @@ void add_macula_command(CLI::App& app, RunContext& /*ctx*/) {
                     "Write QC pictures here: STEM_thickness.png (map, centre, rim/slope/pit-flat "
                     "disks) and STEM_profiles.png (half-lines with their fitted Beziers)");
     add_macula_analysis_options(cmd, opts->eye);
+    cmd->add_flag("!--no-type-check", opts->eye.check_scan_type,
+                  "Analyse the scan even if it looks like an optic nerve head volume (a long BM "
+                  "gap in several B-scans: docs/cohort.md, Classifier)");
     add_subject_options(cmd, opts->subjects);
     cmd->callback([opts] { run(*opts); });
 }

@@ -6,10 +6,12 @@
 #include <sstream>
 
 #include "commands/macula_qc.h"
+#include "octshape/io/error.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/io/sha256.h"
 #include "octshape/retina/cube_report.h"
 #include "octshape/retina/scan_summary.h"
+#include "octshape/retina/scan_type.h"
 #include "octshape/version.h"
 
 namespace octshape::app {
@@ -69,6 +71,13 @@ MaculaEye analyse_macula_eye(const std::string& file,
                              const SubjectSource& subjects) {
     o.params.tau_mm = o.tau_um * 1e-3;
     o.params.validate();
+    if (o.check_scan_type) {
+        const auto type = retina::classify_scan(scan);
+        if (type.type == retina::ScanType::kOnh) {
+            throw AnalysisError(file + ": an optic nerve head scan, not a macula scan (" +
+                                type.reason + "); --no-type-check analyses it anyway");
+        }
+    }
     const std::string sha = io::sha256_file(file);
     const retina::CubeResult r = retina::analyse_macula(scan, o.params);
     for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", file, f);

@@ -17,6 +17,9 @@ struct MaculaEyeOptions {
     double tau_um = 5.0;        // pit-flat threshold above CFT (um), the user option
     std::string qc_dir;         // empty: no QC pictures
     std::string qc_stem;        // QC file names DIR/STEM_*.png; empty: the input's file stem
+    // Refuse (AnalysisError) a volume that retina::classify_scan calls an ONH scan: a CuBe fit
+    // of an optic disc gives numbers, but meaningless ones. The cohort classifies first.
+    bool check_scan_type = true;
 };
 
 struct MaculaEye {

@@ -293,6 +293,11 @@ TEST(CohortCli, MergeAndPerScanMaculaGiveTheCohortCsvByteForByte) {
     ASSERT_EQ(m2.exit_code, 0) << m2.err;
     EXPECT_EQ(m2.out, cohort_csv);
 
+    // `macula` refuses an ONH volume (the cohort's classifier), and the workflow's job with it.
+    const auto onh = test::run_octshape("macula " + q(c.in / "onh.vol") + " " + c.key_arg());
+    EXPECT_EQ(onh.exit_code, 69);
+    EXPECT_NE(onh.err.find("optic nerve head"), std::string::npos) << onh.err;
+
     // A JSON without the cohort record is refused with the input error code.
     spit(c.dir / "old.json", R"({"command": "macula"})");
     EXPECT_EQ(test::run_octshape("merge " + q(c.dir / "old.json")).exit_code, 65);
