@@ -277,7 +277,7 @@ public:
             const auto s = static_cast<long>(static_cast<double>(todo_ - done_) / rate);
             eta = fmt::format("{}:{:02}:{:02}", s / 3600, (s / 60) % 60, s % 60);
         }
-        std::fprintf(stderr, "\r[%s] %zu/%zu eyes  %.2f eyes/s  ETA %s  failed %zu   ",
+        std::fprintf(stderr, "\r[%s] %zu/%zu files  %.2f files/s  ETA %s  failed %zu   ",
                      bar.c_str(), done_, todo_, rate, eta.c_str(), failed_);
         std::fflush(stderr);
     }
