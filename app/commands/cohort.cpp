@@ -345,8 +345,8 @@ void run(CohortOptions& o, RunContext& ctx) {
         throw UsageError("--type must be auto, macula or onh");
     }
     if (o.jobs < 0) throw UsageError("--jobs must be >= 1");
-    const int jobs = o.jobs > 0 ? o.jobs
-                                : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+    const int cores = static_cast<int>(std::thread::hardware_concurrency());
+    const int jobs = o.jobs > 0 ? o.jobs : std::max(1, cores);
     o.eye.params.tau_mm = o.eye.tau_um * 1e-3;
     o.eye.params.validate();
     const SubjectSource subjects = SubjectSource::from_options(o.subjects);
@@ -488,7 +488,8 @@ void run(CohortOptions& o, RunContext& ctx) {
         } else {
             const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
             record_failure(item, out, fail_options,
-                           "the analysis crashed: " + signal_name(sig) + (msg.empty() ? "" : ": " + msg),
+                           "the analysis crashed: " + signal_name(sig) +
+                               (msg.empty() ? "" : ": " + msg),
                            static_cast<int>(ExitCode::kInternal));
         }
         progress.finished(item, false, item.failure.value("reason", std::string()), secs);

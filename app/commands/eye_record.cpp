@@ -319,7 +319,9 @@ std::string eyes_csv(const std::vector<nlohmann::json>& eyes,
         if (str_or_na(c->value("scan_type", nlohmann::json())) != scan_type) continue;
         const auto in = e.find("input");
         std::string sha = "NA";
-        if (in != e.end() && in->is_object()) sha = str_or_na(in->value("sha256", nlohmann::json()));
+        if (in != e.end() && in->is_object()) {
+            sha = str_or_na(in->value("sha256", nlohmann::json()));
+        }
         std::vector<std::string> row;
         const std::string subject = str_or_na(c->value("subject_id", nlohmann::json()));
         const std::string file = str_or_na(c->value("file", nlohmann::json()));
@@ -330,7 +332,9 @@ std::string eyes_csv(const std::vector<nlohmann::json>& eyes,
         row.push_back(file);
         row.push_back(sha);
         row.push_back(groups.group_of(subject, file));
-        for (const auto& col : type_cols) row.push_back(str_or_na(csv->value(col, nlohmann::json())));
+        for (const auto& col : type_cols) {
+            row.push_back(str_or_na(csv->value(col, nlohmann::json())));
+        }
         rows.push_back(std::move(row));
     }
     // subject_id, eye, visit_date, file: indices 0, 1, 2, 4.

@@ -23,7 +23,7 @@ namespace octshape::app {
 struct SubjectOptions {
     std::string key;       // --subject-key KEY: HMAC-SHA256 key (visible in `ps`: prefer a file)
     std::string key_file;  // --subject-key-file F: the key is the file's first line
-    std::string map_file;  // --subjects map.csv: header `file,subject_id` or `patient_id,subject_id`
+    std::string map_file;  // --subjects map.csv: header file,subject_id or patient_id,subject_id
     std::string mode;      // --subject-id raw: the export's patient ID as is (explicit request)
 };
 

@@ -107,10 +107,10 @@ void write_file_atomically(const std::string& path,
 void write_text_atomically(const std::string& path,
                            std::string_view text,
                            const AtomicWriteOptions& options) {
-    write_file_atomically(
-        path,
-        [&](std::ostream& out) { out.write(text.data(), static_cast<std::streamsize>(text.size())); },
-        options);
+    const auto put = [&](std::ostream& out) {
+        out.write(text.data(), static_cast<std::streamsize>(text.size()));
+    };
+    write_file_atomically(path, put, options);
 }
 
 }  // namespace octshape::io
