@@ -14,6 +14,7 @@ PKGS=(
   libssl-dev                          # libcrypto: SHA-256 (CPU SHA extensions), HMAC
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  snakemake                           # workflow/Snakefile (cohort scale-out) and its test
 )
 missing=()
 for p in "${PKGS[@]}"; do

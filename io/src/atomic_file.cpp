@@ -46,7 +46,8 @@ void fsync_path(const fs::path& p, const std::string& dest) {
 }  // namespace
 
 void write_path_atomically(const std::string& path,
-                           const std::function<void(const std::string& tmp)>& write) {
+                           const std::function<void(const std::string& tmp)>& write,
+                           const AtomicWriteOptions& options) {
     const fs::path dest(path);
     if (dest.filename().empty()) throw OutputError(path, "not a file name");
     fs::path dir = dest.parent_path();
@@ -70,11 +71,12 @@ void write_path_atomically(const std::string& path,
     TempGuard guard(tmp);
     write(tmp.string());
     if (!fs::is_regular_file(tmp, ec)) throw OutputError(path, "the writer produced no file");
-    fsync_path(tmp, path);
+    if (options.durable) fsync_path(tmp, path);
     if (::rename(tmp.c_str(), dest.c_str()) != 0) {
         throw OutputError(path, std::string("rename failed: ") + std::strerror(errno));
     }
     guard.release();
+    if (!options.durable) return;
     // Make the rename itself durable.
     const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
     if (dfd >= 0) {
@@ -84,22 +86,31 @@ void write_path_atomically(const std::string& path,
 }
 
 void write_file_atomically(const std::string& path,
-                           const std::function<void(std::ostream&)>& write) {
-    write_path_atomically(path, [&](const std::string& tmp) {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        if (!out) throw OutputError(path, std::string("cannot create: ") + std::strerror(errno));
-        write(out);
-        out.flush();
-        if (!out) throw OutputError(path, "write failed (disk full?)");
-        out.close();
-        if (out.fail()) throw OutputError(path, "close failed");
-    });
+                           const std::function<void(std::ostream&)>& write,
+                           const AtomicWriteOptions& options) {
+    write_path_atomically(
+        path,
+        [&](const std::string& tmp) {
+            std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+            if (!out) {
+                throw OutputError(path, std::string("cannot create: ") + std::strerror(errno));
+            }
+            write(out);
+            out.flush();
+            if (!out) throw OutputError(path, "write failed (disk full?)");
+            out.close();
+            if (out.fail()) throw OutputError(path, "close failed");
+        },
+        options);
 }
 
-void write_text_atomically(const std::string& path, std::string_view text) {
-    write_file_atomically(path, [&](std::ostream& out) {
+void write_text_atomically(const std::string& path,
+                           std::string_view text,
+                           const AtomicWriteOptions& options) {
+    const auto put = [&](std::ostream& out) {
         out.write(text.data(), static_cast<std::streamsize>(text.size()));
-    });
+    };
+    write_file_atomically(path, put, options);
 }
 
 }  // namespace octshape::io

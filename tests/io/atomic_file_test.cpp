@@ -47,6 +47,27 @@ TEST(AtomicFile, ThrowingWriterLeavesOldContentAndNoTemporary) {
     EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator{}), 1);
 }
 
+TEST(AtomicFile, NonDurableWriteIsStillAtomic) {
+    // Without fsync the same temporary + rename protocol applies: the result, nothing else,
+    // and a throwing writer leaves the old content.
+    test::TempDir dir;
+    const auto p = dir / "eye.json";
+    const AtomicWriteOptions fast{.durable = false};
+    write_text_atomically(p.string(), "first", fast);
+    write_text_atomically(p.string(), "second", fast);
+    EXPECT_EQ(read_all(p), "second");
+    EXPECT_THROW(write_file_atomically(
+                     p.string(),
+                     [](std::ostream& out) {
+                         out << "partial";
+                         throw std::runtime_error("killed midway");
+                     },
+                     fast),
+                 std::runtime_error);
+    EXPECT_EQ(read_all(p), "second");
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator{}), 1);
+}
+
 TEST(AtomicFile, MissingDirectoryIsAnOutputError) {
     test::TempDir dir;
     try {

@@ -1,0 +1,485 @@
+// `octshape cohort` and `octshape merge` end to end: the tables, bad files, resume without
+// rehashing or redoing, subject pseudonyms, groups, and SIGKILL at random moments followed by
+// a re-run (docs/cohort.md).
+
+#include <gtest/gtest.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "octshape/io/sha256.h"
+#include "octshape/io/vol.h"
+#include "octshape/retina/cube_report.h"
+#include "octshape/retina/phantom_macula.h"
+#include "test_paths.h"
+
+extern char** environ;
+
+namespace octshape {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+std::string slurp(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+void spit(const fs::path& p, const std::string& s) {
+    std::ofstream out(p, std::ios::binary);
+    out << s;
+}
+
+std::vector<std::string> split_line(const std::string& line) {
+    std::vector<std::string> out;
+    std::string cur;
+    bool quoted = false;
+    for (const char c : line) {
+        if (c == '"') {
+            quoted = !quoted;
+        } else if (c == ',' && !quoted) {
+            out.push_back(cur);
+            cur.clear();
+        } else {
+            cur += c;
+        }
+    }
+    out.push_back(cur);
+    return out;
+}
+
+std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
+    std::istringstream in(slurp(p));
+    std::vector<std::vector<std::string>> rows;
+    std::string line;
+    while (std::getline(in, line)) rows.push_back(split_line(line));
+    return rows;
+}
+
+// A small macula volume (25 B-scans x 192 A-scans, no pixels: fast to write and analyse).
+io::Scan macula_scan(retina::MaculaFamily family, io::Laterality eye, std::uint64_t seed) {
+    retina::MaculaPhantomParams p;
+    p.family = family;
+    p.eye = eye;
+    p.num_bscans = 25;
+    p.size_x = 192;
+    p.size_z = 128;
+    p.scale_z_mm = 0.0154868;
+    p.pixels = false;
+    p.noise_um = 2.0;
+    p.seed = seed;
+    return retina::make_macula_phantom(p).scan;
+}
+
+void write_macula(const fs::path& path, retina::MaculaFamily family, io::Laterality eye,
+                  std::uint64_t seed) {
+    io::write_vol_file(macula_scan(family, eye, seed), path.string());
+}
+
+std::string q(const fs::path& p) {
+    std::string s("'");  // (appended: GCC 12 -O3 emits a false -Wrestrict on chained operator+)
+    s.append(p.string()).append("'");
+    return s;
+}
+
+std::int64_t mtime_ns(const fs::path& p) {
+    struct stat st {};
+    EXPECT_EQ(::stat(p.c_str(), &st), 0) << p;
+    return static_cast<std::int64_t>(st.st_mtim.tv_sec) * 1000000000LL + st.st_mtim.tv_nsec;
+}
+
+std::map<std::string, std::int64_t> json_mtimes(const fs::path& dir) {
+    std::map<std::string, std::int64_t> m;
+    for (const auto& e : fs::directory_iterator(dir)) {
+        m[e.path().filename().string()] = mtime_ns(e.path());
+    }
+    return m;
+}
+
+std::vector<std::string> expected_header() {
+    std::vector<std::string> h{"subject_id", "eye",    "visit_date", "scan_type",
+                               "file",       "sha256", "group"};
+    for (const auto& c : retina::cube_csv_header()) h.push_back(c);
+    return h;
+}
+
+// A folder with three macula eyes, an ONH volume, a circle scan, a hostile file, a truncated
+// export and a file that is no export at all.
+struct MixedCohort {
+    test::TempDir dir;
+    fs::path in;
+    MixedCohort() : in(dir / "in") {
+        fs::create_directories(in / "sub" / "deeper");
+        write_macula(in / "a_od.vol", retina::MaculaFamily::kBezier, io::Laterality::kOD, 1);
+        write_macula(in / "sub" / "b_os.vol", retina::MaculaFamily::kScheibe,
+                     io::Laterality::kOS, 2);
+        write_macula(in / "sub" / "deeper" / "c_od.vol", retina::MaculaFamily::kScheibe,
+                     io::Laterality::kOD, 3);
+        const auto onh = test::run_octshape("phantom onh --bscans 25 --ascans 96 -o " +
+                                            q(in / "onh.vol"));
+        EXPECT_EQ(onh.exit_code, 0) << onh.err;
+        fs::remove(in / "onh.truth.json");
+        fs::copy_file(test::realdata("onh_circle_716_2.vol"), in / "circle.vol");
+        fs::copy_file(test::realdata("not_spectralis_eyepy_written.vol"), in / "eyepy.vol");
+        const std::string good = slurp(in / "a_od.vol");
+        spit(in / "sub" / "truncated.vol", good.substr(0, good.size() / 2));
+        spit(in / "notes.txt", "not an export\n");
+        spit(dir / "key", "cohort-test-key\n");
+    }
+    [[nodiscard]] std::string key_arg() const { return "--subject-key-file " + q(dir / "key"); }
+};
+
+TEST(CohortCli, AnalysesEveryEyeAndRecordsEveryBadFile) {
+    MixedCohort c;
+    const fs::path out = c.dir / "out";
+    const auto r = test::run_octshape("cohort " + q(c.in) + " -o " + q(out) + " --jobs 2 " +
+                                      c.key_arg());
+    ASSERT_EQ(r.exit_code, 1) << r.err;  // partial: some inputs failed
+
+    const auto eyes = read_csv(out / "eyes.csv");
+    ASSERT_EQ(eyes.size(), 4U);  // header + 3 macula eyes
+    EXPECT_EQ(eyes[0], expected_header());
+    std::set<std::string> files;
+    for (std::size_t i = 1; i < eyes.size(); ++i) {
+        ASSERT_EQ(eyes[i].size(), eyes[0].size());
+        EXPECT_EQ(eyes[i][3], "macula");
+        EXPECT_EQ(eyes[i][6], "NA");  // no groups given
+        EXPECT_EQ(eyes[i][5], io::sha256_file(eyes[i][4]));
+        EXPECT_EQ(eyes[i][0].size(), 16U);  // the pseudonym: 16 hex digits
+        files.insert(fs::path(eyes[i][4]).filename().string());
+    }
+    EXPECT_EQ(files, (std::set<std::string>{"a_od.vol", "b_os.vol", "c_od.vol"}));
+    // Sorted by subject, eye, visit date, file: one phantom subject, so OD (a, c) before OS (b).
+    EXPECT_EQ(fs::path(eyes[1][4]).filename(), "a_od.vol");
+    EXPECT_EQ(fs::path(eyes[2][4]).filename(), "c_od.vol");
+    EXPECT_EQ(fs::path(eyes[3][4]).filename(), "b_os.vol");
+    EXPECT_EQ(eyes[3][1], "OS");
+
+    std::map<std::string, std::string> fail;  // file name -> exit code
+    const auto failures = read_csv(out / "failures.csv");
+    ASSERT_FALSE(failures.empty());
+    EXPECT_EQ(failures[0], (std::vector<std::string>{"file", "reason", "exit_code"}));
+    for (std::size_t i = 1; i < failures.size(); ++i) {
+        ASSERT_EQ(failures[i].size(), 3U);
+        EXPECT_FALSE(failures[i][1].empty());
+        fail[fs::path(failures[i][0]).filename().string()] = failures[i][2];
+    }
+    EXPECT_EQ(fail, (std::map<std::string, std::string>{{"onh.vol", "69"},
+                                                        {"circle.vol", "69"},
+                                                        {"eyepy.vol", "65"},
+                                                        {"truncated.vol", "65"}}));
+    EXPECT_NE(slurp(out / "failures.csv").find("ONH scan"), std::string::npos);
+
+    // One JSON per eye, named by its key; no identifier anywhere; no temporary left.
+    std::size_t n_json = 0;
+    for (const auto& e : fs::directory_iterator(out / "eyes")) {
+        ++n_json;
+        EXPECT_EQ(e.path().extension(), ".json");
+        const std::string text = slurp(e.path());
+        EXPECT_EQ(text.find("FAKE-PHANTOM"), std::string::npos);
+        const json j = json::parse(text);
+        EXPECT_EQ(j["command"], "macula");
+        EXPECT_EQ(j["cohort"]["file"], j["input"]["path"]);
+        EXPECT_EQ(e.path().stem().string(),
+                  io::sha256_hex(j["cohort"]["file"].get<std::string>()).substr(0, 16));
+    }
+    EXPECT_EQ(n_json, 3U);
+    EXPECT_EQ(slurp(out / "eyes.csv").find("FAKE-PHANTOM"), std::string::npos);
+}
+
+TEST(CohortCli, ResumeRedoesNothingUnlessFileOptionOrVersionChanged) {
+    MixedCohort c;
+    const fs::path out = c.dir / "out";
+    const std::string cmd = "cohort " + q(c.in) + " -o " + q(out) + " --jobs 2 " + c.key_arg();
+    ASSERT_EQ(test::run_octshape(cmd).exit_code, 1);
+    const std::string csv1 = slurp(out / "eyes.csv");
+    const std::string fail1 = slurp(out / "failures.csv");
+    const auto eyes1 = json_mtimes(out / "eyes");
+    const auto fails1 = json_mtimes(out / "failures");
+
+    // Unchanged: nothing redone (no record rewritten), identical tables, same exit code.
+    const auto r2 = test::run_octshape(cmd);
+    EXPECT_EQ(r2.exit_code, 1);
+    EXPECT_NE(r2.err.find("0 to do"), std::string::npos) << r2.err;
+    EXPECT_EQ(slurp(out / "eyes.csv"), csv1);
+    EXPECT_EQ(slurp(out / "failures.csv"), fail1);
+    EXPECT_EQ(json_mtimes(out / "eyes"), eyes1);
+    EXPECT_EQ(json_mtimes(out / "failures"), fails1);
+
+    // A changed file (new content, new mtime) is redone, and only it.
+    write_macula(c.in / "a_od.vol", retina::MaculaFamily::kBezier, io::Laterality::kOD, 11);
+    const auto r3 = test::run_octshape(cmd);
+    EXPECT_NE(r3.err.find("1 to do"), std::string::npos) << r3.err;
+    const auto eyes3 = json_mtimes(out / "eyes");
+    const std::string key_a = io::sha256_hex((c.in / "a_od.vol").string()).substr(0, 16);
+    for (const auto& [name, t] : eyes1) {
+        if (name == key_a + ".json") {
+            EXPECT_NE(eyes3.at(name), t);
+        } else {
+            EXPECT_EQ(eyes3.at(name), t) << name;
+        }
+    }
+    EXPECT_NE(slurp(out / "eyes.csv"), csv1);  // a's sha256 and parameters changed
+    EXPECT_NE(slurp(out / "eyes.csv").find(io::sha256_file((c.in / "a_od.vol").string())),
+              std::string::npos);
+
+    // A truncated file repaired: its failure disappears, it becomes an eye.
+    fs::copy_file(c.in / "a_od.vol", c.in / "sub" / "truncated.vol",
+                  fs::copy_options::overwrite_existing);
+    EXPECT_EQ(test::run_octshape(cmd).exit_code, 1);
+    EXPECT_EQ(read_csv(out / "eyes.csv").size(), 5U);
+    EXPECT_EQ(slurp(out / "failures.csv").find("truncated.vol"), std::string::npos);
+
+    // A changed analysis option redoes every eye (and every recorded failure).
+    const auto before = json_mtimes(out / "eyes");
+    const auto r4 = test::run_octshape(cmd + " --tau-um 6");
+    EXPECT_NE(r4.err.find("0 already done"), std::string::npos) << r4.err;
+    const auto after = json_mtimes(out / "eyes");
+    for (const auto& [name, t] : before) EXPECT_NE(after.at(name), t) << name;
+
+    // A record from another octshape version is redone.
+    const fs::path rec = out / "eyes" / (key_a + ".json");
+    json j = json::parse(slurp(rec));
+    j["cohort"]["octshape_version"] = "0.0.0-other";
+    spit(rec, j.dump(2));
+    const auto r5 = test::run_octshape(cmd + " --tau-um 6");
+    EXPECT_NE(r5.err.find("1 to do"), std::string::npos) << r5.err;
+    EXPECT_NE(json::parse(slurp(rec))["cohort"]["octshape_version"], "0.0.0-other");
+}
+
+TEST(CohortCli, MergeAndPerScanMaculaGiveTheCohortCsvByteForByte) {
+    MixedCohort c;
+    const fs::path out = c.dir / "out";
+    ASSERT_EQ(test::run_octshape("cohort " + q(c.in) + " -o " + q(out) + " " + c.key_arg())
+                  .exit_code,
+              1);
+    const std::string cohort_csv = slurp(out / "eyes.csv");
+
+    // `merge OUTDIR/eyes` (a folder) and `merge JSON...` (files).
+    ASSERT_EQ(test::run_octshape("merge " + q(out / "eyes") + " -o " + q(c.dir / "m1.csv"))
+                  .exit_code,
+              0);
+    EXPECT_EQ(slurp(c.dir / "m1.csv"), cohort_csv);
+
+    // The scale-out path: `octshape macula -o` per scan, then `merge` of those files.
+    fs::create_directories(c.dir / "per_scan");
+    std::string jsons;
+    int i = 0;
+    for (const char* f : {"a_od.vol", "sub/b_os.vol", "sub/deeper/c_od.vol"}) {
+        const fs::path j = c.dir / "per_scan" / (std::to_string(i++) + ".json");
+        const auto r = test::run_octshape("macula " + q(c.in / f) + " -o " + q(j) + " " +
+                                          c.key_arg());
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        jsons += " " + q(j);
+    }
+    const auto m2 = test::run_octshape("merge" + jsons);
+    ASSERT_EQ(m2.exit_code, 0) << m2.err;
+    EXPECT_EQ(m2.out, cohort_csv);
+
+    // `macula` refuses an ONH volume (the cohort's classifier), and the workflow's job with it.
+    const auto onh = test::run_octshape("macula " + q(c.in / "onh.vol") + " " + c.key_arg());
+    EXPECT_EQ(onh.exit_code, 69);
+    EXPECT_NE(onh.err.find("optic nerve head"), std::string::npos) << onh.err;
+
+    // A JSON without the cohort record is refused with the input error code.
+    spit(c.dir / "old.json", R"({"command": "macula"})");
+    EXPECT_EQ(test::run_octshape("merge " + q(c.dir / "old.json")).exit_code, 65);
+}
+
+TEST(CohortCli, SubjectIdsAreKeyedHashesMapsOrRawOnRequest) {
+    test::TempDir dir;
+    fs::create_directories(dir / "in");
+    // HMAC-SHA256(key "Jefe", "PATIENT-0001") computed with Python's hmac module
+    // (independent of octshape): 6354535f92b5bbf605b6314aea9761747e04161080cf2dbcd5c8936db030a5fd.
+    io::Scan s = macula_scan(retina::MaculaFamily::kBezier, io::Laterality::kOD, 5);
+    s.meta.ids.patient_id = "PATIENT-0001";
+    io::write_vol_file(s, (dir / "in" / "p1.vol").string());
+    s.meta.ids.patient_id = "PATIENT-2";
+    io::write_vol_file(s, (dir / "in" / "p2.vol").string());
+
+    const auto r = test::run_octshape("cohort " + q(dir / "in") + " -o " + q(dir / "o1") +
+                                      " --subject-key Jefe");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto rows = read_csv(dir / "o1" / "eyes.csv");
+    ASSERT_EQ(rows.size(), 3U);
+    std::map<std::string, std::string> by_file;
+    for (std::size_t i = 1; i < rows.size(); ++i) {
+        by_file[fs::path(rows[i][4]).filename().string()] = rows[i][0];
+    }
+    EXPECT_EQ(by_file["p1.vol"], "6354535f92b5bbf6");
+    EXPECT_NE(by_file["p2.vol"], by_file["p1.vol"]);
+    EXPECT_EQ(slurp(dir / "o1" / "eyes.csv").find("PATIENT-2"), std::string::npos);
+
+    // A mapping file by file name; a group map by subject.
+    spit(dir / "subjects.csv", "file,subject_id\np1.vol,S01\np2.vol,S02\n");
+    spit(dir / "groups.csv", "subject_id,group\nS01,control\nS02,\"glaucoma, early\"\n");
+    const auto r2 = test::run_octshape("cohort " + q(dir / "in") + " -o " + q(dir / "o2") +
+                                       " --subjects " + q(dir / "subjects.csv") + " --groups " +
+                                       q(dir / "groups.csv"));
+    ASSERT_EQ(r2.exit_code, 0) << r2.err;
+    const auto rows2 = read_csv(dir / "o2" / "eyes.csv");
+    ASSERT_EQ(rows2.size(), 3U);
+    EXPECT_EQ(rows2[1][0], "S01");
+    EXPECT_EQ(rows2[1][6], "control");
+    EXPECT_EQ(rows2[2][0], "S02");
+    EXPECT_EQ(rows2[2][6], "glaucoma, early");  // quoted in the file (RFC 4180)
+
+    // Raw only on explicit request; no source at all is a usage error.
+    const auto r3 = test::run_octshape("cohort " + q(dir / "in") + " -o " + q(dir / "o3") +
+                                       " --subject-id raw");
+    ASSERT_EQ(r3.exit_code, 0) << r3.err;
+    EXPECT_NE(slurp(dir / "o3" / "eyes.csv").find("PATIENT-2"), std::string::npos);
+    EXPECT_EQ(test::run_octshape("cohort " + q(dir / "in") + " -o " + q(dir / "o4")).exit_code,
+              64);
+    EXPECT_EQ(test::run_octshape("cohort " + q(dir / "in") + " -o " + q(dir / "o4") +
+                                 " --subject-key a --subject-id raw")
+                  .exit_code,
+              64);
+    EXPECT_EQ(test::run_octshape("cohort " + q(dir / "missing") + " -o " + q(dir / "o5") +
+                                 " --subject-key a")
+                  .exit_code,
+              66);
+}
+
+// ---- Kill and resume ----------------------------------------------------------------------
+
+pid_t spawn_octshape(const std::vector<std::string>& args) {
+    std::vector<std::string> argv_s{test::exe()};
+    argv_s.insert(argv_s.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (auto& a : argv_s) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
+    posix_spawn_file_actions_addopen(&fa, 2, "/dev/null", O_WRONLY, 0);
+    pid_t pid = -1;
+    const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&fa);
+    EXPECT_EQ(rc, 0);
+    return pid;
+}
+
+int wait_exit(pid_t pid) {
+    int status = 0;
+    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -WTERMSIG(status);
+}
+
+TEST(CohortKill, SigkillAtRandomMomentsThenRerunGivesTheUninterruptedTables) {
+    test::TempDir dir;
+    const fs::path in = dir / "in";
+    fs::create_directories(in);
+    // 18 inputs: hard links to 3 distinct macula phantoms (each path is its own eye), plus a
+    // truncated export and a circle scan so that failures.csv is part of the comparison.
+    write_macula(dir / "m0.vol", retina::MaculaFamily::kBezier, io::Laterality::kOD, 1);
+    write_macula(dir / "m1.vol", retina::MaculaFamily::kScheibe, io::Laterality::kOS, 2);
+    write_macula(dir / "m2.vol", retina::MaculaFamily::kScheibe, io::Laterality::kOD, 3);
+    const std::array<std::string, 3> sources{"m0.vol", "m1.vol", "m2.vol"};
+    for (int i = 0; i < 16; ++i) {
+        std::string name = "eye";
+        name.append(std::to_string(100 + i)).append(".vol");
+        fs::create_hard_link(dir / sources[static_cast<std::size_t>(i % 3)], in / name);
+    }
+    const std::string good = slurp(dir / "m0.vol");
+    spit(in / "truncated.vol", good.substr(0, good.size() / 3));
+    fs::copy_file(test::realdata("onh_circle_716_4.vol"), in / "circle.vol");
+    spit(dir / "key", "kill-test\n");
+    auto args = [&](const fs::path& out) {
+        return std::vector<std::string>{"cohort", in.string(), "-o", out.string(), "--jobs", "2",
+                                        "--subject-key-file", (dir / "key").string()};
+    };
+
+    const auto t0 = std::chrono::steady_clock::now();
+    ASSERT_EQ(wait_exit(spawn_octshape(args(dir / "ref"))), 1);
+    const double full_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const std::string ref_eyes = slurp(dir / "ref" / "eyes.csv");
+    const std::string ref_fail = slurp(dir / "ref" / "failures.csv");
+    ASSERT_EQ(std::count(ref_eyes.begin(), ref_eyes.end(), '\n'), 17);
+
+    std::mt19937 rng(20261122);  // fixed: the same "random" moments on every run
+    std::uniform_real_distribution<double> moment(0.0, 1.1 * full_s);
+    std::uniform_int_distribution<std::size_t> finished_before_kill(1, 14);
+    std::uniform_int_distribution<int> jitter_ms(0, 30);
+    int interrupted_midway = 0;  // kills that left some but not all eyes done
+    for (int trial = 0; trial < 6; ++trial) {
+        const fs::path out = dir / ("run" + std::to_string(trial));
+        // Two kills in a row, then a run to the end. The first kill waits until a random number
+        // of eyes is finished (plus a random few ms, so it also lands inside writes): most of a
+        // run is process start-up, and a purely timed kill would often miss the batch. The
+        // second kill, of the resumed run, is at a random moment of the whole run time.
+        std::map<std::string, std::int64_t> survived;
+        for (int kill = 0; kill < 2; ++kill) {
+            const pid_t pid = spawn_octshape(args(out));
+            if (kill == 0) {
+                const std::size_t target = finished_before_kill(rng);
+                const auto deadline = std::chrono::steady_clock::now() +
+                                      std::chrono::duration<double>(10.0 * full_s + 5.0);
+                for (;;) {
+                    std::size_t n = 0;
+                    std::error_code ec;
+                    for (fs::directory_iterator it(out / "eyes", ec), end; !ec && it != end;
+                         it.increment(ec)) {
+                        n += it->path().filename().string()[0] != '.' ? 1 : 0;
+                    }
+                    if (n >= target || std::chrono::steady_clock::now() > deadline) break;
+                    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+                }
+                std::this_thread::sleep_for(std::chrono::milliseconds(jitter_ms(rng)));
+            } else {
+                std::this_thread::sleep_for(std::chrono::duration<double>(moment(rng)));
+            }
+            ::kill(pid, SIGKILL);
+            wait_exit(pid);
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));  // orphans die too
+            if (fs::exists(out / "eyes")) survived = json_mtimes(out / "eyes");
+            std::erase_if(survived, [](const auto& kv) { return kv.first[0] == '.'; });
+            if (!survived.empty() && survived.size() < 16) ++interrupted_midway;
+            // Whatever the moment: eyes.csv is absent or a complete table of finished eyes.
+            if (fs::exists(out / "eyes.csv")) {
+                const std::string partial = slurp(out / "eyes.csv");
+                ASSERT_FALSE(partial.empty());
+                EXPECT_EQ(partial.back(), '\n');
+                EXPECT_EQ(partial.substr(0, partial.find('\n')),
+                          ref_eyes.substr(0, ref_eyes.find('\n')));
+            }
+        }
+        ASSERT_EQ(wait_exit(spawn_octshape(args(out))), 1) << "trial " << trial;
+        EXPECT_EQ(slurp(out / "eyes.csv"), ref_eyes) << "trial " << trial;
+        EXPECT_EQ(slurp(out / "failures.csv"), ref_fail) << "trial " << trial;
+        // Finished eyes were not redone; nothing half-written is left behind.
+        const auto final_eyes = json_mtimes(out / "eyes");
+        for (const auto& [name, t] : survived) EXPECT_EQ(final_eyes.at(name), t) << name;
+        EXPECT_EQ(final_eyes.size(), 16U);
+        for (const auto& d : {out, out / "eyes", out / "failures"}) {
+            for (const auto& e : fs::directory_iterator(d)) {
+                EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos)
+                    << e.path();
+            }
+        }
+    }
+    // The kills did land in the middle of batches (else the test would prove nothing).
+    EXPECT_GE(interrupted_midway, 4);
+}
+
+}  // namespace
+}  // namespace octshape
