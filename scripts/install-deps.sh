@@ -13,6 +13,8 @@ PKGS=(
   libopencv-dev
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  r-base-core r-cran-geepack r-cran-psych r-cran-lme4   # the R recipe docs/r/ and its test
+  chromium                            # the QC gallery test (headless)
 
 )
 missing=()
