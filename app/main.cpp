@@ -64,6 +64,8 @@ int main(int argc, char** argv) {
     octshape::app::add_meanshape_command(app, ctx);
     octshape::app::add_info_command(app, ctx);
     octshape::app::add_macula_command(app, ctx);
+    octshape::app::add_cohort_command(app, ctx);
+    octshape::app::add_merge_command(app, ctx);
     octshape::app::add_stats_command(app, ctx);
     octshape::app::add_gallery_command(app, ctx);
     auto* phantom = app.add_subcommand(
