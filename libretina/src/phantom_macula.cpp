@@ -872,8 +872,10 @@ nlohmann::ordered_json macula_truth_json(const MaculaTruth& t,
     g["noise_um"] = p.noise_um;
     g["missing_fraction"] = p.missing_fraction;
     g["vessels"] = p.vessels;
-    g["thickness_offset_mm"] = p.thickness_offset_mm;
-    g["pit_depth_scale"] = p.pit_depth_scale;
+    if (p.thickness_offset_mm != 0.0 || p.pit_depth_scale != 1.0) {  // cohort phantoms only
+        g["thickness_offset_mm"] = p.thickness_offset_mm;
+        g["pit_depth_scale"] = p.pit_depth_scale;
+    }
     g["pixels"] = p.pixels;
     g["speckle_looks"] = p.speckle.looks;
     g["seed"] = p.seed;
