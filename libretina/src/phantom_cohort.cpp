@@ -176,7 +176,7 @@ CohortPlan plan_macula_cohort(const CohortPhantomParams& p) {
         "(one control, one case) share eye by eye. The true group difference is therefore "
         "exactly 0 and the measured one is measurement error only, small against the "
         "between-pair spread (test-retest ICC ~0.97). pit_flat_diameter_mm has the same exact "
-        "null but a measurement error larger than its spread (ICC ~0.3): not asserted.";
+        "null but a measurement error larger than its spread (ICC ~0.2): not asserted.";
     j["retest"] =
         "both eyes of the first retest_subjects subjects: a second scan the same day "
         "with a fresh fovea shift, tilt and noise";
