@@ -24,5 +24,9 @@ void add_merge_command(CLI::App& app, RunContext& ctx);
 void add_phantom_macula_command(CLI::App& phantom, RunContext& ctx);
 // `phantom onh` under the `phantom` parent command.
 void add_phantom_onh_command(CLI::App& phantom, RunContext& ctx);
+// `phantom cohort` under the `phantom` parent command.
+void add_phantom_cohort_command(CLI::App& phantom, RunContext& ctx);
+void add_stats_command(CLI::App& app, RunContext& ctx);
+void add_gallery_command(CLI::App& app, RunContext& ctx);
 
 }  // namespace octshape::app
