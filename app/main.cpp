@@ -64,11 +64,16 @@ int main(int argc, char** argv) {
     octshape::app::add_meanshape_command(app, ctx);
     octshape::app::add_info_command(app, ctx);
     octshape::app::add_macula_command(app, ctx);
+    octshape::app::add_cohort_command(app, ctx);
+    octshape::app::add_merge_command(app, ctx);
+    octshape::app::add_stats_command(app, ctx);
+    octshape::app::add_gallery_command(app, ctx);
     auto* phantom = app.add_subcommand(
         "phantom", "Write a synthetic Spectralis export whose true shape parameters are known");
     phantom->require_subcommand(1);
     octshape::app::add_phantom_macula_command(*phantom, ctx);
     octshape::app::add_phantom_onh_command(*phantom, ctx);
+    octshape::app::add_phantom_cohort_command(*phantom, ctx);
 
     try {
         app.parse(argc, argv);

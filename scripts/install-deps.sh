@@ -14,6 +14,8 @@ PKGS=(
   libssl-dev                          # libcrypto: SHA-256 (CPU SHA extensions), HMAC
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  r-base-core r-cran-geepack r-cran-psych r-cran-lme4   # the R recipe docs/r/ and its test
+  chromium                            # the QC gallery test (headless)
 )
 missing=()
 for p in "${PKGS[@]}"; do

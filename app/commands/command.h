@@ -18,9 +18,15 @@ void add_denoise_command(CLI::App& app, RunContext& ctx);
 void add_metrics_command(CLI::App& app, RunContext& ctx);
 void add_features_command(CLI::App& app, RunContext& ctx);
 void add_meanshape_command(CLI::App& app, RunContext& ctx);
+void add_cohort_command(CLI::App& app, RunContext& ctx);
+void add_merge_command(CLI::App& app, RunContext& ctx);
 // `phantom macula` under the `phantom` parent.
 void add_phantom_macula_command(CLI::App& phantom, RunContext& ctx);
 // `phantom onh` under the `phantom` parent command.
 void add_phantom_onh_command(CLI::App& phantom, RunContext& ctx);
+// `phantom cohort` under the `phantom` parent command.
+void add_phantom_cohort_command(CLI::App& phantom, RunContext& ctx);
+void add_stats_command(CLI::App& app, RunContext& ctx);
+void add_gallery_command(CLI::App& app, RunContext& ctx);
 
 }  // namespace octshape::app

@@ -1,23 +1,15 @@
 // `octshape macula FILE [-o eye.json] [--csv eye.csv] [options]`: the CuBe fovea analysis
-// (SPEC §4, docs/algorithms/cube.md); outputs documented in docs/outputs.md.
+// (SPEC §4, docs/algorithms/cube.md); outputs documented in docs/outputs.md. The per-eye work is
+// analyse_macula_eye (commands/macula_eye.h), shared with `octshape cohort`.
 
-#include <spdlog/spdlog.h>
-
-#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
-#include <sstream>
 
 #include "commands/command.h"
-#include "commands/macula_qc.h"
+#include "commands/eye_record.h"
+#include "commands/macula_eye.h"
 #include "octshape/io/atomic_file.h"
-#include "octshape/io/scan_reader.h"
-#include "octshape/io/sha256.h"
-#include "octshape/retina/cube.h"
-#include "octshape/retina/cube_report.h"
-#include "octshape/retina/scan_summary.h"
-#include "octshape/version.h"
 
 namespace octshape::app {
 namespace {
@@ -26,54 +18,19 @@ struct MaculaOptions {
     std::string file;
     std::string json_out;
     std::string csv_out;
-    std::string qc_dir;
-    retina::CubeParams params;
-    double tau_um = 5.0;
+    MaculaEyeOptions eye;
+    SubjectOptions subjects;
 };
 
-std::string csv_line(const std::vector<std::string>& fields) {
-    std::string s;
-    for (std::size_t i = 0; i < fields.size(); ++i) {
-        if (i > 0) s += ',';
-        s += retina::csv_field(fields[i]);
+void run(const MaculaOptions& o) {
+    const SubjectSource subjects = SubjectSource::from_options(o.subjects);
+    const MaculaEye r = analyse_macula_eye(o.file, o.eye, subjects);
+    // Each file is written atomically (temporary file + rename): none appears half-written.
+    if (!o.csv_out.empty()) {
+        io::write_text_atomically(o.csv_out, csv_line(r.csv_header) + csv_line(r.csv_row));
     }
-    return s + '\n';
-}
-
-void run(MaculaOptions& o) {
-    o.params.tau_mm = o.tau_um * 1e-3;
-    o.params.validate();
-    const io::Scan scan = io::read_scan(o.file);
-    const std::string sha = io::sha256_file(o.file);
-    const retina::CubeResult r = retina::analyse_macula(scan, o.params);
-    for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", o.file, f);
-    for (const auto& n : r.notes) spdlog::info("{}: {}", o.file, n);
-
-    nlohmann::ordered_json j;
-    j["octshape_version"] = kVersion;
-    j["command"] = "macula";
-    j["input"] = {{"path", o.file}, {"sha256", sha}};
-    j["scan"] = retina::scan_summary(scan);  // without identifiers
-    const auto cube = retina::cube_json(r, o.params);
-    for (const auto& [k, v] : cube.items()) j[k] = v;
-    const std::string eye(io::to_string(scan.meta.laterality));
-
-    std::vector<std::string> header{"file", "sha256", "eye", "scan_pattern", "num_bscans"};
-    std::vector<std::string> row{o.file, sha, eye, std::string(io::to_string(scan.meta.pattern)),
-                                 std::to_string(scan.num_bscans())};
-    for (auto& h : retina::cube_csv_header()) header.push_back(std::move(h));
-    for (auto& v : retina::cube_csv_values(r)) row.push_back(std::move(v));
-    const std::string csv = csv_line(header) + csv_line(row);
-
-    // Write the CSV first and the JSON last: neither appears half-written (atomic rename).
-    if (!o.qc_dir.empty()) {
-        write_macula_qc(r, o.qc_dir, std::filesystem::path(o.file).stem().string());
-    }
-    if (!o.csv_out.empty()) io::write_text_atomically(o.csv_out, csv);
-    if (!o.json_out.empty()) io::write_text_atomically(o.json_out, j.dump(2) + "\n");
-    if (o.json_out.empty() && o.csv_out.empty()) std::cout << j.dump(2) << '\n';
-    spdlog::info("{}: {} eye, CFT {:.4f} mm, rim height {:.4f} mm, RMSE {:.2f} um", o.file, eye,
-                 r.cft_mm, r.rim_height_mm, r.rmse_um);
+    if (!o.json_out.empty()) io::write_text_atomically(o.json_out, r.json.dump(2) + "\n");
+    if (o.json_out.empty() && o.csv_out.empty()) std::cout << r.json.dump(2) << '\n';
 }
 
 }  // namespace
@@ -88,25 +45,11 @@ void add_macula_command(CLI::App& app, RunContext& /*ctx*/) {
     cmd->add_option("-o,--output", opts->json_out,
                     "Write the per-eye JSON here (default: print it on stdout)");
     cmd->add_option("--csv", opts->csv_out, "Write one CSV row (with header) here");
-    cmd->add_option("--qc", opts->qc_dir,
+    cmd->add_option("--qc", opts->eye.qc_dir,
                     "Write QC pictures here: STEM_thickness.png (map, centre, rim/slope/pit-flat "
                     "disks) and STEM_profiles.png (half-lines with their fitted Beziers)");
-    auto& p = opts->params;
-    cmd->add_option("--half-lines", p.num_half_lines, "Number of radial half-lines n (even)")
-        ->capture_default_str();
-    cmd->add_option("--radius-mm", p.radius_mm, "Length R of each half-line (mm)")
-        ->capture_default_str();
-    cmd->add_option("--spacing-mm", p.sample_spacing_mm,
-                    "Radial sample spacing (mm); 0 = the scan's ScaleX")
-        ->capture_default_str();
-    cmd->add_option("--tau-um", opts->tau_um, "Pit-flat threshold above CFT (um)")
-        ->capture_default_str();
-    cmd->add_option("--inner-radius-mm", p.inner_radius_mm,
-                    "Radius r_u of the inner rim volume (mm)")
-        ->capture_default_str();
-    cmd->add_option("--search-radius-mm", p.search_radius_mm,
-                    "Centre search radius around the device fovea centre (mm)")
-        ->capture_default_str();
+    add_macula_analysis_options(cmd, opts->eye);
+    add_subject_options(cmd, opts->subjects);
     cmd->callback([opts] { run(*opts); });
 }
 

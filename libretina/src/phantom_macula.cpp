@@ -239,6 +239,10 @@ void MaculaPhantomParams::validate() const {
                 missing_fraction <= 0.5,
             "missing_fraction", "must be in 0..0.5");
     require(vessels >= 0 && vessels <= 50, "vessels", "must be in 0..50");
+    require(std::isfinite(thickness_offset_mm) && std::fabs(thickness_offset_mm) <= 0.1,
+            "thickness_offset_mm", "must be within +-0.1 mm");
+    require(std::isfinite(pit_depth_scale) && pit_depth_scale >= 0.5 && pit_depth_scale <= 1.5,
+            "pit_depth_scale", "must be in [0.5, 1.5]");
     require(speckle.looks > 0.0 && std::isfinite(speckle.looks), "speckle.looks", "must be > 0");
 }
 
@@ -333,11 +337,38 @@ ScheibeProfile scheibe_profile(double theta_deg, bool flat) {
     return s;
 }
 
+BezierProfile bezier_profile(double theta_deg, const MaculaPhantomParams& p) {
+    BezierProfile b = bezier_profile(theta_deg, p.flat);
+    if (p.thickness_offset_mm == 0.0 && p.pit_depth_scale == 1.0) return b;
+    // y' = y + offset + (s - 1)(y - ref) on every control point's height: a Bezier curve is
+    // affine-invariant, so the new curve is the old one with its heights mapped.
+    const auto map = [&](double y) {
+        return y + p.thickness_offset_mm + (p.pit_depth_scale - 1.0) * (y - kShapeReferenceMm);
+    };
+    b.cft_mm = map(b.cft_mm);
+    b.rim_height_mm = map(b.rim_height_mm);
+    b.ext_p2.y() = map(b.ext_p2.y());
+    b.ext_p3.y() = map(b.ext_p3.y());
+    return b;
+}
+
+ScheibeProfile scheibe_profile(double theta_deg, const MaculaPhantomParams& p) {
+    ScheibeProfile s = scheibe_profile(theta_deg, p.flat);
+    if (p.thickness_offset_mm == 0.0 && p.pit_depth_scale == 1.0) return s;
+    // f' = s f + (1 - s) ref + offset: CFT' = s CFT + (1 - s) ref + offset, sigma^2' = s sigma^2,
+    // a' = s a (u* = 1 + a / sigma^2, hence the rim radius, is unchanged).
+    const double k = p.pit_depth_scale;
+    s.cft_mm = k * s.cft_mm + (1.0 - k) * kShapeReferenceMm + p.thickness_offset_mm;
+    s.sigma2_mm *= k;
+    s.a_mm *= k;
+    return s;
+}
+
 double macula_thickness_mm(const MaculaPhantomParams& p, double r, double theta_deg) {
     if (p.family == MaculaFamily::kScheibe) {
-        return scheibe_profile(theta_deg, p.flat).thickness_mm(r);
+        return scheibe_profile(theta_deg, p).thickness_mm(r);
     }
-    const BezierProfile b = bezier_profile(theta_deg, p.flat);
+    const BezierProfile b = bezier_profile(theta_deg, p);
     if (r <= b.rim_radius_mm) {
         const Cubic in = b.interior();
         return bez(in, solve_x(in, r)).y();
@@ -397,7 +428,7 @@ MaculaTruth macula_truth(const MaculaPhantomParams& p, const MaculaTruthOptions&
         h.angle_deg = 360.0 * i / n;
         double cft = 0.0;
         if (bez_family) {
-            const BezierProfile b = bezier_profile(h.angle_deg, p.flat);
+            const BezierProfile b = bezier_profile(h.angle_deg, p);
             const Cubic in = b.interior();
             const Cubic ex = b.exterior();
             cft = b.cft_mm;
@@ -433,7 +464,7 @@ MaculaTruth macula_truth(const MaculaPhantomParams& p, const MaculaTruthOptions&
                 h.exterior_to_r_control_points.push_back({c.x(), c.y()});
             }
         } else {
-            const ScheibeProfile sp = scheibe_profile(h.angle_deg, p.flat);
+            const ScheibeProfile sp = scheibe_profile(h.angle_deg, p);
             cft = sp.cft_mm;
             h.rim_radius_mm = sp.rim_radius_mm();
             h.rim_height_mm = sp.thickness_mm(h.rim_radius_mm);
@@ -841,6 +872,8 @@ nlohmann::ordered_json macula_truth_json(const MaculaTruth& t,
     g["noise_um"] = p.noise_um;
     g["missing_fraction"] = p.missing_fraction;
     g["vessels"] = p.vessels;
+    g["thickness_offset_mm"] = p.thickness_offset_mm;
+    g["pit_depth_scale"] = p.pit_depth_scale;
     g["pixels"] = p.pixels;
     g["speckle_looks"] = p.speckle.looks;
     g["seed"] = p.seed;

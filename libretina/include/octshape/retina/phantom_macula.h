@@ -59,6 +59,14 @@ struct MaculaPhantomParams {
     double noise_um = 0.0;  // Gaussian segmentation noise (SD, um) on ILM and BM, independent
     double missing_fraction = 0.0;  // fraction of A-scans whose ILM and BM are missing
     int vessels = 0;        // vessel-like bands raising the ILM by a few um (and shadowing)
+    // Per-eye shape variation (cohort phantoms): the thickness profile T becomes
+    // T' = T + thickness_offset_mm + (pit_depth_scale - 1) (T - kShapeReferenceMm), an affine
+    // map of the height that keeps every profile exactly of its family (a cubic Bezier stays
+    // one, with the same x control points; a Scheibe profile changes CFT, sigma^2 and a).
+    // The offset moves CFT and rim height alike (pit depth, slopes, diameters unchanged); the
+    // scale multiplies the pit depth (and changes slopes and the pit-flat disk).
+    double thickness_offset_mm = 0.0;  // within +-0.1 mm
+    double pit_depth_scale = 1.0;      // in [0.5, 1.5]
     bool pixels = true;     // false: B-scan pixels are io::kNoPixelData
     std::uint64_t seed = 1;
     phantom::SpeckleParams speckle;
@@ -106,6 +114,12 @@ struct ScheibeProfile {
 
 [[nodiscard]] BezierProfile bezier_profile(double theta_deg, bool flat);
 [[nodiscard]] ScheibeProfile scheibe_profile(double theta_deg, bool flat);
+
+// The height about which pit_depth_scale scales (the Bezier profiles' mean rim height, mm).
+inline constexpr double kShapeReferenceMm = 0.350;
+// The profiles of `p` in direction theta with p's shape variation applied.
+[[nodiscard]] BezierProfile bezier_profile(double theta_deg, const MaculaPhantomParams& p);
+[[nodiscard]] ScheibeProfile scheibe_profile(double theta_deg, const MaculaPhantomParams& p);
 
 // Largest radius the exterior Bezier reaches (thickness is defined up to here).
 inline constexpr double kBezierEndRadiusMm = 7.0;

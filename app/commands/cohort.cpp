@@ -1,0 +1,539 @@
+// `octshape cohort DIR... -o OUTDIR`: every supported export under the folders, macula or ONH
+// by scan content, N eyes at a time, each in a child process; resumable and crash safe.
+// Layout, resume rule and the crash-safety argument: docs/cohort.md.
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/file.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "commands/command.h"
+#include "commands/eye_record.h"
+#include "commands/macula_eye.h"
+#include "octshape/io/atomic_file.h"
+#include "octshape/io/error.h"
+#include "octshape/io/scan_reader.h"
+#include "octshape/io/sha256.h"
+#include "octshape/retina/scan_type.h"
+
+namespace octshape::app {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+struct CohortOptions {
+    std::vector<std::string> inputs;
+    std::string out;
+    int jobs = 0;  // 0: one per core
+    std::string groups;
+    std::string type = "auto";
+    bool qc = false;
+    bool retry_failed = false;
+    MaculaEyeOptions eye;
+    SubjectOptions subjects;
+};
+
+// One input file and what is known about it.
+struct Item {
+    std::string path;  // absolute
+    std::string key;   // eye key: first 16 hex digits of SHA-256(path)
+    FileFacts facts;
+    bool done = false;       // a current result exists
+    bool failed = false;     // a current failure record exists
+    nlohmann::json slim;     // what eyes.csv needs of the result
+    nlohmann::json failure;  // the failure record
+};
+
+// Holds an exclusive lock on OUTDIR/.lock for the whole run (released by the kernel even on
+// SIGKILL), so two runs never write the same OUTDIR.
+class DirLock {
+public:
+    explicit DirLock(const fs::path& dir) {
+        const fs::path p = dir / ".lock";
+        fd_ = ::open(p.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+        if (fd_ < 0) throw OutputError(p.string(), std::strerror(errno));
+        if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+            ::close(fd_);
+            throw UsageError("another `octshape cohort` is writing " + dir.string() +
+                             " (lock " + p.string() + ")");
+        }
+    }
+    ~DirLock() { ::close(fd_); }
+    DirLock(const DirLock&) = delete;
+    DirLock& operator=(const DirLock&) = delete;
+
+private:
+    int fd_ = -1;
+};
+
+std::string eye_key(const std::string& abs_path) {
+    return io::sha256_hex(abs_path).substr(0, 16);
+}
+
+void make_dir(const fs::path& d) {
+    std::error_code ec;
+    fs::create_directories(d, ec);
+    if (ec || !fs::is_directory(d)) {
+        throw OutputError(d.string(), "cannot create directory: " + ec.message());
+    }
+}
+
+// Temporary files of writes that a kill interrupted (".NAME.tmp-PID-RANDOM").
+void remove_stale_temporaries(const fs::path& d) {
+    std::error_code ec;
+    for (fs::directory_iterator it(d, ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        if (name.size() > 1 && name[0] == '.' && name.find(".tmp-") != std::string::npos) {
+            std::error_code rm;
+            fs::remove(it->path(), rm);
+        }
+    }
+}
+
+// A file that could not be taken in: path, reason, exit code.
+struct Skipped {
+    std::string path;
+    std::string reason;
+    int exit_code = 0;
+};
+
+bool has_export_extension(const fs::path& p) {
+    std::string ext = p.extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return ext == ".vol" || ext == ".xml";
+}
+
+// Every regular file under the inputs whose content is a supported export, sorted, unique.
+// A .vol/.xml file of unknown content and an unreadable file go to `skipped`; other files
+// (TIFF B-scans of an XML export, notes, ...) are ignored.
+std::vector<std::string> discover(const std::vector<std::string>& inputs, const fs::path& out,
+                                  std::vector<Skipped>& skipped) {
+    std::vector<std::string> files;
+    const std::string out_abs = absolute_path(out.string());
+    auto consider = [&](const fs::path& p) {
+        const std::string abs = absolute_path(p.string());
+        if (abs.rfind(out_abs + "/", 0) == 0) return;  // our own outputs
+        try {
+            if (io::detect_format(abs) != io::FileFormat::kUnknown) {
+                files.push_back(abs);
+            } else if (has_export_extension(p)) {
+                skipped.push_back({abs, "not a supported export (unknown content)",
+                                   static_cast<int>(ExitCode::kDataError)});
+            }
+        } catch (const InputError& e) {
+            skipped.push_back({abs, e.what(), static_cast<int>(e.exit_code())});
+        }
+    };
+    for (const auto& in : inputs) {
+        std::error_code ec;
+        if (!fs::exists(in, ec)) throw InputError::missing(in);
+        if (!fs::is_directory(in, ec)) {
+            consider(in);
+            continue;
+        }
+        fs::recursive_directory_iterator it(in, fs::directory_options::skip_permission_denied,
+                                            ec);
+        if (ec) throw InputError::unreadable(in, ec.message());
+        for (const fs::recursive_directory_iterator end; it != end; it.increment(ec)) {
+            if (ec) {
+                skipped.push_back({absolute_path(in), "folder walk stopped: " + ec.message(),
+                                   static_cast<int>(ExitCode::kNoInput)});
+                break;
+            }
+            std::error_code sec;
+            if (it->is_regular_file(sec)) consider(it->path());
+        }
+    }
+    std::sort(files.begin(), files.end());
+    files.erase(std::unique(files.begin(), files.end()), files.end());
+    return files;
+}
+
+// What eyes.csv needs of a per-eye JSON (the rest stays on disk).
+nlohmann::json slim(const nlohmann::json& j) {
+    nlohmann::json s;
+    for (const char* k : {"cohort", "input", "csv_row"}) {
+        if (j.contains(k)) s[k] = j[k];
+    }
+    return s;
+}
+
+std::string signal_name(int sig) {
+    const char* d = ::strsignal(sig);
+    return "signal " + std::to_string(sig) + (d != nullptr ? std::string(" (") + d + ")" : "");
+}
+
+// ---- The child: one eye ------------------------------------------------------------------
+
+[[noreturn]] void child_main(const CohortOptions& o, const SubjectSource& subjects,
+                             const Item& item, const fs::path& out, int msg_fd) {
+    int code = 0;
+    std::string message;
+    try {
+        const FileFacts facts = file_facts(item.path);
+        const io::Scan scan = io::read_scan(item.path);
+        retina::ScanType type = retina::ScanType::kMacula;
+        std::string why = "--type macula";
+        if (o.type == "onh") {
+            type = retina::ScanType::kOnh;
+            why = "--type onh";
+        } else if (o.type == "auto") {
+            const auto c = retina::classify_scan(scan);
+            type = c.type;
+            why = c.reason;
+        }
+        if (type == retina::ScanType::kUnsupported) throw AnalysisError("not analysable: " + why);
+        if (type == retina::ScanType::kOnh) {
+            throw AnalysisError("ONH scan (" + why +
+                                "): the ONH analysis is not part of this octshape build");
+        }
+        MaculaEyeOptions eo = o.eye;
+        if (o.qc) {
+            eo.qc_dir = (out / "qc").string();
+            eo.qc_stem = item.key;
+        }
+        const MaculaEye r = analyse_macula_eye(item.path, facts, scan, eo, subjects);
+        io::write_text_atomically((out / "eyes" / (item.key + ".json")).string(),
+                                  r.json.dump(2) + "\n");
+    } catch (const Error& e) {
+        code = static_cast<int>(e.exit_code());
+        message = e.what();
+    } catch (const std::bad_alloc&) {
+        code = static_cast<int>(ExitCode::kInternal);
+        message = "out of memory";
+    } catch (const std::exception& e) {
+        code = static_cast<int>(ExitCode::kInternal);
+        message = std::string("internal error: ") + e.what();
+    }
+    if (!message.empty()) {
+        // A message well under PIPE_BUF-sized buffers: the write does not block.
+        if (message.size() > 4000) message.resize(4000);
+        [[maybe_unused]] const auto n = ::write(msg_fd, message.data(), message.size());
+    }
+    spdlog::default_logger()->flush();
+    ::_exit(code);
+}
+
+// ---- The parent: scheduling, progress, records -------------------------------------------
+
+class Progress {
+public:
+    Progress(std::size_t total, std::size_t todo, bool bar)
+        : total_(total), todo_(todo), bar_(bar), start_(Clock::now()) {}
+
+    void finished(const Item& item, bool ok, const std::string& reason, double seconds) {
+        ++done_;
+        if (!ok) ++failed_;
+        if (bar_) {
+            if (!ok) {
+                clear();
+                spdlog::warn("{}: {}", item.path, reason);
+            }
+            draw();
+        } else if (ok) {
+            spdlog::info("[{}/{}] {} ({:.1f} s)", done_, todo_, item.path, seconds);
+        } else {
+            spdlog::warn("[{}/{}] {}: FAILED: {}", done_, todo_, item.path, reason);
+        }
+    }
+    void end() {
+        if (bar_ && todo_ > 0) {
+            draw();
+            std::fputc('\n', stderr);
+        }
+    }
+    void draw() const {
+        if (!bar_) return;
+        const double t = std::chrono::duration<double>(Clock::now() - start_).count();
+        const double rate = t > 0 ? static_cast<double>(done_) / t : 0.0;
+        constexpr int kWidth = 30;
+        const int fill = todo_ == 0 ? kWidth
+                                    : static_cast<int>(kWidth * static_cast<double>(done_) /
+                                                       static_cast<double>(todo_));
+        std::string bar(static_cast<std::size_t>(fill), '#');
+        bar.resize(kWidth, '.');
+        std::string eta = "--";
+        if (rate > 0) {
+            const auto s = static_cast<long>(static_cast<double>(todo_ - done_) / rate);
+            eta = fmt::format("{}:{:02}:{:02}", s / 3600, (s / 60) % 60, s % 60);
+        }
+        std::fprintf(stderr, "\r[%s] %zu/%zu eyes  %.2f eyes/s  ETA %s  failed %zu   ",
+                     bar.c_str(), done_, todo_, rate, eta.c_str(), failed_);
+        std::fflush(stderr);
+    }
+
+private:
+    void clear() const { std::fprintf(stderr, "\r%80s\r", ""); }
+    std::size_t total_;
+    std::size_t todo_;
+    bool bar_;
+    Clock::time_point start_;
+    std::size_t done_ = 0;
+    std::size_t failed_ = 0;
+};
+
+struct Running {
+    std::size_t index = 0;
+    int msg_fd = -1;
+    Clock::time_point start;
+};
+
+std::string read_all(int fd) {
+    std::string s;
+    char buf[1024];
+    for (;;) {
+        const auto n = ::read(fd, buf, sizeof buf);
+        if (n > 0) {
+            s.append(buf, static_cast<std::size_t>(n));
+        } else if (n < 0 && errno == EINTR) {
+            continue;
+        } else {
+            break;
+        }
+    }
+    return s;
+}
+
+void record_failure(Item& item, const fs::path& out, const std::string& options_text,
+                    const std::string& reason, int exit_code) {
+    nlohmann::ordered_json f;
+    f["cohort"] = cohort_record(item.facts, options_text, "unknown");
+    f["reason"] = reason;
+    f["exit_code"] = exit_code;
+    io::write_text_atomically((out / "failures" / (item.key + ".json")).string(),
+                              f.dump(2) + "\n");
+    item.failed = true;
+    item.failure = f;
+}
+
+std::string failures_csv(const std::vector<Item>& items, const std::vector<Skipped>& skipped) {
+    std::vector<std::vector<std::string>> rows;
+    for (const auto& it : items) {
+        if (!it.failed) continue;
+        rows.push_back({it.path, it.failure.value("reason", std::string()),
+                        std::to_string(it.failure.value("exit_code", 0))});
+    }
+    for (const auto& s : skipped) rows.push_back({s.path, s.reason, std::to_string(s.exit_code)});
+    std::sort(rows.begin(), rows.end());
+    std::string s = csv_line({"file", "reason", "exit_code"});
+    for (const auto& r : rows) s += csv_line(r);
+    return s;
+}
+
+void run(CohortOptions& o, RunContext& ctx) {
+    if (o.type != "auto" && o.type != "macula" && o.type != "onh") {
+        throw UsageError("--type must be auto, macula or onh");
+    }
+    if (o.jobs < 0) throw UsageError("--jobs must be >= 1");
+    const int jobs = o.jobs > 0 ? o.jobs
+                                : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+    o.eye.params.tau_mm = o.eye.tau_um * 1e-3;
+    o.eye.params.validate();
+    const SubjectSource subjects = SubjectSource::from_options(o.subjects);
+    if (subjects.kind() == SubjectSource::Kind::kNone) {
+        throw UsageError(
+            "cohort needs a subject id source (GEE clusters eyes by subject): "
+            "--subject-key-file F, --subject-key KEY, --subjects map.csv, or --subject-id raw");
+    }
+    GroupMap groups;
+    if (!o.groups.empty()) groups = GroupMap::load(o.groups);
+
+    const fs::path out(o.out);
+    make_dir(out);
+    const DirLock lock(out);
+    for (const char* d : {"eyes", "failures"}) make_dir(out / d);
+    if (o.qc) make_dir(out / "qc");
+    for (const auto& d : {out, out / "eyes", out / "failures", out / "qc"}) {
+        remove_stale_temporaries(d);
+    }
+
+    // The eye record's options, and the failure record's (which also depend on --type).
+    const std::string eye_options =
+        macula_options_text(o.eye) + " subjects=" + subjects.fingerprint();
+    const std::string fail_options = eye_options + " type=" + o.type + (o.qc ? " qc" : "");
+
+    std::vector<Skipped> skipped;
+    const auto files = discover(o.inputs, out, skipped);
+    std::vector<Item> items;
+    items.reserve(files.size());
+    std::vector<std::size_t> todo;
+    for (const auto& f : files) {
+        Item it;
+        it.path = f;
+        it.key = eye_key(f);
+        try {
+            it.facts = file_facts(f);
+        } catch (const InputError& e) {
+            skipped.push_back({f, e.what(), static_cast<int>(e.exit_code())});
+            continue;
+        }
+        const fs::path eye_json = out / "eyes" / (it.key + ".json");
+        const fs::path fail_json = out / "failures" / (it.key + ".json");
+        std::error_code ec;
+        if (fs::exists(eye_json, ec)) {
+            try {
+                nlohmann::json j = read_json_file(eye_json.string());
+                const bool qc_ok = !o.qc || fs::exists(out / "qc" / (it.key + "_thickness.png"));
+                if (j.contains("cohort") && record_is_current(j["cohort"], it.facts, eye_options) &&
+                    (o.type == "auto" || o.type == j["cohort"].value("scan_type", "")) && qc_ok) {
+                    it.done = true;
+                    it.slim = slim(j);
+                }
+            } catch (const InputError& e) {
+                spdlog::warn("{}: unusable previous result, redoing the eye: {}", f, e.what());
+            }
+        }
+        if (!it.done && !o.retry_failed && fs::exists(fail_json, ec)) {
+            try {
+                nlohmann::json j = read_json_file(fail_json.string());
+                if (j.contains("cohort") &&
+                    record_is_current(j["cohort"], it.facts, fail_options)) {
+                    it.failed = true;
+                    it.failure = j;
+                }
+            } catch (const InputError& e) {
+                spdlog::warn("{}: unusable failure record, redoing the eye: {}", f, e.what());
+            }
+        }
+        if (!it.done && !it.failed) todo.push_back(items.size());
+        items.push_back(std::move(it));
+    }
+    const std::size_t resumed = items.size() - todo.size();
+    spdlog::info("{} exports found, {} already done (results or recorded failures), {} to do, "
+                 "{} job(s)",
+                 items.size(), resumed, todo.size(), jobs);
+
+    const bool bar = ::isatty(STDERR_FILENO) != 0 && spdlog::get_level() <= spdlog::level::info;
+    Progress progress(items.size(), todo.size(), bar);
+    progress.draw();
+    std::map<pid_t, Running> running;
+    std::size_t next = 0;
+    const pid_t parent = ::getpid();
+    const auto child_level =
+        spdlog::get_level() <= spdlog::level::debug ? spdlog::get_level() : spdlog::level::err;
+    while (next < todo.size() || !running.empty()) {
+        while (next < todo.size() && running.size() < static_cast<std::size_t>(jobs)) {
+            const std::size_t idx = todo[next++];
+            int fds[2];
+            if (::pipe2(fds, O_CLOEXEC) != 0) throw OutputError("pipe", std::strerror(errno));
+            std::fflush(stderr);
+            spdlog::default_logger()->flush();
+            const pid_t pid = ::fork();
+            if (pid < 0) throw OutputError("fork", std::strerror(errno));
+            if (pid == 0) {
+                // The child dies with the parent (SIGKILL of the batch kills its eyes too).
+                ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+                if (::getppid() != parent) ::_exit(static_cast<int>(ExitCode::kInternal));
+                ::close(fds[0]);
+                spdlog::set_level(child_level);
+                child_main(o, subjects, items[idx], out, fds[1]);
+            }
+            ::close(fds[1]);
+            running[pid] = Running{idx, fds[0], Clock::now()};
+        }
+        int status = 0;
+        const pid_t pid = ::waitpid(-1, &status, 0);
+        if (pid < 0) {
+            if (errno == EINTR) continue;
+            throw std::runtime_error(std::string("waitpid: ") + std::strerror(errno));
+        }
+        const auto r = running.find(pid);
+        if (r == running.end()) continue;
+        Item& item = items[r->second.index];
+        const std::string msg = read_all(r->second.msg_fd);
+        ::close(r->second.msg_fd);
+        const double secs = std::chrono::duration<double>(Clock::now() - r->second.start).count();
+        running.erase(r);
+
+        const fs::path eye_json = out / "eyes" / (item.key + ".json");
+        if (WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+            try {
+                item.slim = slim(read_json_file(eye_json.string()));
+                item.done = true;
+                std::error_code ec;
+                fs::remove(out / "failures" / (item.key + ".json"), ec);
+                progress.finished(item, true, "", secs);
+                continue;
+            } catch (const InputError& e) {
+                record_failure(item, out, fail_options,
+                               std::string("result unreadable: ") + e.what(),
+                               static_cast<int>(ExitCode::kInternal));
+            }
+        } else if (WIFEXITED(status)) {
+            std::string reason = msg.empty() ? "failed without a message" : msg;
+            record_failure(item, out, fail_options, reason, WEXITSTATUS(status));
+        } else {
+            const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+            record_failure(item, out, fail_options,
+                           "the analysis crashed: " + signal_name(sig) + (msg.empty() ? "" : ": " + msg),
+                           static_cast<int>(ExitCode::kInternal));
+        }
+        progress.finished(item, false, item.failure.value("reason", std::string()), secs);
+    }
+    progress.end();
+
+    // The tables, rebuilt from the records of this run's inputs, each written atomically.
+    std::vector<nlohmann::json> eyes;
+    std::vector<std::string> names;
+    std::size_t failed = skipped.size();
+    for (const auto& it : items) {
+        if (it.done) {
+            eyes.push_back(it.slim);
+            names.push_back((out / "eyes" / (it.key + ".json")).string());
+        }
+        if (it.failed) ++failed;
+    }
+    io::write_text_atomically((out / "eyes.csv").string(),
+                              eyes_csv(eyes, names, "macula", groups));
+    io::write_text_atomically((out / "failures.csv").string(), failures_csv(items, skipped));
+    spdlog::info("{} eyes in {}, {} failed (see {})", eyes.size(), (out / "eyes.csv").string(),
+                 failed, (out / "failures.csv").string());
+    if (failed > 0) ctx.exit_code = static_cast<int>(ExitCode::kPartial);
+}
+
+}  // namespace
+
+void add_cohort_command(CLI::App& app, RunContext& ctx) {
+    auto opts = std::make_shared<CohortOptions>();
+    CLI::App* cmd = app.add_subcommand(
+        "cohort",
+        "Analyse every supported export under the folders (recursive), N at a time, each eye in "
+        "a child process; resumable and crash safe. Writes OUTDIR/eyes/*.json, OUTDIR/eyes.csv, "
+        "OUTDIR/failures.csv (docs/cohort.md). Exit 0: all eyes done; 1: some inputs failed "
+        "(listed in failures.csv)");
+    cmd->add_option("inputs", opts->inputs, "Folders (searched recursively) or files")
+        ->required();
+    cmd->add_option("-o,--output", opts->out, "Output folder")->required();
+    cmd->add_option("-j,--jobs", opts->jobs, "Eyes analysed at once (default: one per core)");
+    cmd->add_option("--groups", opts->groups,
+                    "Group column from a CSV with header subject_id,group or file,group");
+    cmd->add_option("--type", opts->type,
+                    "auto (decide from the BM segmentation: docs/cohort.md), macula or onh")
+        ->capture_default_str();
+    cmd->add_flag("--qc", opts->qc, "Write QC pictures OUTDIR/qc/<eye_key>_*.png");
+    cmd->add_flag("--retry-failed", opts->retry_failed,
+                  "Redo inputs whose failure is recorded (by default a recorded failure of an "
+                  "unchanged file with the same options is kept)");
+    add_macula_analysis_options(cmd, opts->eye);
+    add_subject_options(cmd, opts->subjects);
+    cmd->callback([opts, &ctx] { run(*opts, ctx); });
+}
+
+}  // namespace octshape::app

@@ -1,0 +1,390 @@
+#include "commands/eye_record.h"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "octshape/io/error.h"
+#include "octshape/io/sha256.h"
+#include "octshape/retina/cube_report.h"
+#include "octshape/version.h"
+
+namespace octshape::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string trim(const std::string& s) {
+    const auto b = s.find_first_not_of(" \t\r\n");
+    if (b == std::string::npos) return "";
+    const auto e = s.find_last_not_of(" \t\r\n");
+    return s.substr(b, e - b + 1);
+}
+
+// One RFC 4180 record without embedded newlines (enough for the small map files).
+std::vector<std::string> split_csv(const std::string& line) {
+    std::vector<std::string> out;
+    std::string cur;
+    bool quoted = false;
+    for (std::size_t i = 0; i < line.size(); ++i) {
+        const char c = line[i];
+        if (quoted) {
+            if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
+                cur += '"';
+                ++i;
+            } else if (c == '"') {
+                quoted = false;
+            } else {
+                cur += c;
+            }
+        } else if (c == '"') {
+            quoted = true;
+        } else if (c == ',') {
+            out.push_back(trim(cur));
+            cur.clear();
+        } else {
+            cur += c;
+        }
+    }
+    out.push_back(trim(cur));
+    return out;
+}
+
+std::string slurp_input(const std::string& path) {
+    std::error_code ec;
+    if (!fs::exists(path, ec)) throw InputError::missing(path);
+    if (!fs::is_regular_file(path, ec)) throw InputError::not_regular(path);
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError::unreadable(path, std::strerror(errno));
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    if (in.bad()) throw InputError::unreadable(path, "read failed");
+    return ss.str();
+}
+
+// A two-column map file: returns (first header name, rows).
+std::pair<std::string, std::vector<std::pair<std::string, std::string>>> read_map(
+    const std::string& path, const std::string& value_column,
+    const std::vector<std::string>& key_columns) {
+    std::istringstream in(slurp_input(path));
+    std::string line;
+    std::size_t line_no = 0;
+    std::string key_name;
+    std::vector<std::pair<std::string, std::string>> rows;
+    while (std::getline(in, line)) {
+        ++line_no;
+        if (trim(line).empty()) continue;
+        const auto f = split_csv(line);
+        if (key_name.empty()) {
+            if (f.size() != 2 || f[1] != value_column ||
+                std::find(key_columns.begin(), key_columns.end(), f[0]) == key_columns.end()) {
+                std::string expected;
+                for (const auto& k : key_columns) {
+                    expected += (expected.empty() ? "" : " or ") + k + "," + value_column;
+                }
+                throw InputError::corrupt(path, "header must be " + expected);
+            }
+            key_name = f[0];
+            continue;
+        }
+        if (f.size() != 2 || f[0].empty()) {
+            throw InputError::corrupt(path, "line " + std::to_string(line_no) +
+                                                ": expected two fields, the first non-empty");
+        }
+        rows.emplace_back(f[0], f[1]);
+    }
+    if (key_name.empty()) throw InputError::corrupt(path, "empty file (no header)");
+    return {key_name, rows};
+}
+
+// HMAC-SHA256 (RFC 2104) until io::hmac_sha256_hex lands on main.
+std::string hmac_hex(std::string_view key, std::string_view msg) {
+    std::string k(key);
+    if (k.size() > 64) {
+        io::Sha256 h;
+        h.update(k.data(), k.size());
+        const auto d = h.finish();
+        k.assign(d.begin(), d.end());
+    }
+    k.resize(64, '\0');
+    std::string ipad(64, '\0');
+    std::string opad(64, '\0');
+    for (std::size_t i = 0; i < 64; ++i) {
+        ipad[i] = static_cast<char>(k[i] ^ 0x36);
+        opad[i] = static_cast<char>(k[i] ^ 0x5c);
+    }
+    io::Sha256 inner;
+    inner.update(ipad.data(), ipad.size());
+    inner.update(msg.data(), msg.size());
+    const auto id = inner.finish();
+    io::Sha256 outer;
+    outer.update(opad.data(), opad.size());
+    outer.update(id.data(), id.size());
+    return outer.hex();
+}
+
+std::string str_or_na(const nlohmann::json& j) {
+    if (j.is_string()) return j.get<std::string>();
+    return "NA";
+}
+
+}  // namespace
+
+// ---- Subject pseudonyms -------------------------------------------------------------------
+
+void add_subject_options(CLI::App* cmd, SubjectOptions& o) {
+    cmd->add_option("--subject-key", o.key,
+                    "Subject id = HMAC-SHA256(KEY, patient ID), 16 hex digits (a pseudonym "
+                    "that clusters a person's eyes and visits). Visible to other users in `ps`: "
+                    "prefer --subject-key-file");
+    cmd->add_option("--subject-key-file", o.key_file,
+                    "As --subject-key, the key being the first line of this file");
+    cmd->add_option("--subjects", o.map_file,
+                    "Subject ids from a CSV with header file,subject_id (absolute path or file "
+                    "name) or patient_id,subject_id");
+    cmd->add_option("--subject-id", o.mode,
+                    "'raw': use the export's patient ID itself as subject id (identifying: only "
+                    "when you explicitly want it)");
+}
+
+SubjectSource SubjectSource::from_options(const SubjectOptions& o) {
+    const int given = static_cast<int>(!o.key.empty()) + static_cast<int>(!o.key_file.empty()) +
+                      static_cast<int>(!o.map_file.empty()) + static_cast<int>(!o.mode.empty());
+    if (given > 1) {
+        throw UsageError(
+            "give at most one of --subject-key, --subject-key-file, --subjects, --subject-id");
+    }
+    SubjectSource s;
+    if (!o.mode.empty()) {
+        if (o.mode != "raw") throw UsageError("--subject-id: only 'raw' is accepted");
+        s.kind_ = Kind::kRaw;
+        s.fingerprint_ = "raw";
+        return s;
+    }
+    if (!o.key.empty() || !o.key_file.empty()) {
+        std::string key = o.key;
+        if (!o.key_file.empty()) {
+            std::istringstream in(slurp_input(o.key_file));
+            std::getline(in, key);
+            key = trim(key);
+        }
+        if (key.empty()) throw UsageError("--subject-key/--subject-key-file: the key is empty");
+        s.kind_ = Kind::kKeyedHash;
+        s.key_ = key;
+        // Reveals nothing of the key, but changes when it changes.
+        s.fingerprint_ =
+            "hmac:" + hmac_hex(key, "octshape subject key check").substr(0, 16);
+        return s;
+    }
+    if (!o.map_file.empty()) {
+        const auto [key_name, rows] =
+            read_map(o.map_file, "subject_id", {"file", "patient_id"});
+        s.kind_ = Kind::kMap;
+        auto& target = key_name == "file" ? s.by_file_ : s.by_patient_;
+        std::string all;
+        for (const auto& [k, v] : rows) {
+            target[k] = v;
+            all += k + '\x1f' + v + '\x1e';
+        }
+        s.fingerprint_ = "map:" + key_name + ":" + io::sha256_hex(all).substr(0, 16);
+        return s;
+    }
+    return s;
+}
+
+std::optional<std::string> SubjectSource::subject_id(const io::Scan& scan,
+                                                     const std::string& file) const {
+    switch (kind_) {
+        case Kind::kNone:
+            return std::nullopt;
+        case Kind::kRaw: {
+            const std::string p = patient_key(scan);
+            if (p.empty()) return std::nullopt;
+            return p;
+        }
+        case Kind::kKeyedHash: {
+            const std::string p = patient_key(scan);
+            if (p.empty()) return std::nullopt;
+            return hmac_hex(key_, p).substr(0, kSubjectHexChars);
+        }
+        case Kind::kMap: {
+            if (!by_file_.empty() || by_patient_.empty()) {
+                if (auto it = by_file_.find(file); it != by_file_.end()) return it->second;
+                const std::string name = fs::path(file).filename().string();
+                if (auto it = by_file_.find(name); it != by_file_.end()) return it->second;
+                return std::nullopt;
+            }
+            if (auto it = by_patient_.find(patient_key(scan)); it != by_patient_.end()) {
+                return it->second;
+            }
+            return std::nullopt;
+        }
+    }
+    return std::nullopt;
+}
+
+std::string patient_key(const io::Scan& scan) {
+    const auto& ids = scan.meta.ids;
+    if (!trim(ids.patient_id).empty()) return trim(ids.patient_id);
+    return trim(ids.id);
+}
+
+std::optional<std::string> visit_date(const io::Scan& scan) {
+    if (scan.meta.visit_date_ole && std::isfinite(*scan.meta.visit_date_ole) &&
+        *scan.meta.visit_date_ole > 0.0) {
+        return io::ole_date_to_iso_date(*scan.meta.visit_date_ole);
+    }
+    if (scan.meta.exam_time_filetime && *scan.meta.exam_time_filetime > 0) {
+        return io::filetime_to_iso(*scan.meta.exam_time_filetime).substr(0, 10);
+    }
+    return std::nullopt;
+}
+
+// ---- File facts and the resume record ----------------------------------------------------
+
+std::string absolute_path(const std::string& file) {
+    return fs::absolute(fs::path(file)).lexically_normal().string();
+}
+
+FileFacts file_facts(const std::string& file) {
+    struct stat st {};
+    if (::stat(file.c_str(), &st) != 0) {
+        if (errno == ENOENT) throw InputError::missing(file);
+        throw InputError::unreadable(file, std::strerror(errno));
+    }
+    FileFacts f;
+    f.path = absolute_path(file);
+    f.size = static_cast<std::uintmax_t>(st.st_size);
+    f.mtime_ns = static_cast<std::int64_t>(st.st_mtim.tv_sec) * 1000000000LL +
+                 static_cast<std::int64_t>(st.st_mtim.tv_nsec);
+    return f;
+}
+
+nlohmann::ordered_json cohort_record(const FileFacts& facts,
+                                     const std::string& options_text,
+                                     const std::string& scan_type) {
+    nlohmann::ordered_json c;
+    c["file"] = facts.path;
+    c["size_bytes"] = facts.size;
+    c["mtime_ns"] = facts.mtime_ns;
+    c["octshape_version"] = kVersion;
+    c["options"] = options_text;
+    c["scan_type"] = scan_type;
+    return c;
+}
+
+bool record_is_current(const nlohmann::json& r,
+                       const FileFacts& facts,
+                       const std::string& options_text) {
+    if (!r.is_object()) return false;
+    auto eq = [&](const char* key, const auto& value) {
+        const auto it = r.find(key);
+        if (it == r.end()) return false;
+        try {
+            return *it == nlohmann::json(value);
+        } catch (const nlohmann::json::exception&) {
+            return false;
+        }
+    };
+    return eq("file", facts.path) && eq("size_bytes", facts.size) &&
+           eq("mtime_ns", facts.mtime_ns) && eq("octshape_version", std::string(kVersion)) &&
+           eq("options", options_text);
+}
+
+// ---- eyes.csv -----------------------------------------------------------------------------
+
+GroupMap GroupMap::load(const std::string& path) {
+    const auto [key_name, rows] = read_map(path, "group", {"subject_id", "file"});
+    GroupMap g;
+    g.by_subject_ = key_name == "subject_id";
+    for (const auto& [k, v] : rows) g.map_[k] = v;
+    return g;
+}
+
+std::string GroupMap::group_of(const std::string& subject_id, const std::string& file) const {
+    if (by_subject_) {
+        const auto it = map_.find(subject_id);
+        return it == map_.end() ? "NA" : it->second;
+    }
+    if (auto it = map_.find(file); it != map_.end()) return it->second;
+    if (auto it = map_.find(fs::path(file).filename().string()); it != map_.end()) {
+        return it->second;
+    }
+    return "NA";
+}
+
+std::vector<std::string> eyes_common_header() {
+    return {"subject_id", "eye", "visit_date", "scan_type", "file", "sha256", "group"};
+}
+
+std::vector<std::string> eyes_type_header(const std::string& scan_type) {
+    if (scan_type == "macula") return retina::cube_csv_header();
+    throw UsageError("no eyes table for scan type '" + scan_type + "'");
+}
+
+std::string eyes_csv(const std::vector<nlohmann::json>& eyes,
+                     const std::vector<std::string>& names,
+                     const std::string& scan_type,
+                     const GroupMap& groups) {
+    const auto type_cols = eyes_type_header(scan_type);
+    std::vector<std::vector<std::string>> rows;
+    for (std::size_t i = 0; i < eyes.size(); ++i) {
+        const auto& e = eyes[i];
+        const std::string& name = i < names.size() ? names[i] : std::string("(input)");
+        const auto c = e.find("cohort");
+        const auto csv = e.find("csv_row");
+        if (c == e.end() || !c->is_object() || csv == e.end() || !csv->is_object()) {
+            throw InputError::corrupt(name, "not a per-eye result of octshape " +
+                                                std::string(kVersion) +
+                                                " (no \"cohort\" record or \"csv_row\")");
+        }
+        if (str_or_na(c->value("scan_type", nlohmann::json())) != scan_type) continue;
+        const auto in = e.find("input");
+        std::string sha = "NA";
+        if (in != e.end() && in->is_object()) sha = str_or_na(in->value("sha256", nlohmann::json()));
+        std::vector<std::string> row;
+        const std::string subject = str_or_na(c->value("subject_id", nlohmann::json()));
+        const std::string file = str_or_na(c->value("file", nlohmann::json()));
+        row.push_back(subject);
+        row.push_back(str_or_na(c->value("eye", nlohmann::json())));
+        row.push_back(str_or_na(c->value("visit_date", nlohmann::json())));
+        row.push_back(scan_type);
+        row.push_back(file);
+        row.push_back(sha);
+        row.push_back(groups.group_of(subject, file));
+        for (const auto& col : type_cols) row.push_back(str_or_na(csv->value(col, nlohmann::json())));
+        rows.push_back(std::move(row));
+    }
+    // subject_id, eye, visit_date, file: indices 0, 1, 2, 4.
+    std::stable_sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) {
+        return std::tie(a[0], a[1], a[2], a[4]) < std::tie(b[0], b[1], b[2], b[4]);
+    });
+    auto line = [](const std::vector<std::string>& fields) {
+        std::string s;
+        for (std::size_t i = 0; i < fields.size(); ++i) {
+            if (i > 0) s += ',';
+            s += retina::csv_field(fields[i]);
+        }
+        return s + '\n';
+    };
+    std::vector<std::string> header = eyes_common_header();
+    header.insert(header.end(), type_cols.begin(), type_cols.end());
+    std::string out = line(header);
+    for (const auto& r : rows) out += line(r);
+    return out;
+}
+
+nlohmann::json read_json_file(const std::string& path) {
+    const std::string text = slurp_input(path);
+    try {
+        return nlohmann::json::parse(text);
+    } catch (const nlohmann::json::parse_error& e) {
+        throw InputError::corrupt(path, std::string("not JSON: ") + e.what());
+    }
+}
+
+}  // namespace octshape::app

@@ -1,0 +1,120 @@
+#include "commands/macula_eye.h"
+
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+#include <sstream>
+
+#include "commands/macula_qc.h"
+#include "octshape/io/scan_reader.h"
+#include "octshape/io/sha256.h"
+#include "octshape/retina/cube_report.h"
+#include "octshape/retina/scan_summary.h"
+#include "octshape/version.h"
+
+namespace octshape::app {
+
+std::string csv_line(const std::vector<std::string>& fields) {
+    std::string s;
+    for (std::size_t i = 0; i < fields.size(); ++i) {
+        if (i > 0) s += ',';
+        s += retina::csv_field(fields[i]);
+    }
+    return s + '\n';
+}
+
+std::string macula_options_text(const MaculaEyeOptions& o) {
+    const auto& p = o.params;
+    std::ostringstream s;
+    s.precision(17);
+    s << "macula half_lines=" << p.num_half_lines << " radius_mm=" << p.radius_mm
+      << " spacing_mm=" << p.sample_spacing_mm << " tau_um=" << o.tau_um
+      << " inner_radius_mm=" << p.inner_radius_mm << " search_radius_mm=" << p.search_radius_mm
+      << " tie_tolerance_mm=" << p.tie_tolerance_mm << " max_rounds=" << p.max_rounds
+      << " energy_tolerance=" << p.energy_tolerance;
+    return s.str();
+}
+
+void add_macula_analysis_options(CLI::App* cmd, MaculaEyeOptions& o) {
+    auto& p = o.params;
+    cmd->add_option("--half-lines", p.num_half_lines, "Number of radial half-lines n (even)")
+        ->capture_default_str();
+    cmd->add_option("--radius-mm", p.radius_mm, "Length R of each half-line (mm)")
+        ->capture_default_str();
+    cmd->add_option("--spacing-mm", p.sample_spacing_mm,
+                    "Radial sample spacing (mm); 0 = the scan's ScaleX")
+        ->capture_default_str();
+    cmd->add_option("--tau-um", o.tau_um, "Pit-flat threshold above CFT (um)")
+        ->capture_default_str();
+    cmd->add_option("--inner-radius-mm", p.inner_radius_mm,
+                    "Radius r_u of the inner rim volume (mm)")
+        ->capture_default_str();
+    cmd->add_option("--search-radius-mm", p.search_radius_mm,
+                    "Centre search radius around the device fovea centre (mm)")
+        ->capture_default_str();
+}
+
+MaculaEye analyse_macula_eye(const std::string& file,
+                             MaculaEyeOptions options,
+                             const SubjectSource& subjects) {
+    const FileFacts facts = file_facts(file);  // before reading: a missing file says so
+    const io::Scan scan = io::read_scan(file);
+    return analyse_macula_eye(file, facts, scan, std::move(options), subjects);
+}
+
+MaculaEye analyse_macula_eye(const std::string& file,
+                             const FileFacts& facts,
+                             const io::Scan& scan,
+                             MaculaEyeOptions o,
+                             const SubjectSource& subjects) {
+    o.params.tau_mm = o.tau_um * 1e-3;
+    o.params.validate();
+    const std::string sha = io::sha256_file(file);
+    const retina::CubeResult r = retina::analyse_macula(scan, o.params);
+    for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", file, f);
+    for (const auto& n : r.notes) spdlog::info("{}: {}", file, n);
+
+    MaculaEye out;
+    auto& j = out.json;
+    j["octshape_version"] = kVersion;
+    j["command"] = "macula";
+    j["input"] = {{"path", file}, {"sha256", sha}};
+    j["scan"] = retina::scan_summary(scan);  // without identifiers
+    const auto cube = retina::cube_json(r, o.params);
+    for (const auto& [k, v] : cube.items()) j[k] = v;
+    const std::string eye(io::to_string(scan.meta.laterality));
+
+    out.csv_header = {"file", "sha256", "eye", "scan_pattern", "num_bscans"};
+    out.csv_row = {file, sha, eye, std::string(io::to_string(scan.meta.pattern)),
+                   std::to_string(scan.num_bscans())};
+    const auto cols = retina::cube_csv_header();
+    const auto vals = retina::cube_csv_values(r);
+    nlohmann::ordered_json row;
+    for (std::size_t i = 0; i < cols.size(); ++i) row[cols[i]] = vals[i];
+    out.csv_header.insert(out.csv_header.end(), cols.begin(), cols.end());
+    out.csv_row.insert(out.csv_row.end(), vals.begin(), vals.end());
+    j["csv_row"] = row;
+
+    auto rec = cohort_record(facts, macula_options_text(o) + " subjects=" +
+                                        subjects.fingerprint(), "macula");
+    const auto subject = subjects.subject_id(scan, facts.path);
+    rec["subject_id"] = subject ? nlohmann::json(*subject) : nlohmann::json(nullptr);
+    if (!subject && subjects.kind() != SubjectSource::Kind::kNone) {
+        spdlog::warn("{}: no subject id for this eye (NA)", file);
+    }
+    const auto visit = visit_date(scan);
+    rec["visit_date"] = visit ? nlohmann::json(*visit) : nlohmann::json(nullptr);
+    rec["eye"] = eye;
+    j["cohort"] = rec;
+
+    if (!o.qc_dir.empty()) {
+        const std::string stem =
+            o.qc_stem.empty() ? std::filesystem::path(file).stem().string() : o.qc_stem;
+        write_macula_qc(r, o.qc_dir, stem);
+    }
+    spdlog::info("{}: {} eye, CFT {:.4f} mm, rim height {:.4f} mm, RMSE {:.2f} um", file, eye,
+                 r.cft_mm, r.rim_height_mm, r.rmse_um);
+    return out;
+}
+
+}  // namespace octshape::app

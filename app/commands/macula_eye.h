@@ -1,0 +1,52 @@
+#pragma once
+// The per-eye macula work shared by `octshape macula` and `octshape cohort` (one code path):
+// read the export, hash it, run the CuBe analysis, optionally draw the QC pictures, and build
+// the per-eye JSON object and CSV row (docs/outputs.md, docs/cohort.md).
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "commands/eye_record.h"
+#include "octshape/retina/cube.h"
+
+namespace octshape::app {
+
+struct MaculaEyeOptions {
+    retina::CubeParams params;  // tau_mm is set from tau_um by analyse_macula_eye
+    double tau_um = 5.0;        // pit-flat threshold above CFT (um), the user option
+    std::string qc_dir;         // empty: no QC pictures
+    std::string qc_stem;        // QC file names DIR/STEM_*.png; empty: the input's file stem
+};
+
+struct MaculaEye {
+    nlohmann::ordered_json json;         // the per-eye object, with its "cohort" record
+    std::vector<std::string> csv_header;  // the `macula --csv` columns
+    std::vector<std::string> csv_row;
+};
+
+// Throws InputError (file), AnalysisError (scan not analysable), OutputError (QC pictures).
+// `record` carries the subject settings and the option signature; its file facts are filled
+// here from the file itself.
+[[nodiscard]] MaculaEye analyse_macula_eye(const std::string& file,
+                                           MaculaEyeOptions options,
+                                           const SubjectSource& subjects);
+// The same on a scan already read from `file` (headers and segmentation; pixels not needed),
+// `facts` being the file's state taken *before* it was read (a file changed meanwhile is then
+// redone by the next cohort run).
+[[nodiscard]] MaculaEye analyse_macula_eye(const std::string& file,
+                                           const FileFacts& facts,
+                                           const io::Scan& scan,
+                                           MaculaEyeOptions options,
+                                           const SubjectSource& subjects);
+
+// The canonical text of the analysis options (part of the resume signature).
+[[nodiscard]] std::string macula_options_text(const MaculaEyeOptions& options);
+
+// Adds the CuBe options (--half-lines, --radius-mm, ...) to a command.
+void add_macula_analysis_options(CLI::App* cmd, MaculaEyeOptions& options);
+
+// One CSV line (RFC 4180 quoting, '\n' terminated).
+[[nodiscard]] std::string csv_line(const std::vector<std::string>& fields);
+
+}  // namespace octshape::app

@@ -1,0 +1,214 @@
+// `octshape stats eyes.csv [--group-col group] [--retest] [-o table.csv] [--json]`: the
+// per-group table of every parameter (thesis Tables 7.3, 8.2) and the test-retest ICC(2,1)
+// with its 95 % CI (Tables 7.1, 8.1). Definitions and layout: docs/stats.md.
+
+#include <cmath>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+#include <spdlog/fmt/fmt.h>
+#include <spdlog/spdlog.h>
+
+#include "commands/command.h"
+#include "octshape/io/atomic_file.h"
+#include "octshape/retina/cube_report.h"
+#include "octshape/retina/eye_stats.h"
+
+namespace octshape::app {
+namespace {
+
+struct StatsOptions {
+    std::string input;
+    retina::GroupStatsParams groups;
+    retina::RetestParams retest_params;
+    bool retest = false;
+    std::string table_out;
+    std::string retest_out;
+    bool json = false;
+};
+
+// Full precision for files, NA for missing (R reads it as missing).
+std::string num(double v) { return std::isfinite(v) ? fmt::format("{:.10g}", v) : "NA"; }
+// Short form for the terminal table.
+std::string short_num(double v) { return std::isfinite(v) ? fmt::format("{:.4g}", v) : "NA"; }
+
+nlohmann::ordered_json json_num(double v) {
+    return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr);
+}
+
+std::string groups_csv(const retina::GroupStats& g) {
+    std::string s = "parameter,group,n,mean,sd,min,max\n";
+    for (const auto& p : g.parameters) {
+        for (std::size_t i = 0; i < g.groups.size(); ++i) {
+            const auto& m = p.per_group[i];
+            s += retina::csv_field(p.parameter) + ',' + retina::csv_field(g.groups[i].name) +
+                 ',' + std::to_string(m.n) + ',' + num(m.mean) + ',' + num(m.sd) + ',' +
+                 num(m.min) + ',' + num(m.max) + '\n';
+        }
+    }
+    return s;
+}
+
+std::string retest_csv(const retina::RetestStats& r) {
+    std::string s = "parameter,n_eyes,k,icc,lower_95,upper_95,f,df1,df2,p,eyes_missing\n";
+    for (const auto& p : r.parameters) {
+        const auto& i = p.icc;
+        s += retina::csv_field(p.parameter) + ',' + std::to_string(i.n) + ',' +
+             std::to_string(i.k) + ',' + num(i.icc) + ',' + num(i.lower) + ',' + num(i.upper) +
+             ',' + num(i.f) + ',' + std::to_string(i.df1) + ',' + std::to_string(i.df2) + ',' +
+             num(i.p) + ',' + std::to_string(p.eyes_missing) + '\n';
+    }
+    return s;
+}
+
+// The thesis layout: one row per parameter, per group "mean (SD)" and "min-max".
+std::string groups_text(const retina::GroupStats& g) {
+    std::ostringstream o;
+    o << (g.all_scans ? "Every scan counts.\n"
+                      : "One scan per eye (subject_id + eye): the first by visit_date, file.\n");
+    for (const auto& gi : g.groups) {
+        o << fmt::format("group {}: {} scans, {} eyes, {} subjects\n", gi.name, gi.rows, gi.eyes,
+                         gi.subjects);
+    }
+    o << fmt::format("{:<36}", "parameter");
+    for (const auto& gi : g.groups) {
+        o << fmt::format(" | {:>4} {:>22} {:>21}", "n", gi.name + " mean (SD)", "min-max");
+    }
+    o << '\n';
+    for (const auto& p : g.parameters) {
+        o << fmt::format("{:<36}", p.parameter);
+        for (const auto& m : p.per_group) {
+            o << fmt::format(" | {:>4} {:>22} {:>21}", m.n,
+                             short_num(m.mean) + " (" + short_num(m.sd) + ")",
+                             short_num(m.min) + "-" + short_num(m.max));
+        }
+        o << '\n';
+    }
+    return o.str();
+}
+
+std::string retest_text(const retina::RetestStats& r) {
+    std::ostringstream o;
+    o << fmt::format(
+        "\nTest-retest ICC(2,1) (two-way random, absolute agreement, single measurement), "
+        "repeats = {}; {} eyes scanned more than once, {} with >= k = {} scans used\n",
+        r.same_visit ? "same subject_id, eye and visit_date" : "same subject_id and eye",
+        r.repeated_eyes, r.eyes_used, r.k);
+    o << fmt::format("{:<36} {:>6} {:>8} {:>8} {:>8} {:>10}\n", "parameter", "n", "ICC",
+                     "LCI95", "UCI95", "p");
+    for (const auto& p : r.parameters) {
+        o << fmt::format("{:<36} {:>6} {:>8.4f} {:>8.4f} {:>8.4f} {:>10.3g}\n", p.parameter,
+                         p.icc.n, p.icc.icc, p.icc.lower, p.icc.upper, p.icc.p);
+    }
+    return o.str();
+}
+
+nlohmann::ordered_json to_json(const retina::GroupStats& g,
+                               const retina::RetestStats* r,
+                               const std::string& input) {
+    nlohmann::ordered_json j;
+    j["input"] = input;
+    j["group_column"] = g.group_column;
+    j["scans_used"] = g.all_scans ? "every scan" : "first scan of each eye (visit_date, file)";
+    j["groups"] = nlohmann::ordered_json::array();
+    for (const auto& gi : g.groups) {
+        j["groups"].push_back(
+            {{"name", gi.name}, {"scans", gi.rows}, {"eyes", gi.eyes}, {"subjects", gi.subjects}});
+    }
+    j["parameters"] = nlohmann::ordered_json::array();
+    for (const auto& p : g.parameters) {
+        nlohmann::ordered_json pj;
+        pj["parameter"] = p.parameter;
+        for (std::size_t i = 0; i < g.groups.size(); ++i) {
+            const auto& m = p.per_group[i];
+            pj["groups"][g.groups[i].name] = {{"n", m.n},
+                                              {"mean", json_num(m.mean)},
+                                              {"sd", json_num(m.sd)},
+                                              {"min", json_num(m.min)},
+                                              {"max", json_num(m.max)}};
+        }
+        j["parameters"].push_back(pj);
+    }
+    if (r != nullptr) {
+        nlohmann::ordered_json rj;
+        rj["method"] = "ICC(2,1): two-way random effects, absolute agreement, single measurement "
+                       "(Shrout & Fleiss 1979; McGraw & Wong 1996 ICC(A,1))";
+        rj["repeats"] = r->same_visit ? "same subject_id, eye and visit_date"
+                                      : "same subject_id and eye";
+        rj["k"] = r->k;
+        rj["repeated_eyes"] = r->repeated_eyes;
+        rj["eyes_used"] = r->eyes_used;
+        rj["parameters"] = nlohmann::ordered_json::array();
+        for (const auto& p : r->parameters) {
+            const auto& i = p.icc;
+            rj["parameters"].push_back({{"parameter", p.parameter},
+                                        {"n_eyes", i.n},
+                                        {"k", i.k},
+                                        {"icc", json_num(i.icc)},
+                                        {"lower_95", json_num(i.lower)},
+                                        {"upper_95", json_num(i.upper)},
+                                        {"f", json_num(i.f)},
+                                        {"df1", i.df1},
+                                        {"df2", i.df2},
+                                        {"p", json_num(i.p)},
+                                        {"eyes_missing", p.eyes_missing}});
+        }
+        j["retest"] = rj;
+    }
+    return j;
+}
+
+void run(const StatsOptions& o) {
+    const retina::EyeTable t = retina::read_eye_table_file(o.input);
+    const retina::GroupStats g = retina::group_stats(t, o.groups);
+    std::unique_ptr<retina::RetestStats> r;
+    if (o.retest) {
+        r = std::make_unique<retina::RetestStats>(
+            retina::retest_stats(t, o.retest_params, o.groups.group_column));
+    }
+    if (!o.table_out.empty()) io::write_text_atomically(o.table_out, groups_csv(g));
+    if (r && !o.retest_out.empty()) io::write_text_atomically(o.retest_out, retest_csv(*r));
+    if (o.json) {
+        std::cout << to_json(g, r.get(), o.input).dump(2) << '\n';
+    } else {
+        std::cout << groups_text(g);
+        if (r) std::cout << retest_text(*r);
+    }
+    spdlog::info("{}: {} rows, {} groups, {} parameters", o.input, t.rows.size(), g.groups.size(),
+                 g.parameters.size());
+}
+
+}  // namespace
+
+void add_stats_command(CLI::App& app, RunContext& /*ctx*/) {
+    auto opts = std::make_shared<StatsOptions>();
+    CLI::App* cmd = app.add_subcommand(
+        "stats",
+        "Per-group n, mean (SD), min-max of every parameter in eyes.csv (thesis Tables 7.3, "
+        "8.2) and, with --retest, the test-retest ICC(2,1) with 95% CI (Tables 7.1, 8.1). "
+        "GEE models stay in R: docs/r/octshape_gee.R");
+    cmd->add_option("eyes_csv", opts->input, "eyes.csv written by `octshape cohort`")->required();
+    cmd->add_option("--group-col", opts->groups.group_column,
+                    "Column holding the group (absent: one group 'all')")
+        ->capture_default_str();
+    cmd->add_flag("--all-scans", opts->groups.all_scans,
+                  "Group table over every scan (default: the first scan of each eye)");
+    cmd->add_flag("--retest", opts->retest,
+                  "ICC(2,1) over eyes scanned more than once (same subject_id and eye)");
+    cmd->add_flag("--same-visit", opts->retest_params.same_visit,
+                  "--retest: only scans of the same visit_date are repeats");
+    cmd->add_option("--sessions", opts->retest_params.sessions,
+                    "--retest: scans per eye k (0 = the fewest any repeated eye has)")
+        ->capture_default_str();
+    cmd->add_option("-o,--output", opts->table_out,
+                    "Write the group table as CSV (parameter,group,n,mean,sd,min,max)");
+    cmd->add_option("--retest-output", opts->retest_out,
+                    "Write the ICC table as CSV (parameter,n_eyes,k,icc,lower_95,upper_95,...)");
+    cmd->add_flag("--json", opts->json, "Print JSON on stdout instead of the text tables");
+    cmd->callback([opts] { run(*opts); });
+}
+
+}  // namespace octshape::app
