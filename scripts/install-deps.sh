@@ -16,6 +16,7 @@ PKGS=(
   libgtest-dev libgmock-dev libbenchmark-dev
   r-base-core r-cran-geepack r-cran-psych r-cran-lme4   # the R recipe docs/r/ and its test
   chromium                            # the QC gallery test (headless)
+
 )
 missing=()
 for p in "${PKGS[@]}"; do

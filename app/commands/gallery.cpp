@@ -108,7 +108,8 @@ td.num{text-align:right;font-variant-numeric:tabular-nums}
 tr.flagged td{background:#fff6e0}
 table.failures th{background:#f6d5d5} table.failures td{background:#fdf0f0}
 .flags{color:#a04000;font-size:.9em}
-img{max-width:220px;max-height:160px;display:block;margin:2px 0;border:1px solid #999}
+td{white-space:nowrap} td.flags{white-space:normal;min-width:8em}
+img{max-height:130px;display:inline-block;margin:1px;border:1px solid #999}
 .none{color:#2a7a2a}
 )";
 
@@ -320,16 +321,24 @@ GalleryResult write_qc_gallery(const fs::path& outdir) {
                                          "group",   "scan_type",  "file"};
     h << "<h2>Eyes (" << res.eyes << ")</h2>\n"
       << "<table id=\"eyes\" class=\"sortable\">\n<thead><tr>";
-    for (const auto& c : fixed) h << "<th data-col=\"" << escape(c) << "\">" << escape(c) << "</th>";
+    h << "<th data-col=\"eye_key\">eye_key</th><th data-col=\"pictures\">pictures</th>";
+    for (std::size_t c = 1; c < fixed.size(); ++c) {
+        h << "<th data-col=\"" << escape(fixed[c]) << "\">" << escape(fixed[c]) << "</th>";
+    }
     for (const auto& c : param_columns) {
         h << "<th data-col=\"" << escape(c) << "\">" << escape(c) << "</th>";
     }
-    h << "<th data-col=\"qc_flags\">qc_flags</th><th data-col=\"pictures\">pictures</th>"
-      << "</tr></thead>\n<tbody>\n";
+    h << "<th data-col=\"qc_flags\">qc_flags</th></tr></thead>\n<tbody>\n";
     for (const auto& e : eyes) {
         h << "<tr class=\"eye" << (e.flags.empty() ? "" : " flagged") << "\" data-key=\""
           << escape(e.key) << "\">";
-        h << "<td>" << escape(e.key) << "</td>";
+        h << "<td>" << escape(e.key) << "</td><td data-v=\"" << e.pictures.size() << "\">";
+        for (const auto& p : e.pictures) {
+            const std::string u = url_name(p);
+            h << "<a href=\"" << u << "\"><img src=\"" << u << "\" alt=\"" << escape(p)
+              << "\" loading=\"lazy\"></a>";
+        }
+        h << "</td>";
         for (std::size_t c = 1; c < fixed.size(); ++c) {
             const auto it = e.fields.find(fixed[c]);
             h << "<td>" << escape(it == e.fields.end() ? "" : it->second) << "</td>";
@@ -342,13 +351,7 @@ GalleryResult write_qc_gallery(const fs::path& outdir) {
         std::string flags;
         for (const auto& f : e.flags) flags += (flags.empty() ? "" : "; ") + f;
         h << "<td class=\"flags\" data-v=\"" << e.flags.size() << "\">" << escape(flags)
-          << "</td><td data-v=\"" << e.pictures.size() << "\">";
-        for (const auto& p : e.pictures) {
-            const std::string u = url_name(p);
-            h << "<a href=\"" << u << "\"><img src=\"" << u << "\" alt=\"" << escape(p)
-              << "\" loading=\"lazy\"></a>";
-        }
-        h << "</td></tr>\n";
+          << "</td></tr>\n";
     }
     h << "</tbody>\n</table>\n<script>" << kScript << "</script>\n</body>\n</html>\n";
 

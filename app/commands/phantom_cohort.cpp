@@ -26,7 +26,7 @@ namespace {
 struct CohortOptions {
     retina::CohortPhantomParams params;
     std::string output;
-    double effect_um = 20.0;
+    double effect_um = 25.0;
     double subject_sd_um = 12.0;
 };
 

@@ -94,11 +94,14 @@ double incomplete_beta_inverse(double a, double b, double p) {
         } else {
             hi = x;
         }
+        if (hi - lo <= 2.0 * std::numeric_limits<double>::epsilon() * hi) return x;  // bracket
         const double density =
             std::exp((a - 1.0) * std::log(x) + (b - 1.0) * std::log1p(-x) - lb);
         double next = x - f / density;
         if (!(next > lo && next < hi) || !std::isfinite(next)) next = 0.5 * (lo + hi);
-        if (std::fabs(next - x) <= 1e-15 * std::max(x, 1e-300) || next <= lo || next >= hi) {
+        // Converged when a step moves x by at most 2 ulps.
+        if (std::fabs(next - x) <= 2.0 * std::numeric_limits<double>::epsilon() *
+                                       std::max(x, std::numeric_limits<double>::min())) {
             return next;
         }
         x = next;

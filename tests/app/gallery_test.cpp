@@ -14,6 +14,8 @@
 #include <sstream>
 #include <vector>
 
+#include <sys/wait.h>
+
 #include "test_paths.h"
 
 namespace octshape::test {
@@ -71,7 +73,7 @@ void make_outdir(const fs::path& d) {
     fs::create_directories(d / "qc");
     fs::create_directories(d / "in");
     const std::string common = " --bscans 25 --ascans 128 --depth 160 --wall-radius-mm 0 "
-                               "--no-pixels";
+                               "--tilt-x 0 --tilt-y 0 --no-pixels";
     ASSERT_EQ(run_octshape("phantom macula -o " + (d / "in" / "a.vol").string() + common)
                   .exit_code, 0);
     ASSERT_EQ(run_octshape("phantom macula --eye OS --flat -o " + (d / "in" / "b.vol").string() +
@@ -108,7 +110,7 @@ TEST(GalleryBrowser, DetectsConsoleErrorsOnABrokenPage) {
 TEST(Gallery, PageInHeadlessChromium) {
     TempDir dir;
     const fs::path out = dir / "out";
-    make_outdir(out);
+    ASSERT_NO_FATAL_FAILURE(make_outdir(out));
     const RunResult r = run_octshape("gallery " + out.string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const fs::path page = out / "qc" / "index.html";

@@ -11,10 +11,10 @@
 //    the inter-eye correlation GEE must handle) + eye deviation (SD eye_sd_mm). It moves CFT,
 //    rim height and the rim volumes: the known effect.
 //  * Pit depth scale per eye is drawn per matched pair and eye and shared by the pair's two
-//    subjects: the true pit depth, maximum slope and pit-flat diameter of a case eye equal
-//    those of its control partner exactly, so the group difference of these parameters is
-//    measurement noise only (independent shift, tilt and segmentation noise per scan), far
-//    smaller than their between-pair spread: these are the asserted nulls.
+//    subjects: the true pit depth and maximum slope of a case eye equal those of its control
+//    partner exactly, so the group difference of these parameters is measurement noise only
+//    (independent shift, tilt and segmentation noise per scan), far smaller than their
+//    between-pair spread: these are the asserted nulls.
 //  * Re-scans: both eyes of the first retest_subjects subjects get a second scan the same day
 //    with a fresh fovea shift, tilt and noise.
 
@@ -32,18 +32,18 @@ namespace octshape::retina {
 struct CohortPhantomParams {
     int subjects = 40;             // N in 2..9999
     std::uint64_t seed = 1;
-    double effect_mm = 0.020;      // case minus control mean thickness offset
+    double effect_mm = 0.025;      // case minus control mean thickness offset
     double subject_sd_mm = 0.012;  // between-subject SD of the thickness offset
     double eye_sd_mm = 0.004;      // between-eye SD within a subject
-    double depth_scale_sd = 0.12;  // SD of the pit depth scale between matched pairs
+    double depth_scale_sd = 0.08;  // SD of the pit depth scale between matched pairs
     int retest_subjects = 10;      // subjects whose two eyes are scanned twice (<= subjects)
     double shift_sd_mm = 0.05;     // SD of the true fovea offset from the scan centre per scan
-    double tilt_max = 0.01;        // BM tilt per scan uniform in +-tilt_max (mm/mm)
+    double tilt_max = 0.005;       // BM tilt per scan uniform in +-tilt_max (mm/mm)
     double noise_um = 2.0;         // segmentation noise SD (ILM and BM)
     int num_bscans = 49;
     int size_x = 256;              // A-scans
-    int size_z = 128;              // pixels per A-scan
-    double scale_z_mm = 0.0058;    // mm per pixel: 128 px hold the 0.5 mm flat-wall span
+    int size_z = 64;               // pixels per A-scan
+    double scale_z_mm = 0.0116;    // mm per pixel: 64 px (0.74 mm) hold the ~0.53 mm span
     bool pixels = false;           // B-scan pixels (false: "no data", analysis only, fast)
     // Throws UsageError naming the bad field.
     void validate() const;
