@@ -230,53 +230,72 @@ void joint_constraints(const JointGeometry& geo, CJ& C, BJ& b) {
     b(5) = geo.p3.x();
 }
 
-// Minimises q^T H q / 2 - g^T q subject to C q <= b (convex). The minimum lies in the relative
-// interior of some face of the polytope, where it minimises f on that face's affine hull (a
-// KKT system); the best feasible one over all active sets is the minimum. The unconstrained
-// minimiser is tried first (the usual case); `fallback` (feasible) guards a degenerate H.
-VJ minimise_joint_qp(const MJ& H, const VJ& g, const CJ& C, const BJ& b, const VJ& fallback) {
+// Minimises q^T H q / 2 - g^T q subject to C q <= b (convex). For an active set S the KKT
+// system H q + C_S^T l = g, C_S q = b_S gives a candidate; one that is feasible with l >= 0 is
+// the global minimum (KKT conditions of a convex problem). Tried: no constraint, the previous
+// round's active set `mask`, then every set by size. When none qualifies (degenerate H), the
+// best feasible candidate, or `fallback` (feasible), is returned. `mask` returns the set used.
+VJ minimise_joint_qp(const MJ& H,
+                     const VJ& g,
+                     const CJ& C,
+                     const BJ& b,
+                     const VJ& fallback,
+                     unsigned& mask) {
     const double tol = 1e-12;
     auto feasible = [&](const VJ& q) { return ((C * q - b).array() <= tol).all(); };
     auto f = [&](const VJ& q) { return 0.5 * q.dot(H * q) - g.dot(q); };
-    const Eigen::LDLT<MJ> ldlt(H);
-    if (ldlt.info() == Eigen::Success && ldlt.isPositive()) {
-        const VJ q = ldlt.solve(g);
-        if (q.allFinite() && feasible(q) && (H * q - g).norm() <= 1e-9 * (g.norm() + 1e-300)) {
-            return q;
-        }
-    }
     VJ best = fallback;
     double best_f = f(fallback);
-    for (unsigned mask = 1; mask < (1U << kJointConstraints); ++mask) {
-        const int m = std::popcount(mask);
+    unsigned best_mask = mask;
+    // Returns true when the set's KKT point is the minimum.
+    auto try_set = [&](unsigned set) {
+        const int m = std::popcount(set);
         Kkt K = Kkt::Zero(kJoint + m, kJoint + m);
         KktVec rhs = KktVec::Zero(kJoint + m);
         K.topLeftCorner(kJoint, kJoint) = H;
         rhs.head(kJoint) = g;
         int row = 0;
         for (int c = 0; c < kJointConstraints; ++c) {
-            if ((mask & (1U << c)) == 0U) continue;
+            if ((set & (1U << c)) == 0U) continue;
             K.block(kJoint + row, 0, 1, kJoint) = C.row(c);
             K.block(0, kJoint + row, kJoint, 1) = C.row(c).transpose();
             rhs(kJoint + row) = b(c);
             ++row;
         }
         const Eigen::FullPivLU<Kkt> lu(K);
-        if (!lu.isInvertible()) continue;
+        if (!lu.isInvertible()) return false;
         const KktVec z = lu.solve(rhs);
         const VJ q = z.head(kJoint);
-        if (!q.allFinite() || !feasible(q)) continue;
+        if (!z.allFinite() || !feasible(q)) return false;
         const double fq = f(q);
         if (fq < best_f) {
             best_f = fq;
             best = q;
+            best_mask = set;
+        }
+        const double lscale = 1e-9 * (g.norm() + 1e-300);
+        return m == 0 || (z.tail(m).array() >= -lscale).all();
+    };
+    if (try_set(0U) || (mask != 0U && try_set(mask))) {
+        mask = best_mask;
+        return best;
+    }
+    for (int size = 1; size <= kJointConstraints; ++size) {
+        for (unsigned set = 1; set < (1U << kJointConstraints); ++set) {
+            if (std::popcount(set) != size || set == mask) continue;
+            if (try_set(set)) {
+                mask = best_mask;
+                return best;
+            }
         }
     }
+    mask = best_mask;
     return best;
 }
 
 struct JointState {
     VJ q = VJ::Zero();
+    unsigned active = 0;    // the active constraints of the last step (a)
     std::vector<double> t;  // foot point of each sample on its own segment
     double energy = 0.0;
 };
@@ -336,7 +355,8 @@ JointState joint_round(std::span<const V2> d, std::size_t split, const JointGeom
     BJ b;
     joint_constraints(geo, C, b);
     JointState next;
-    next.q = minimise_joint_qp(H, g, C, b, cur.q);
+    next.active = cur.active;
+    next.q = minimise_joint_qp(H, g, C, b, cur.q, next.active);
     next.t = cur.t;
     const std::span<double> t(next.t);
     update_foot_points(d, joint_interior(next.q, geo), t.subspan(0, split), 1, split);
@@ -841,8 +861,11 @@ RimProfileFit fit_rim_profile(std::span<const V2> d, int rim_index, const FitSet
             break;
         }
         const double prev = cur.energy;
+        const double step = (next.q - cur.q).cwiseAbs().maxCoeff();
         cur = std::move(next);
-        if (std::fabs(prev - cur.energy) <= s.energy_tolerance * prev) {
+        // Converged: the energy (SPEC §4.5) or every control point has stopped moving (below
+        // 1e-7 mm = 0.1 nm a round: the linear tail of a zig-zag changes no output).
+        if (std::fabs(prev - cur.energy) <= s.energy_tolerance * prev || step < 1e-7) {
             out.converged = true;
             break;
         }
