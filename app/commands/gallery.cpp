@@ -2,20 +2,20 @@
 
 #include "commands/gallery.h"
 
+#include <spdlog/fmt/fmt.h>
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <fstream>
 #include <map>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
-#include <spdlog/fmt/fmt.h>
-#include <spdlog/spdlog.h>
 
 #include "commands/command.h"
 #include "octshape/io/atomic_file.h"
@@ -48,12 +48,23 @@ std::string escape(const std::string& s) {
     std::string o;
     for (const char c : s) {
         switch (c) {
-            case '&': o += "&amp;"; break;
-            case '<': o += "&lt;"; break;
-            case '>': o += "&gt;"; break;
-            case '"': o += "&quot;"; break;
-            case '\'': o += "&#39;"; break;
-            default: o += c;
+            case '&':
+                o += "&amp;";
+                break;
+            case '<':
+                o += "&lt;";
+                break;
+            case '>':
+                o += "&gt;";
+                break;
+            case '"':
+                o += "&quot;";
+                break;
+            case '\'':
+                o += "&#39;";
+                break;
+            default:
+                o += c;
         }
     }
     return o;
@@ -317,7 +328,7 @@ GalleryResult write_qc_gallery(const fs::path& outdir) {
         h << "</tbody>\n</table>\n";
     }
 
-    const std::vector<std::string> fixed{"eye_key", "subject_id", "eye",      "visit_date",
+    const std::vector<std::string> fixed{"eye_key", "subject_id", "eye", "visit_date",
                                          "group",   "scan_type",  "file"};
     h << "<h2>Eyes (" << res.eyes << ")</h2>\n"
       << "<table id=\"eyes\" class=\"sortable\">\n<thead><tr>";

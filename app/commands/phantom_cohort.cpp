@@ -8,17 +8,18 @@
 //   DIR/expected.csv                    parameter,expected (effect | null) for scripts
 //   DIR/manifest.json                   design, effects, asserted nulls, true shape variables
 
+#include "octshape/retina/phantom_cohort.h"
+
+#include <spdlog/spdlog.h>
+
 #include <filesystem>
 #include <memory>
 #include <string>
-
-#include <spdlog/spdlog.h>
 
 #include "commands/command.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/io/error.h"
 #include "octshape/io/vol.h"
-#include "octshape/retina/phantom_cohort.h"
 
 namespace octshape::app {
 namespace {
@@ -73,8 +74,8 @@ void run(CohortOptions& o) {
     }
     io::write_text_atomically((dir / "expected.csv").string(), expected);
     io::write_text_atomically((dir / "manifest.json").string(), plan.manifest.dump(2) + "\n");
-    spdlog::info("wrote {} scans of {} subjects under {}", plan.scans.size(),
-                 o.params.subjects, dir.string());
+    spdlog::info("wrote {} scans of {} subjects under {}", plan.scans.size(), o.params.subjects,
+                 dir.string());
 }
 
 }  // namespace
@@ -85,8 +86,9 @@ void add_phantom_cohort_command(CLI::App& parent, RunContext& /*ctx*/) {
     CLI::App* cmd = parent.add_subcommand(
         "cohort",
         "A synthetic macula cohort: N subjects x 2 eyes in groups control/case with a known "
-        "group effect on CFT, rim height and rim volumes and none on pit depth, slope and "
-        "pit-flat diameter; re-scans; fake patient IDs; groups and subjects CSVs; manifest");
+        "group effect on CFT, rim height and rim volumes and none on pit depth and slope "
+        "(matched pairs); re-scans; fake patient IDs; groups and subjects CSVs; manifest "
+        "(docs/phantoms.md)");
     cmd->add_option("-o,--output", opts->output, "Output directory")->required();
     cmd->add_option("--subjects", p.subjects, "Number of subjects N (alternately control, case)")
         ->capture_default_str();
@@ -99,7 +101,7 @@ void add_phantom_cohort_command(CLI::App& parent, RunContext& /*ctx*/) {
     cmd->add_option("--retest-subjects", p.retest_subjects,
                     "Subjects whose two eyes are scanned twice (the first ones)")
         ->capture_default_str();
-    cmd->add_option("--noise-um", p.noise_um, "Segmentation noise SD")->capture_default_str();
+    cmd->add_option("--noise-um", p.noise_um, "Segmentation noise SD (um)")->capture_default_str();
     cmd->add_option("--bscans", p.num_bscans, "B-scans per volume")->capture_default_str();
     cmd->add_option("--ascans", p.size_x, "A-scans per B-scan")->capture_default_str();
     cmd->add_flag("--pixels", p.pixels, "Render B-scan pixels (slower; default: no pixel data)");

@@ -2,15 +2,15 @@
 // per-group table of every parameter (thesis Tables 7.3, 8.2) and the test-retest ICC(2,1)
 // with its 95 % CI (Tables 7.1, 8.1). Definitions and layout: docs/stats.md.
 
+#include <spdlog/fmt/fmt.h>
+#include <spdlog/spdlog.h>
+
 #include <cmath>
 #include <iostream>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
-
-#include <nlohmann/json.hpp>
-#include <spdlog/fmt/fmt.h>
-#include <spdlog/spdlog.h>
 
 #include "commands/command.h"
 #include "octshape/io/atomic_file.h"
@@ -44,9 +44,9 @@ std::string groups_csv(const retina::GroupStats& g) {
     for (const auto& p : g.parameters) {
         for (std::size_t i = 0; i < g.groups.size(); ++i) {
             const auto& m = p.per_group[i];
-            s += retina::csv_field(p.parameter) + ',' + retina::csv_field(g.groups[i].name) +
-                 ',' + std::to_string(m.n) + ',' + num(m.mean) + ',' + num(m.sd) + ',' +
-                 num(m.min) + ',' + num(m.max) + '\n';
+            s += retina::csv_field(p.parameter) + ',' + retina::csv_field(g.groups[i].name) + ',' +
+                 std::to_string(m.n) + ',' + num(m.mean) + ',' + num(m.sd) + ',' + num(m.min) +
+                 ',' + num(m.max) + '\n';
         }
     }
     return s;
@@ -97,8 +97,8 @@ std::string retest_text(const retina::RetestStats& r) {
         "repeats = {}; {} eyes scanned more than once, {} with >= k = {} scans used\n",
         r.same_visit ? "same subject_id, eye and visit_date" : "same subject_id and eye",
         r.repeated_eyes, r.eyes_used, r.k);
-    o << fmt::format("{:<36} {:>6} {:>8} {:>8} {:>8} {:>10}\n", "parameter", "n", "ICC",
-                     "LCI95", "UCI95", "p");
+    o << fmt::format("{:<36} {:>6} {:>8} {:>8} {:>8} {:>10}\n", "parameter", "n", "ICC", "LCI95",
+                     "UCI95", "p");
     for (const auto& p : r.parameters) {
         o << fmt::format("{:<36} {:>6} {:>8.4f} {:>8.4f} {:>8.4f} {:>10.3g}\n", p.parameter,
                          p.icc.n, p.icc.icc, p.icc.lower, p.icc.upper, p.icc.p);
@@ -134,10 +134,11 @@ nlohmann::ordered_json to_json(const retina::GroupStats& g,
     }
     if (r != nullptr) {
         nlohmann::ordered_json rj;
-        rj["method"] = "ICC(2,1): two-way random effects, absolute agreement, single measurement "
-                       "(Shrout & Fleiss 1979; McGraw & Wong 1996 ICC(A,1))";
-        rj["repeats"] = r->same_visit ? "same subject_id, eye and visit_date"
-                                      : "same subject_id and eye";
+        rj["method"] =
+            "ICC(2,1): two-way random effects, absolute agreement, single measurement "
+            "(Shrout & Fleiss 1979; McGraw & Wong 1996 ICC(A,1))";
+        rj["repeats"] =
+            r->same_visit ? "same subject_id, eye and visit_date" : "same subject_id and eye";
         rj["k"] = r->k;
         rj["repeated_eyes"] = r->repeated_eyes;
         rj["eyes_used"] = r->eyes_used;

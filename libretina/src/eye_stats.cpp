@@ -143,8 +143,8 @@ EyeTable read_eye_table(std::istream& in, const std::string& name) {
     }
     if (in.bad()) throw InputError::unreadable(name, "read error");
     if (in_quotes) {
-        throw InputError::corrupt(name, "unterminated quoted field from line " +
-                                            std::to_string(record_line));
+        throw InputError::corrupt(
+            name, "unterminated quoted field from line " + std::to_string(record_line));
     }
     if (any && !(record.empty() && field.empty())) end_record();
     if (t.header.empty() || (t.header.size() == 1 && t.header[0].empty())) {
@@ -261,7 +261,8 @@ void RetestParams::validate() const {
     icc.validate();
 }
 
-RetestStats retest_stats(const EyeTable& t, const RetestParams& p,
+RetestStats retest_stats(const EyeTable& t,
+                         const RetestParams& p,
                          const std::string& group_column) {
     p.validate();
     const Ids ids(t);
@@ -309,8 +310,7 @@ RetestStats retest_stats(const EyeTable& t, const RetestParams& p,
                               static_cast<Eigen::Index>(k));
             for (std::size_t i = 0; i < complete.size(); ++i) {
                 for (std::size_t j = 0; j < k; ++j) {
-                    m(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) =
-                        complete[i][j];
+                    m(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = complete[i][j];
                 }
             }
             pi.icc = icc_2_1(m, p.icc);

@@ -42,8 +42,8 @@ void CohortPhantomParams::validate() const {
             "depth_scale_sd", "must be in 0..0.15");
     require(retest_subjects >= 0 && retest_subjects <= subjects, "retest_subjects",
             "must be in 0..subjects");
-    require(std::isfinite(shift_sd_mm) && shift_sd_mm >= 0.0 && shift_sd_mm <= 0.1,
-            "shift_sd_mm", "must be in 0..0.1 mm");
+    require(std::isfinite(shift_sd_mm) && shift_sd_mm >= 0.0 && shift_sd_mm <= 0.1, "shift_sd_mm",
+            "must be in 0..0.1 mm");
     require(std::isfinite(tilt_max) && tilt_max >= 0.0 && tilt_max <= 0.05, "tilt_max",
             "must be in 0..0.05");
     MaculaPhantomParams m;
@@ -71,8 +71,7 @@ CohortPlan plan_macula_cohort(const CohortPhantomParams& p) {
     for (auto& s : depth_scale) {
         const double pair_dev = p.depth_scale_sd * pair_rng.normal();
         for (double& e : s) {
-            e = std::clamp(1.0 + pair_dev + 0.25 * p.depth_scale_sd * pair_rng.normal(), 0.5,
-                           1.5);
+            e = std::clamp(1.0 + pair_dev + 0.25 * p.depth_scale_sd * pair_rng.normal(), 0.5, 1.5);
         }
     }
     nlohmann::ordered_json subjects = nlohmann::ordered_json::array();
@@ -116,8 +115,8 @@ CohortPlan plan_macula_cohort(const CohortPhantomParams& p) {
                 s.exam_filetime = kFirstExamFiletime +
                                   static_cast<std::uint64_t>(7 * i) * kFiletimePerDay +
                                   static_cast<std::uint64_t>(10 * (2 * e + k)) * kFiletimePerMinute;
-                s.file_name = sid + "_" + ej["eye"].get<std::string>() + "_" +
-                              std::to_string(k) + ".vol";
+                s.file_name =
+                    sid + "_" + ej["eye"].get<std::string>() + "_" + std::to_string(k) + ".vol";
                 MaculaPhantomParams& m = s.params;
                 m.eye = eye;
                 m.num_bscans = p.num_bscans;
@@ -161,15 +160,15 @@ CohortPlan plan_macula_cohort(const CohortPhantomParams& p) {
                    {"ascans", p.size_x},
                    {"depth", p.size_z},
                    {"scale_z_mm", p.scale_z_mm},
-                   {"pairing", "subjects 2k (control) and 2k+1 (case) share the pit depth scale "
-                               "of each eye"}};
+                   {"pairing",
+                    "subjects 2k (control) and 2k+1 (case) share the pit depth scale "
+                    "of each eye"}};
     // The offset adds effect_mm to every thickness of a case eye on average: CFT and rim height
     // move by exactly that, the rim volumes by effect_mm times the area they integrate over.
-    j["effects"] = {
-        {"cft_mm", {{"case_minus_control", p.effect_mm}, {"unit", "mm"}}},
-        {"rim_height_mm", {{"case_minus_control", p.effect_mm}, {"unit", "mm"}}},
-        {"rim_volume_mm3", {{"sign", p.effect_mm >= 0.0 ? "+" : "-"}}},
-        {"inner_rim_volume_mm3", {{"sign", p.effect_mm >= 0.0 ? "+" : "-"}}}};
+    j["effects"] = {{"cft_mm", {{"case_minus_control", p.effect_mm}, {"unit", "mm"}}},
+                    {"rim_height_mm", {{"case_minus_control", p.effect_mm}, {"unit", "mm"}}},
+                    {"rim_volume_mm3", {{"sign", p.effect_mm >= 0.0 ? "+" : "-"}}},
+                    {"inner_rim_volume_mm3", {{"sign", p.effect_mm >= 0.0 ? "+" : "-"}}}};
     j["nulls"] = {"pit_depth_mm", "max_pit_slope_deg"};
     j["null_argument"] =
         "A thickness offset leaves pit depth and slopes unchanged (the CuBe curve moves up "
@@ -177,9 +176,10 @@ CohortPlan plan_macula_cohort(const CohortPhantomParams& p) {
         "(one control, one case) share eye by eye. The true group difference is therefore "
         "exactly 0 and the measured one is measurement error only, small against the "
         "between-pair spread (test-retest ICC ~0.97). pit_flat_diameter_mm has the same exact "
-        "null but a measurement error larger than its spread (ICC ~0.3): not asserted.";
-    j["retest"] = "both eyes of the first retest_subjects subjects: a second scan the same day "
-                  "with a fresh fovea shift, tilt and noise";
+        "null but a measurement error larger than its spread (ICC ~0.2): not asserted.";
+    j["retest"] =
+        "both eyes of the first retest_subjects subjects: a second scan the same day "
+        "with a fresh fovea shift, tilt and noise";
     j["subjects"] = std::move(subjects);
     return plan;
 }

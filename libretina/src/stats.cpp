@@ -66,8 +66,7 @@ double incomplete_beta(double a, double b, double x) {
     if (!(x >= 0.0 && x <= 1.0)) throw std::domain_error("incomplete_beta: x must be in [0, 1]");
     if (x == 0.0) return 0.0;
     if (x == 1.0) return 1.0;
-    const double front =
-        std::exp(a * std::log(x) + b * std::log1p(-x) - log_beta(a, b));
+    const double front = std::exp(a * std::log(x) + b * std::log1p(-x) - log_beta(a, b));
     if (x < (a + 1.0) / (a + b + 2.0)) return front * beta_continued_fraction(a, b, x) / a;
     // Symmetry I_x(a, b) = 1 - I_{1-x}(b, a): the fraction converges on the other side.
     return 1.0 - front * beta_continued_fraction(b, a, 1.0 - x) / b;
@@ -95,8 +94,7 @@ double incomplete_beta_inverse(double a, double b, double p) {
             hi = x;
         }
         if (hi - lo <= 2.0 * std::numeric_limits<double>::epsilon() * hi) return x;  // bracket
-        const double density =
-            std::exp((a - 1.0) * std::log(x) + (b - 1.0) * std::log1p(-x) - lb);
+        const double density = std::exp((a - 1.0) * std::log(x) + (b - 1.0) * std::log1p(-x) - lb);
         double next = x - f / density;
         if (!(next > lo && next < hi) || !std::isfinite(next)) next = 0.5 * (lo + hi);
         // Converged when a step moves x by at most 2 ulps.
@@ -186,9 +184,9 @@ IccResult icc_2_1(const Eigen::MatrixXd& x, const IccParams& params) {
             ss_error += e * e;
         }
     }
-    r.ms_rows = ss_rows / (n - 1.0);                      // BMS
-    r.ms_cols = ss_cols / (k - 1.0);                      // JMS
-    r.ms_error = ss_error / ((n - 1.0) * (k - 1.0));      // EMS
+    r.ms_rows = ss_rows / (n - 1.0);                       // BMS
+    r.ms_cols = ss_cols / (k - 1.0);                       // JMS
+    r.ms_error = ss_error / ((n - 1.0) * (k - 1.0));       // EMS
     r.ms_within = (ss_cols + ss_error) / (n * (k - 1.0));  // WMS
     const double bms = r.ms_rows;
     const double jms = r.ms_cols;

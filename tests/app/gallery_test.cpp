@@ -4,6 +4,7 @@
 // proves the detection works.
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <algorithm>
 #include <cstdlib>
@@ -13,8 +14,6 @@
 #include <regex>
 #include <sstream>
 #include <vector>
-
-#include <sys/wait.h>
 
 #include "test_paths.h"
 
@@ -45,10 +44,11 @@ struct Browser {
 Browser chromium(const fs::path& profile, const std::string& url, const std::string& extra) {
     const fs::path out = profile / "stdout.txt";
     const fs::path err = profile / "stderr.txt";
-    const std::string cmd = "timeout 120 chromium --headless --no-sandbox --disable-gpu "
-                            "--no-first-run --user-data-dir='" + (profile / "ud").string() +
-                            "' --enable-logging=stderr --v=0 " + extra + " '" + url + "' > '" +
-                            out.string() + "' 2> '" + err.string() + "'";
+    const std::string cmd =
+        "timeout 120 chromium --headless --no-sandbox --disable-gpu "
+        "--no-first-run --user-data-dir='" +
+        (profile / "ud").string() + "' --enable-logging=stderr --v=0 " + extra + " '" + url +
+        "' > '" + out.string() + "' 2> '" + err.string() + "'";
     Browser b;
     const int rc = std::system(cmd.c_str());
     b.exit_code = WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
@@ -72,16 +72,19 @@ void make_outdir(const fs::path& d) {
     fs::create_directories(d / "eyes");
     fs::create_directories(d / "qc");
     fs::create_directories(d / "in");
-    const std::string common = " --bscans 25 --ascans 128 --depth 160 --wall-radius-mm 0 "
-                               "--tilt-x 0 --tilt-y 0 --no-pixels";
-    ASSERT_EQ(run_octshape("phantom macula -o " + (d / "in" / "a.vol").string() + common)
-                  .exit_code, 0);
-    ASSERT_EQ(run_octshape("phantom macula --eye OS --flat -o " + (d / "in" / "b.vol").string() +
-                           common).exit_code, 0);
+    const std::string common =
+        " --bscans 25 --ascans 128 --depth 160 --wall-radius-mm 0 "
+        "--tilt-x 0 --tilt-y 0 --no-pixels";
+    ASSERT_EQ(run_octshape("phantom macula -o " + (d / "in" / "a.vol").string() + common).exit_code,
+              0);
+    ASSERT_EQ(
+        run_octshape("phantom macula --eye OS --flat -o " + (d / "in" / "b.vol").string() + common)
+            .exit_code,
+        0);
     for (const char* k : {"a", "b"}) {
-        const RunResult r = run_octshape("macula " + (d / "in" / (std::string(k) + ".vol")).string() +
-                                         " -o " + (d / "eyes" / (std::string(k) + ".json")).string() +
-                                         " --qc " + (d / "qc").string());
+        const RunResult r = run_octshape(
+            "macula " + (d / "in" / (std::string(k) + ".vol")).string() + " -o " +
+            (d / "eyes" / (std::string(k) + ".json")).string() + " --qc " + (d / "qc").string());
         ASSERT_EQ(r.exit_code, 0) << r.err;
     }
     write(d / "eyes" / "c_line.json",
@@ -91,7 +94,8 @@ void make_outdir(const fs::path& d) {
     const std::string a_path = (d / "in" / "a.vol").string();
     write(d / "eyes.csv",
           "subject_id,eye,visit_date,scan_type,file,sha256,group,cft_mm\n"
-          "S1,OD,2024-01-01,macula," + a_path + ",zz,control,0.2\n");
+          "S1,OD,2024-01-01,macula," +
+              a_path + ",zz,control,0.2\n");
     write(d / "failures.csv",
           "file,reason,exit_code\n"
           "/x/broken.vol,\"truncated at offset 2048, <script>alert(1)</script>\",65\n"
@@ -100,8 +104,9 @@ void make_outdir(const fs::path& d) {
 
 TEST(GalleryBrowser, DetectsConsoleErrorsOnABrokenPage) {
     TempDir dir;
-    write(dir / "bad.html", "<!DOCTYPE html><html><head><link rel=\"icon\" href=\"data:,\">"
-                            "</head><body><script>no_such_function();</script></body></html>");
+    write(dir / "bad.html",
+          "<!DOCTYPE html><html><head><link rel=\"icon\" href=\"data:,\">"
+          "</head><body><script>no_such_function();</script></body></html>");
     const Browser b = chromium(dir.path(), "file://" + (dir / "bad.html").string(), "--dump-dom");
     ASSERT_EQ(b.exit_code, 0) << b.log;
     EXPECT_FALSE(console_lines(b.log).empty()) << b.log;
@@ -123,8 +128,8 @@ TEST(Gallery, PageInHeadlessChromium) {
     EXPECT_EQ(html.find("<script>alert"), std::string::npos);  // the failure reason is escaped
 
     // Sorted by cft_mm on load (#sort=cft_mm): the ascending order of the three CFTs.
-    const Browser b = chromium(dir.path(), "file://" + page.string() + "#sort=cft_mm",
-                               "--dump-dom");
+    const Browser b =
+        chromium(dir.path(), "file://" + page.string() + "#sort=cft_mm", "--dump-dom");
     ASSERT_EQ(b.exit_code, 0) << b.log;
     EXPECT_TRUE(console_lines(b.log).empty()) << b.log;
     EXPECT_NE(b.dom.find("data-ready=\"1\""), std::string::npos) << "script did not finish";

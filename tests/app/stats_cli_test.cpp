@@ -108,8 +108,7 @@ TEST(PhantomCohortCli, WritesScansMapsAndManifest) {
     int vols = 0;
     for (const auto& e : fs::directory_iterator(dir / "c" / "scans")) {
         EXPECT_EQ(e.path().extension(), ".vol");
-        EXPECT_TRUE(fs::exists(dir / "c" / "truth" /
-                               (e.path().stem().string() + ".truth.json")));
+        EXPECT_TRUE(fs::exists(dir / "c" / "truth" / (e.path().stem().string() + ".truth.json")));
         ++vols;
     }
     EXPECT_EQ(vols, 8);
@@ -127,8 +126,7 @@ TEST(PhantomCohortCli, WritesScansMapsAndManifest) {
     const auto m = nlohmann::json::parse(slurp(dir / "c" / "manifest.json"));
     EXPECT_EQ(m["subjects"].size(), 3U);
     EXPECT_EQ(m["subjects"][0]["eyes"][0]["files"].size(), 2U);  // S001 OD re-scanned
-    EXPECT_EQ(run_octshape("phantom cohort -o " + (dir / "d").string() + " --subjects 1")
-                  .exit_code,
+    EXPECT_EQ(run_octshape("phantom cohort -o " + (dir / "d").string() + " --subjects 1").exit_code,
               64);
 }
 

@@ -128,8 +128,8 @@ TEST(Summarise, HandComputed) {
     EXPECT_EQ(s.min, 2.0);
     EXPECT_EQ(s.max, 9.0);
     // A large common offset does not cost precision (two-pass SD).
-    const Summary t = summarise({1e9 + 2, 1e9 + 4, 1e9 + 4, 1e9 + 4, 1e9 + 5, 1e9 + 5, 1e9 + 7,
-                                 1e9 + 9});
+    const Summary t =
+        summarise({1e9 + 2, 1e9 + 4, 1e9 + 4, 1e9 + 4, 1e9 + 5, 1e9 + 5, 1e9 + 7, 1e9 + 9});
     EXPECT_NEAR(t.sd, std::sqrt(32.0 / 7.0), 1e-12);
     const Summary one = summarise({3.5});
     EXPECT_EQ(one.n, 1U);

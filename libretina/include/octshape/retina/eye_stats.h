@@ -49,9 +49,9 @@ struct GroupStatsParams {
 };
 
 struct GroupInfo {
-    std::string name;       // "(none)" for rows whose group is missing
-    std::size_t rows = 0;   // scans used
-    std::size_t eyes = 0;   // distinct subject_id + eye
+    std::string name;      // "(none)" for rows whose group is missing
+    std::size_t rows = 0;  // scans used
+    std::size_t eyes = 0;  // distinct subject_id + eye
     std::size_t subjects = 0;
 };
 
@@ -63,7 +63,7 @@ struct ParameterSummaries {
 struct GroupStats {
     std::string group_column;
     bool all_scans = false;
-    std::vector<GroupInfo> groups;  // sorted by name (as R's factor levels)
+    std::vector<GroupInfo> groups;               // sorted by name (as R's factor levels)
     std::vector<ParameterSummaries> parameters;  // in column order
 };
 

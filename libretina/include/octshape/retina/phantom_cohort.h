@@ -20,17 +20,16 @@
 
 #include <array>
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "octshape/retina/phantom_macula.h"
 
 namespace octshape::retina {
 
 struct CohortPhantomParams {
-    int subjects = 40;             // N in 2..9999
+    int subjects = 40;  // N in 2..9999
     std::uint64_t seed = 1;
     double effect_mm = 0.025;      // case minus control mean thickness offset
     double subject_sd_mm = 0.012;  // between-subject SD of the thickness offset
@@ -41,23 +40,23 @@ struct CohortPhantomParams {
     double tilt_max = 0.005;       // BM tilt per scan uniform in +-tilt_max (mm/mm)
     double noise_um = 2.0;         // segmentation noise SD (ILM and BM)
     int num_bscans = 49;
-    int size_x = 256;              // A-scans
-    int size_z = 64;               // pixels per A-scan
-    double scale_z_mm = 0.0116;    // mm per pixel: 64 px (0.74 mm) hold the ~0.53 mm span
-    bool pixels = false;           // B-scan pixels (false: "no data", analysis only, fast)
+    int size_x = 256;            // A-scans
+    int size_z = 64;             // pixels per A-scan
+    double scale_z_mm = 0.0116;  // mm per pixel: 64 px (0.74 mm) hold the ~0.53 mm span
+    bool pixels = false;         // B-scan pixels (false: "no data", analysis only, fast)
     // Throws UsageError naming the bad field.
     void validate() const;
 };
 
 struct CohortScanSpec {
-    std::string file_name;   // e.g. "S001_OD_1.vol"
-    std::string subject_id;  // "S001"
-    std::string patient_id;  // "FAKE-COHORT-0001" (written into the export)
-    std::string group;       // "control" or "case"
-    int pair = 0;            // matched pair index
-    int scan_index = 1;      // 1 = first scan of the eye, 2 = re-scan
-    std::string visit_date;  // ISO, e.g. "2024-03-14"
-    double visit_ole = 0.0;  // the same as an OLE date (days since 1899-12-30)
+    std::string file_name;            // e.g. "S001_OD_1.vol"
+    std::string subject_id;           // "S001"
+    std::string patient_id;           // "FAKE-COHORT-0001" (written into the export)
+    std::string group;                // "control" or "case"
+    int pair = 0;                     // matched pair index
+    int scan_index = 1;               // 1 = first scan of the eye, 2 = re-scan
+    std::string visit_date;           // ISO, e.g. "2024-03-14"
+    double visit_ole = 0.0;           // the same as an OLE date (days since 1899-12-30)
     std::uint64_t exam_filetime = 0;  // exam time, 100 ns since 1601-01-01 UTC
     MaculaPhantomParams params;       // eye, shape, shift, tilt, noise, seed, sizes
 };

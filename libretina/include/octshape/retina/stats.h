@@ -7,11 +7,10 @@
 // absolute agreement (McGraw & Wong 1996: ICC(A,1)). The thesis reports it for repeated scans
 // (Tables 7.1 and 8.1). The numbers agree with R's psych::ICC(x, lmer = FALSE), row "ICC2".
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <limits>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace octshape::retina {
 
