@@ -32,7 +32,9 @@ std::string macula_options_text(const MaculaEyeOptions& o) {
     s << "macula half_lines=" << p.num_half_lines << " radius_mm=" << p.radius_mm
       << " spacing_mm=" << p.sample_spacing_mm << " tau_um=" << o.tau_um
       << " inner_radius_mm=" << p.inner_radius_mm << " search_radius_mm=" << p.search_radius_mm
-      << " tie_tolerance_mm=" << p.tie_tolerance_mm << " max_rounds=" << p.max_rounds
+      << " tie_tolerance_mm=" << p.tie_tolerance_mm
+      << " centre_smoothing_mm=" << p.centre_smoothing_mm
+      << " centre_fit_radius_mm=" << p.centre_fit_radius_mm << " max_rounds=" << p.max_rounds
       << " energy_tolerance=" << p.energy_tolerance;
     return s.str();
 }

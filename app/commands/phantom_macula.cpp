@@ -106,6 +106,12 @@ void add_phantom_macula_command(CLI::App& parent, RunContext& /*ctx*/) {
     cmd->add_option("--wall-radius-mm", p.wall_radius_mm,
                     "Apparent eye-wall radius in the image (paraboloid; 0 = flat)")
         ->capture_default_str();
+    cmd->add_option("--rotation-deg", p.rotation_deg,
+                    "Eye rotated about the fovea against the scan grid (anatomical deg)")
+        ->capture_default_str();
+    cmd->add_option("--radial-scale", p.radial_scale,
+                    "Every radius of the pit profile multiplied by this (0.7-1.3)")
+        ->capture_default_str();
     cmd->add_option("--tilt-x", p.tilt_x, "BM slope along grid x (mm/mm)")->capture_default_str();
     cmd->add_option("--tilt-y", p.tilt_y, "BM slope along grid y (mm/mm)")->capture_default_str();
     cmd->add_option("--noise-um", p.noise_um, "Gaussian segmentation noise SD on ILM and BM (um)")

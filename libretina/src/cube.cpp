@@ -4,8 +4,10 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <string>
 
 #include "octshape/io/error.h"
@@ -77,13 +79,16 @@ double energy(std::span<const V2> d, const Ctrl& c, const std::vector<double>& t
     return e;
 }
 
-// Foot point of each inner sample on the curve (Eq. 7.10): Newton on (Q(t) - D) . Q'(t) = 0,
-// started from the previous t, kept in [t_{k-1}, 1] so that t stays monotone; the end samples
-// stay at t = 0 and t = 1 (they are the end control points).
-void update_foot_points(std::span<const V2> d, const Ctrl& c, std::vector<double>& t) {
-    const std::size_t m = d.size();
-    for (std::size_t k = 1; k + 1 < m; ++k) {
-        const double lo = t[k - 1];
+// Foot point of samples [first, last) on the curve (Eq. 7.10): Newton on (Q(t) - D) . Q'(t) = 0,
+// started from the previous t, kept in [t_{k-1}, 1] (k = 0: [0, 1]) so that t stays monotone.
+// Samples outside the range keep their t (end samples that are end control points: 0 and 1).
+void update_foot_points(std::span<const V2> d,
+                        const Ctrl& c,
+                        std::span<double> t,
+                        std::size_t first,
+                        std::size_t last) {
+    for (std::size_t k = first; k < last; ++k) {
+        const double lo = k > 0 ? t[k - 1] : 0.0;
         double tk = std::max(t[k], lo);
         const double start_dist = (bezier_point(c, tk) - d[k]).squaredNorm();
         double x = tk;
@@ -155,12 +160,12 @@ BezierFit alternate(std::span<const V2> d, const FitSettings& s, Solve solve) {
         const Ctrl* cur = have_curve ? &fit.control : nullptr;
         Ctrl c = solve(fit.t, distance_weights(d, cur, fit.t, kTangentWeight));
         std::vector<double> t = fit.t;
-        update_foot_points(d, c, t);
+        update_foot_points(d, c, t, 1, d.size() - 1);
         double e = energy(d, c, t);
         if (e > prev) {  // the tangent model overshot: take the plain point-distance step
             c = solve(fit.t, distance_weights(d, nullptr, fit.t, 1.0));
             t = fit.t;
-            update_foot_points(d, c, t);
+            update_foot_points(d, c, t, 1, d.size() - 1);
             e = energy(d, c, t);
         }
         fit.rounds = round;
@@ -177,6 +182,188 @@ BezierFit alternate(std::span<const V2> d, const FitSettings& s, Solve solve) {
     }
     if (fit.rounds < s.max_rounds && !fit.converged) fit.converged = true;
     return fit;
+}
+
+// ---- rim height as a model estimate (docs/algorithms/cube.md "Rim point") -----------------
+// Unknowns q = (alpha, beta, h_rim, alpha_ext, P2x_ext, P2y_ext) with the rim radius r_rim
+// fixed at the maximum sample (SPEC §4.4). With the foot points fixed both curves are linear in
+// q: interior (Eq. 7.7) P0, P0 + alpha (1,0), (r_rim - beta, h_rim), (r_rim, h_rim); exterior
+// (Eq. 7.11) (r_rim, h_rim), (r_rim + alpha_ext, h_rim), P2_ext, P3.
+constexpr int kJoint = 6;
+constexpr int kJointConstraints = 6;
+using VJ = Eigen::Matrix<double, kJoint, 1>;
+using MJ = Eigen::Matrix<double, kJoint, kJoint>;
+using CJ = Eigen::Matrix<double, kJointConstraints, kJoint>;
+using BJ = Eigen::Matrix<double, kJointConstraints, 1>;
+using Kkt = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kJoint + kJointConstraints,
+                          kJoint + kJointConstraints>;
+using KktVec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kJoint + kJointConstraints, 1>;
+
+struct JointGeometry {
+    V2 p0;         // interior P0 = (0, CFT)
+    V2 p3;         // exterior P3 = the last sample
+    double r_rim;  // fixed
+};
+
+Ctrl joint_interior(const VJ& q, const JointGeometry& g) {
+    return {g.p0, g.p0 + V2(q(0), 0.0), V2(g.r_rim - q(1), q(2)), V2(g.r_rim, q(2))};
+}
+Ctrl joint_exterior(const VJ& q, const JointGeometry& g) {
+    return {V2(g.r_rim, q(2)), V2(g.r_rim + q(3), q(2)), V2(q(4), q(5)), g.p3};
+}
+
+// Graph constraints C q <= b: alpha, beta >= 0, alpha + beta <= r_rim - P0.x (interior x
+// monotone); alpha_ext >= 0, r_rim + alpha_ext <= P2x_ext <= P3.x (exterior x monotone).
+void joint_constraints(const JointGeometry& geo, CJ& C, BJ& b) {
+    C.setZero();
+    b.setZero();
+    C(0, 0) = -1.0;
+    C(1, 1) = -1.0;
+    C(2, 0) = 1.0;
+    C(2, 1) = 1.0;
+    b(2) = geo.r_rim - geo.p0.x();
+    C(3, 3) = -1.0;
+    C(4, 3) = 1.0;
+    C(4, 4) = -1.0;
+    b(4) = -geo.r_rim;
+    C(5, 4) = 1.0;
+    b(5) = geo.p3.x();
+}
+
+// Minimises q^T H q / 2 - g^T q subject to C q <= b (convex). For an active set S the KKT
+// system H q + C_S^T l = g, C_S q = b_S gives a candidate; one that is feasible with l >= 0 is
+// the global minimum (KKT conditions of a convex problem). Tried: no constraint, the previous
+// round's active set `mask`, then every set by size. When none qualifies (degenerate H), the
+// best feasible candidate, or `fallback` (feasible), is returned. `mask` returns the set used.
+VJ minimise_joint_qp(const MJ& H,
+                     const VJ& g,
+                     const CJ& C,
+                     const BJ& b,
+                     const VJ& fallback,
+                     unsigned& mask) {
+    const double tol = 1e-12;
+    auto feasible = [&](const VJ& q) { return ((C * q - b).array() <= tol).all(); };
+    auto f = [&](const VJ& q) { return 0.5 * q.dot(H * q) - g.dot(q); };
+    VJ best = fallback;
+    double best_f = f(fallback);
+    unsigned best_mask = mask;
+    // Returns true when the set's KKT point is the minimum.
+    auto try_set = [&](unsigned set) {
+        const int m = std::popcount(set);
+        Kkt K = Kkt::Zero(kJoint + m, kJoint + m);
+        KktVec rhs = KktVec::Zero(kJoint + m);
+        K.topLeftCorner(kJoint, kJoint) = H;
+        rhs.head(kJoint) = g;
+        int row = 0;
+        for (int c = 0; c < kJointConstraints; ++c) {
+            if ((set & (1U << c)) == 0U) continue;
+            K.block(kJoint + row, 0, 1, kJoint) = C.row(c);
+            K.block(0, kJoint + row, kJoint, 1) = C.row(c).transpose();
+            rhs(kJoint + row) = b(c);
+            ++row;
+        }
+        const Eigen::FullPivLU<Kkt> lu(K);
+        if (!lu.isInvertible()) return false;
+        const KktVec z = lu.solve(rhs);
+        const VJ q = z.head(kJoint);
+        if (!z.allFinite() || !feasible(q)) return false;
+        const double fq = f(q);
+        if (fq < best_f) {
+            best_f = fq;
+            best = q;
+            best_mask = set;
+        }
+        const double lscale = 1e-9 * (g.norm() + 1e-300);
+        return m == 0 || (z.tail(m).array() >= -lscale).all();
+    };
+    if (try_set(0U) || (mask != 0U && try_set(mask))) {
+        mask = best_mask;
+        return best;
+    }
+    for (int size = 1; size <= kJointConstraints; ++size) {
+        for (unsigned set = 1; set < (1U << kJointConstraints); ++set) {
+            if (std::popcount(set) != size || set == mask) continue;
+            if (try_set(set)) {
+                mask = best_mask;
+                return best;
+            }
+        }
+    }
+    mask = best_mask;
+    return best;
+}
+
+struct JointState {
+    VJ q = VJ::Zero();
+    unsigned active = 0;    // the active constraints of the last step (a)
+    std::vector<double> t;  // foot point of each sample on its own segment
+    double energy = 0.0;
+};
+
+// Samples [0, split) belong to the interior (the rim sample last), [split, n) to the exterior.
+double joint_energy(std::span<const V2> d, std::size_t split, const JointGeometry& geo,
+                    const JointState& s) {
+    const Ctrl ci = joint_interior(s.q, geo);
+    const Ctrl ce = joint_exterior(s.q, geo);
+    double e = 0.0;
+    for (std::size_t k = 0; k < d.size(); ++k) {
+        e += (d[k] - bezier_point(k < split ? ci : ce, s.t[k])).squaredNorm();
+    }
+    return e;
+}
+
+// One round from `cur`: step (a) (Eq. 7.9 for both segments at once, with the tangent weight of
+// distance_weights), then step (b) (Eq. 7.10) on both segments.
+JointState joint_round(std::span<const V2> d, std::size_t split, const JointGeometry& geo,
+                       const JointState& cur, double tangent_weight) {
+    const std::size_t n = d.size();
+    const Ctrl ci = joint_interior(cur.q, geo);
+    const Ctrl ce = joint_exterior(cur.q, geo);
+    MJ H = MJ::Zero();
+    VJ g = VJ::Zero();
+    for (std::size_t k = 0; k < n; ++k) {
+        const bool in = k < split;
+        const double t = cur.t[k];
+        const Bernstein bb = bernstein(t);
+        Eigen::Matrix<double, 2, kJoint> A = Eigen::Matrix<double, 2, kJoint>::Zero();
+        V2 c0;  // the part of Q(t) that does not depend on q
+        if (in) {
+            A(0, 0) = bb.b1;
+            A(0, 1) = -bb.b2;
+            A(1, 2) = bb.b2 + bb.b3;
+            c0 = geo.p0 * (bb.b0 + bb.b1) + V2(geo.r_rim * (bb.b2 + bb.b3), 0.0);
+        } else {
+            A(1, 2) = bb.b0 + bb.b1;
+            A(0, 3) = bb.b1;
+            A(0, 4) = bb.b2;
+            A(1, 5) = bb.b2;
+            c0 = geo.p3 * bb.b3 + V2(geo.r_rim * (bb.b0 + bb.b1), 0.0);
+        }
+        Eigen::Matrix2d W = Eigen::Matrix2d::Identity();
+        if (tangent_weight < 1.0) {
+            const V2 q1 = bezier_derivative(in ? ci : ce, t);
+            if (q1.norm() > 1e-12) {
+                const V2 tan = q1.normalized();
+                const V2 nor(-tan.y(), tan.x());
+                W = nor * nor.transpose() + tangent_weight * tan * tan.transpose();
+            }
+        }
+        H += A.transpose() * W * A;
+        g += A.transpose() * W * (d[k] - c0);
+    }
+    CJ C;
+    BJ b;
+    joint_constraints(geo, C, b);
+    JointState next;
+    next.active = cur.active;
+    next.q = minimise_joint_qp(H, g, C, b, cur.q, next.active);
+    next.t = cur.t;
+    const std::span<double> t(next.t);
+    update_foot_points(d, joint_interior(next.q, geo), t.subspan(0, split), 1, split);
+    update_foot_points(d.subspan(split), joint_exterior(next.q, geo), t.subspan(split), 0,
+                       n - split - 1);
+    next.energy = joint_energy(d, split, geo, next);
+    return next;
 }
 
 void require_samples(std::span<const V2> d, std::size_t min, const char* what) {
@@ -240,6 +427,131 @@ double solve_x(const Ctrl& c, double x) {
     return 0.5 * (lo + hi);
 }
 
+// The thickness map smoothed by a separable Gaussian of SD `sigma` mm (normalised over the
+// valid nodes) on the node box rows [b0, b1] x columns [a0, a1], row-major; NaN where the node
+// itself is missing. Used to locate the centre only.
+struct NodeBox {
+    int b0 = 0, b1 = 0, a0 = 0, a1 = 0;
+    [[nodiscard]] int cols() const { return a1 - a0 + 1; }
+};
+std::vector<double> smoothed_box(const ThicknessMap& m, const NodeBox& bx, double sigma) {
+    auto kernel = [&](double step) {
+        std::vector<double> k{1.0};
+        if (!(step > 0.0) || !(sigma > 0.0)) return k;
+        const int half = static_cast<int>(std::ceil(3.0 * sigma / step));
+        k.assign(static_cast<std::size_t>(2 * half + 1), 0.0);
+        for (int i = -half; i <= half; ++i) {
+            const double u = i * step / sigma;
+            k[static_cast<std::size_t>(i + half)] = std::exp(-0.5 * u * u);
+        }
+        return k;
+    };
+    const std::vector<double> kx = kernel(m.dx_mm);
+    const std::vector<double> ky = kernel(m.rows > 1 ? m.dy_mm : 0.0);
+    const int hx = static_cast<int>(kx.size() / 2);
+    const int hy = static_cast<int>(ky.size() / 2);
+    const int r0 = std::max(0, bx.b0 - hy);
+    const int r1 = std::min(m.rows - 1, bx.b1 + hy);
+    const int nc = bx.cols();
+    // Horizontal pass: weighted sums and weights of the valid nodes.
+    std::vector<double> num(static_cast<std::size_t>((r1 - r0 + 1) * nc), 0.0);
+    std::vector<double> den(num.size(), 0.0);
+    for (int b = r0; b <= r1; ++b) {
+        for (int a = bx.a0; a <= bx.a1; ++a) {
+            double sn = 0.0;
+            double sd = 0.0;
+            for (int i = -hx; i <= hx; ++i) {
+                const int aa = a + i;
+                if (aa < 0 || aa >= m.cols) continue;
+                const double v = m.at(b, aa);
+                if (std::isnan(v)) continue;
+                const double w = kx[static_cast<std::size_t>(i + hx)];
+                sn += w * v;
+                sd += w;
+            }
+            const auto j = static_cast<std::size_t>((b - r0) * nc + (a - bx.a0));
+            num[j] = sn;
+            den[j] = sd;
+        }
+    }
+    std::vector<double> out(static_cast<std::size_t>((bx.b1 - bx.b0 + 1) * nc), kMissing);
+    for (int b = bx.b0; b <= bx.b1; ++b) {
+        for (int a = bx.a0; a <= bx.a1; ++a) {
+            if (std::isnan(m.at(b, a))) continue;
+            double sn = 0.0;
+            double sd = 0.0;
+            for (int i = -hy; i <= hy; ++i) {
+                const int bb = b + i;
+                if (bb < r0 || bb > r1) continue;
+                const auto j = static_cast<std::size_t>((bb - r0) * nc + (a - bx.a0));
+                const double w = ky[static_cast<std::size_t>(i + hy)];
+                sn += w * num[j];
+                sd += w * den[j];
+            }
+            out[static_cast<std::size_t>((b - bx.b0) * nc + (a - bx.a0))] = sn / sd;
+        }
+    }
+    return out;
+}
+
+// Vertex of the least-squares quadratic surface fitted to the valid nodes of M within the window
+// |x - c.x| <= rx, |y - c.y| <= ry (a parabola in x for a line scan); nullopt when the fit is not
+// a bowl or its vertex leaves the window.
+std::optional<V2> quadratic_vertex(const ThicknessMap& m, const V2& c, double rx, double ry) {
+    const bool line = m.rows == 1;
+    const int a0 = std::max(0, static_cast<int>(std::floor((c.x() - rx) / m.dx_mm)));
+    const int a1 = std::min(m.cols - 1, static_cast<int>(std::ceil((c.x() + rx) / m.dx_mm)));
+    int b0 = 0;
+    int b1 = 0;
+    if (!line) {
+        b0 = std::max(0, static_cast<int>(std::floor((c.y() - ry) / m.dy_mm)));
+        b1 = std::min(m.rows - 1, static_cast<int>(std::ceil((c.y() + ry) / m.dy_mm)));
+    }
+    Eigen::Matrix<double, 6, 6> N = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> rhs = Eigen::Matrix<double, 6, 1>::Zero();
+    int count = 0;
+    for (int b = b0; b <= b1; ++b) {
+        for (int a = a0; a <= a1; ++a) {
+            const double v = m.at(b, a);
+            if (std::isnan(v)) continue;
+            const double u = a * m.dx_mm - c.x();
+            const double w = line ? 0.0 : b * m.dy_mm - c.y();
+            if (std::fabs(u) > rx + 1e-12 || std::fabs(w) > ry + 1e-12) continue;
+            Eigen::Matrix<double, 6, 1> phi;
+            phi << 1.0, u, w, u * u, u * w, w * w;
+            N += phi * phi.transpose();
+            rhs += phi * v;
+            ++count;
+        }
+    }
+    if (line) {
+        // 1-D: unknowns (1, u, u^2).
+        const std::array<int, 3> id{0, 1, 3};
+        Eigen::Matrix3d N3;
+        Eigen::Vector3d r3;
+        for (int i = 0; i < 3; ++i) {
+            r3(i) = rhs(id[static_cast<std::size_t>(i)]);
+            for (int j = 0; j < 3; ++j) {
+                N3(i, j) = N(id[static_cast<std::size_t>(i)], id[static_cast<std::size_t>(j)]);
+            }
+        }
+        if (count < 5) return std::nullopt;
+        const Eigen::Vector3d k = N3.ldlt().solve(r3);
+        if (!(k(2) > 0.0)) return std::nullopt;
+        const double u = -k(1) / (2.0 * k(2));
+        if (!std::isfinite(u) || std::fabs(u) > rx) return std::nullopt;
+        return V2(c.x() + u, c.y());
+    }
+    if (count < 12) return std::nullopt;
+    const Eigen::Matrix<double, 6, 1> k = N.ldlt().solve(rhs);
+    Eigen::Matrix2d Hs;
+    Hs << 2.0 * k(3), k(4), k(4), 2.0 * k(5);
+    if (!k.allFinite() || !(Hs(0, 0) > 0.0) || !(Hs.determinant() > 0.0)) return std::nullopt;
+    const V2 v = -Hs.inverse() * V2(k(1), k(2));
+    if (std::fabs(v.x()) > rx || std::fabs(v.y()) > ry) return std::nullopt;
+    return c + v;
+}
+
 void fit_half_line(CubeHalfLine& h, double cft, const CubeParams& p, const FitSettings& fs) {
     // Valid samples; sample 0 is the centre (thickness CFT).
     std::vector<V2> pts;
@@ -268,9 +580,16 @@ void fit_half_line(CubeHalfLine& h, double cft, const CubeParams& p, const FitSe
     for (int k = 0; k < idx[rim]; ++k) {
         if (std::isnan(h.h_mm[static_cast<std::size_t>(k)])) ++h.num_missing_interior;
     }
-    const std::span<const V2> all(pts);
-    h.interior = fit_interior(all.subspan(0, rim + 1), fs);
-    h.exterior = fit_exterior(all.subspan(rim), fs);
+    if (fs.free_start_height) {
+        // CFT estimation pass: the interior alone with P0.y free (through the rim sample).
+        h.interior = fit_interior(std::span<const V2>(pts).subspan(0, rim + 1), fs);
+        h.valid = true;
+        return;
+    }
+    // The rim height is the joint fit's estimate (docs/algorithms/cube.md "Rim point").
+    RimProfileFit pf = fit_rim_profile(pts, static_cast<int>(rim), fs);
+    h.interior = std::move(pf.interior);
+    h.exterior = std::move(pf.exterior);
     const Ctrl& qi = h.interior.control;
     const double dy = qi[3].y() - qi[0].y();
     h.rim_radius_mm = qi[3].x();
@@ -307,7 +626,7 @@ void fit_half_line(CubeHalfLine& h, double cft, const CubeParams& p, const FitSe
         const double te = ru >= qe[3].x() ? 1.0 : solve_x(qe, ru);
         h.inner_rim_volume_mm3 = h.rim_volume_mm3 + bezier_volume_integral(qe, te);
     }
-    const double n = static_cast<double>(h.interior.num_samples + h.exterior.num_samples - 1);
+    const double n = static_cast<double>(h.interior.num_samples + h.exterior.num_samples);
     h.rmse_um = 1000.0 * std::sqrt((h.interior.sse_mm2 + h.exterior.sse_mm2) / n);
     h.valid = true;
 }
@@ -409,6 +728,12 @@ void CubeParams::validate() const {
     if (!(tie_tolerance_mm >= 0.0) || tie_tolerance_mm > 0.01) {
         bad("tie_tolerance_mm", "must be in [0, 0.01] mm");
     }
+    if (!(centre_smoothing_mm >= 0.0) || centre_smoothing_mm > 0.5) {
+        bad("centre_smoothing_mm", "must be in [0, 0.5] mm");
+    }
+    if (!(centre_fit_radius_mm >= 0.0) || centre_fit_radius_mm > 0.5) {
+        bad("centre_fit_radius_mm", "must be in [0, 0.5] mm");
+    }
     if (max_rounds < 1 || max_rounds > 100000) bad("max_rounds", "must be in 1..100000");
     if (!(energy_tolerance > 0.0) || energy_tolerance >= 1.0) {
         bad("energy_tolerance", "must be in (0, 1)");
@@ -435,20 +760,34 @@ BezierFit fit_interior(std::span<const V2> d, const FitSettings& s) {
     if (!(width > 0.0)) throw AnalysisError("interior fit: the rim is not beyond the centre");
     // Eq. 7.7: Q = P0 (B0 + B1) + P3 (B2 + B3) + alpha T B1 - beta T B2 with T = (1, 0), linear
     // in (alpha, beta): Eq. 7.9 is a 2x2 linear least-squares problem.
+    // With s.free_start_height, P0.y = c is a third unknown (Q.y gains c (B0 + B1)).
+    const bool free_c = s.free_start_height;
     auto solve = [&](const std::vector<double>& t, const std::vector<Eigen::Matrix2d>& w) {
-        Eigen::Matrix2d H = Eigen::Matrix2d::Zero();
-        V2 g = V2::Zero();
+        Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d g = Eigen::Vector3d::Zero();
         for (std::size_t k = 0; k < d.size(); ++k) {
             const Bernstein b = bernstein(t[k]);
-            const V2 r = d[k] - p0 * (b.b0 + b.b1) - p3 * (b.b2 + b.b3);
-            Eigen::Matrix2d A;  // columns: dQ/dalpha, dQ/dbeta
-            A << b.b1, -b.b2, 0.0, 0.0;
+            const V2 base = free_c ? V2(p0.x(), 0.0) : p0;
+            const V2 r = d[k] - base * (b.b0 + b.b1) - p3 * (b.b2 + b.b3);
+            Eigen::Matrix<double, 2, 3> A;  // columns: dQ/dalpha, dQ/dbeta, dQ/dc
+            A << b.b1, -b.b2, 0.0, 0.0, 0.0, free_c ? b.b0 + b.b1 : 0.0;
             H += A.transpose() * w[k] * A;
             g += A.transpose() * w[k] * r;
         }
-        // 0 <= alpha, beta and alpha + beta <= w keep x(t) monotone (the curve a graph).
-        const V2 z = minimise_on_triangle(H, g, {V2(0.0, 0.0), V2(width, 0.0), V2(0.0, width)});
-        return Ctrl{p0, p0 + V2(z.x(), 0.0), p3 - V2(z.y(), 0.0), p3};
+        // Eliminate c (free), then 0 <= alpha, beta and alpha + beta <= w keep x(t) monotone
+        // (the curve a graph).
+        Eigen::Matrix2d Hr = H.topLeftCorner<2, 2>();
+        V2 gr = g.head<2>();
+        const bool has_c = free_c && H(2, 2) > 1e-300;
+        if (has_c) {
+            const V2 h = H.block<2, 1>(0, 2);
+            Hr -= h * h.transpose() / H(2, 2);
+            gr -= h * g(2) / H(2, 2);
+        }
+        const V2 z = minimise_on_triangle(Hr, gr, {V2(0.0, 0.0), V2(width, 0.0), V2(0.0, width)});
+        const double c = has_c ? (g(2) - H(2, 0) * z.x() - H(2, 1) * z.y()) / H(2, 2) : p0.y();
+        const V2 q0(p0.x(), c);
+        return Ctrl{q0, q0 + V2(z.x(), 0.0), p3 - V2(z.y(), 0.0), p3};
     };
     return alternate(d, s, solve);
 }
@@ -487,6 +826,67 @@ BezierFit fit_exterior(std::span<const V2> d, const FitSettings& s) {
         return Ctrl{p0, p0 + V2(z.x(), 0.0), V2(z.y(), p2y), p3};
     };
     return alternate(d, s, solve);
+}
+
+RimProfileFit fit_rim_profile(std::span<const V2> d, int rim_index, const FitSettings& s) {
+    const auto n = d.size();
+    const auto r0 = static_cast<std::size_t>(std::max(rim_index, 0));
+    if (rim_index < 2 || n < r0 + 4) {
+        throw AnalysisError("rim profile fit: the rim needs 2 samples before it and 3 after");
+    }
+    RimProfileFit out;
+    // Start (SPEC §4.4-4.5): both segments through the rim sample.
+    FitSettings fixed = s;
+    fixed.free_start_height = false;
+    const BezierFit fi = fit_interior(d.subspan(0, r0 + 1), fixed);
+    const BezierFit fe = fit_exterior(d.subspan(r0), fixed);
+    const JointGeometry geo{d.front(), d.back(), d[r0].x()};
+    const std::size_t split = r0 + 1;  // the rim sample is the interior's last (t free)
+    JointState cur;
+    cur.q << fi.control[1].x() - fi.control[0].x(), fi.control[3].x() - fi.control[2].x(),
+        d[r0].y(), fe.control[1].x() - fe.control[0].x(), fe.control[2].x(), fe.control[2].y();
+    cur.t = fi.t;
+    cur.t.insert(cur.t.end(), fe.t.begin() + 1, fe.t.end());
+    cur.energy = joint_energy(d, split, geo, cur);
+    for (int round = 1; round <= s.max_rounds; ++round) {
+        out.rounds = round;
+        if (cur.energy <= 1e-30) {
+            out.converged = true;
+            break;
+        }
+        JointState next = joint_round(d, split, geo, cur, kTangentWeight);
+        if (next.energy > cur.energy) next = joint_round(d, split, geo, cur, 1.0);
+        if (next.energy > cur.energy) {  // no step lowers the energy: at the minimum
+            out.converged = true;
+            break;
+        }
+        const double prev = cur.energy;
+        const double step = (next.q - cur.q).cwiseAbs().maxCoeff();
+        cur = std::move(next);
+        // Converged: the energy (SPEC §4.5) or every control point has stopped moving (below
+        // 1e-7 mm = 0.1 nm a round: the linear tail of a zig-zag changes no output).
+        if (std::fabs(prev - cur.energy) <= s.energy_tolerance * prev || step < 1e-7) {
+            out.converged = true;
+            break;
+        }
+    }
+    auto segment = [&](const Ctrl& c, std::size_t first, std::size_t last) {
+        BezierFit f;
+        f.control = c;
+        f.t.assign(cur.t.begin() + static_cast<std::ptrdiff_t>(first),
+                   cur.t.begin() + static_cast<std::ptrdiff_t>(last));
+        for (std::size_t k = first; k < last; ++k) {
+            f.sse_mm2 += (d[k] - bezier_point(c, cur.t[k])).squaredNorm();
+        }
+        f.num_samples = static_cast<int>(last - first);
+        f.rounds = out.rounds;
+        f.converged = out.converged;
+        return f;
+    };
+    out.interior = segment(joint_interior(cur.q, geo), 0, split);
+    out.exterior = segment(joint_exterior(cur.q, geo), split, n);
+    out.rim = V2(geo.r_rim, cur.q(2));
+    return out;
 }
 
 MaxSlope interior_max_slope(const Ctrl& q) {
@@ -572,12 +972,26 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
         if (std::isnan(res.cft_mm)) throw AnalysisError("no valid thickness at the given centre");
     } else {
         const double rs = params.search_radius_mm;
+        // The node box around the search circle; values: M smoothed for the search (SPEC §4.2
+        // on the smoothed map; docs/algorithms/cube.md "Centre").
+        const V2& sc = res.search_centre_mm;
+        NodeBox bx;
+        bx.a0 = std::clamp(static_cast<int>(std::floor((sc.x() - rs) / m.dx_mm)), 0, m.cols - 1);
+        bx.a1 = std::clamp(static_cast<int>(std::ceil((sc.x() + rs) / m.dx_mm)), 0, m.cols - 1);
+        if (m.rows > 1) {
+            bx.b0 = std::clamp(static_cast<int>(std::floor((sc.y() - rs) / m.dy_mm)), 0, m.rows - 1);
+            bx.b1 = std::clamp(static_cast<int>(std::ceil((sc.y() + rs) / m.dy_mm)), 0, m.rows - 1);
+        }
+        const std::vector<double> sm = smoothed_box(m, bx, params.centre_smoothing_mm);
+        auto value = [&](int b, int a) {
+            return sm[static_cast<std::size_t>((b - bx.b0) * bx.cols() + (a - bx.a0))];
+        };
         double best = std::numeric_limits<double>::infinity();
-        for (int b = 0; b < m.rows; ++b) {
-            for (int a = 0; a < m.cols; ++a) {
-                const double v = m.at(b, a);
+        for (int b = bx.b0; b <= bx.b1; ++b) {
+            for (int a = bx.a0; a <= bx.a1; ++a) {
+                const double v = value(b, a);
                 if (std::isnan(v)) continue;
-                if ((V2(a * m.dx_mm, b * m.dy_mm) - res.search_centre_mm).norm() > rs) continue;
+                if ((V2(a * m.dx_mm, b * m.dy_mm) - sc).norm() > rs) continue;
                 best = std::min(best, v);
             }
         }
@@ -587,20 +1001,28 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
         }
         std::vector<double> xs;
         std::vector<double> ys;
-        for (int b = 0; b < m.rows; ++b) {
-            for (int a = 0; a < m.cols; ++a) {
-                const double v = m.at(b, a);
+        for (int b = bx.b0; b <= bx.b1; ++b) {
+            for (int a = bx.a0; a <= bx.a1; ++a) {
+                const double v = value(b, a);
                 if (std::isnan(v) || v > best + params.tie_tolerance_mm) continue;
                 const V2 q(a * m.dx_mm, b * m.dy_mm);
-                if ((q - res.search_centre_mm).norm() > rs) continue;
+                if ((q - sc).norm() > rs) continue;
                 xs.push_back(q.x());
                 ys.push_back(q.y());
             }
         }
         res.num_tied_minima = static_cast<int>(xs.size());
         res.centre_mm = V2(median(xs), median(ys));  // Eq. 7.13, component-wise median
+        if (params.centre_fit_radius_mm > 0.0) {
+            // Between the nodes: the vertex of a quadratic fitted to M around the minimum (the
+            // window spans at least the neighbouring B-scans).
+            const double rx = std::max(params.centre_fit_radius_mm, 1.01 * m.dx_mm);
+            const double ry = std::max(params.centre_fit_radius_mm, 1.01 * m.dy_mm);
+            if (const auto v = quadratic_vertex(m, res.centre_mm, rx, ry)) res.centre_mm = *v;
+        }
         const double cv = m.sample(res.centre_mm.x(), res.centre_mm.y());
-        res.cft_mm = std::isnan(cv) ? best : cv;
+        if (std::isnan(cv)) throw AnalysisError("no valid thickness at the centre found");
+        res.cft_mm = cv;
         const double step = std::max(m.dx_mm, m.dy_mm);
         if ((res.centre_mm - res.search_centre_mm).norm() > rs - step) {
             res.qc_flags.push_back("centre at search border");
@@ -636,8 +1058,28 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
             h.h_mm[k] = k == 0 ? res.cft_mm : m.sample(q.x(), res.line_scan ? 0.0 : q.y());
             if (std::isnan(h.h_mm[k])) ++h.num_missing;
         }
-        fit_half_line(h, res.cft_mm, params, {params.max_rounds, params.energy_tolerance});
         res.half_lines.push_back(std::move(h));
+    }
+    // CFT as a model estimate (docs/algorithms/cube.md "CFT"): every interior fitted with its
+    // start height free; CFT = the mean of those heights (the shared P0.y of Eq. 7.5); then
+    // every half-line fitted with P0 = (0, CFT) as the thesis' model has it.
+    res.cft_sample_mm = res.cft_mm;
+    {
+        FitSettings free_fs{params.max_rounds, params.energy_tolerance, true};
+        double sum = 0.0;
+        int count = 0;
+        for (const auto& h0 : res.half_lines) {
+            CubeHalfLine h = h0;
+            fit_half_line(h, res.cft_mm, params, free_fs);
+            if (!h.valid) continue;
+            sum += h.interior.control[0].y();
+            ++count;
+        }
+        if (count > 0) res.cft_mm = sum / count;
+    }
+    for (auto& h : res.half_lines) {
+        h.h_mm[0] = res.cft_mm;
+        fit_half_line(h, res.cft_mm, params, {params.max_rounds, params.energy_tolerance, false});
     }
 
     // ---- parameters (SPEC §4.6) --------------------------------------------------------------
@@ -668,7 +1110,7 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
             flat_sum += h.pit_flat_radius_mm;
         }
         sse += h.interior.sse_mm2 + h.exterior.sse_mm2;
-        count += h.interior.num_samples + h.exterior.num_samples - 1;
+        count += h.interior.num_samples + h.exterior.num_samples;
     }
     if (valid == 0) {
         throw AnalysisError("no half-line could be fitted (" + res.half_lines.front().problem +

@@ -109,6 +109,8 @@ J cube_json(const CubeResult& r, const CubeParams& p) {
     o["inner_radius_mm"] = p.inner_radius_mm;
     o["search_radius_mm"] = p.search_radius_mm;
     o["tie_tolerance_mm"] = p.tie_tolerance_mm;
+    o["centre_smoothing_mm"] = p.centre_smoothing_mm;
+    o["centre_fit_radius_mm"] = p.centre_fit_radius_mm;
     o["max_rounds"] = p.max_rounds;
     o["energy_tolerance"] = p.energy_tolerance;
     j["options"] = o;

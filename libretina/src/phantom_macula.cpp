@@ -243,6 +243,10 @@ void MaculaPhantomParams::validate() const {
             "thickness_offset_mm", "must be within +-0.1 mm");
     require(std::isfinite(pit_depth_scale) && pit_depth_scale >= 0.5 && pit_depth_scale <= 1.5,
             "pit_depth_scale", "must be in [0.5, 1.5]");
+    require(std::isfinite(rotation_deg) && std::fabs(rotation_deg) <= 45.0, "rotation_deg",
+            "must be within +-45 deg");
+    require(std::isfinite(radial_scale) && radial_scale >= 0.7 && radial_scale <= 1.3,
+            "radial_scale", "must be in [0.7, 1.3]");
     require(speckle.looks > 0.0 && std::isfinite(speckle.looks), "speckle.looks", "must be > 0");
 }
 
@@ -338,7 +342,17 @@ ScheibeProfile scheibe_profile(double theta_deg, bool flat) {
 }
 
 BezierProfile bezier_profile(double theta_deg, const MaculaPhantomParams& p) {
-    BezierProfile b = bezier_profile(theta_deg, p.flat);
+    BezierProfile b = bezier_profile(theta_deg - p.rotation_deg, p.flat);
+    if (p.radial_scale != 1.0) {
+        // x' = k x on every control point but the exterior's end (kept at 7 mm): both curves
+        // stay of the CuBe form with horizontal tangents at the rim.
+        const double k = p.radial_scale;
+        b.rim_radius_mm *= k;
+        b.alpha_mm *= k;
+        b.beta_mm *= k;
+        b.alpha_ext_mm *= k;
+        b.ext_p2.x() *= k;
+    }
     if (p.thickness_offset_mm == 0.0 && p.pit_depth_scale == 1.0) return b;
     // y' = y + offset + (s - 1)(y - ref) on every control point's height: a Bezier curve is
     // affine-invariant, so the new curve is the old one with its heights mapped.
@@ -353,7 +367,8 @@ BezierProfile bezier_profile(double theta_deg, const MaculaPhantomParams& p) {
 }
 
 ScheibeProfile scheibe_profile(double theta_deg, const MaculaPhantomParams& p) {
-    ScheibeProfile s = scheibe_profile(theta_deg, p.flat);
+    ScheibeProfile s = scheibe_profile(theta_deg - p.rotation_deg, p.flat);
+    s.mu /= std::pow(p.radial_scale, s.gamma);  // f(r / k): u = mu (r / k)^gamma
     if (p.thickness_offset_mm == 0.0 && p.pit_depth_scale == 1.0) return s;
     // f' = s f + (1 - s) ref + offset: CFT' = s CFT + (1 - s) ref + offset, sigma^2' = s sigma^2,
     // a' = s a (u* = 1 + a / sigma^2, hence the rim radius, is unchanged).
@@ -875,6 +890,10 @@ nlohmann::ordered_json macula_truth_json(const MaculaTruth& t,
     if (p.thickness_offset_mm != 0.0 || p.pit_depth_scale != 1.0) {  // cohort phantoms only
         g["thickness_offset_mm"] = p.thickness_offset_mm;
         g["pit_depth_scale"] = p.pit_depth_scale;
+    }
+    if (p.rotation_deg != 0.0 || p.radial_scale != 1.0) {  // re-scan studies only
+        g["rotation_deg"] = p.rotation_deg;
+        g["radial_scale"] = p.radial_scale;
     }
     g["pixels"] = p.pixels;
     g["speckle_looks"] = p.speckle.looks;

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 
 #include "octshape/io/error.h"
@@ -108,6 +109,44 @@ TEST(CubeFit, InteriorAndExteriorRecoverExactCurves) {
     EXPECT_NEAR(fe.control[2].x(), 1.7, 1e-8);
     EXPECT_NEAR(fe.control[2].y(), 0.27, 1e-8);
     EXPECT_LT(std::sqrt(fe.sse_mm2 / fe.num_samples), 1e-9);
+}
+
+TEST(CubeFit, RimProfileRecoversExactCurvesWithTheRimHeightFree) {
+    // Interior and exterior exactly of the CuBe form, sharing the rim (1.1, 0.35), sampled at
+    // equal x steps with the rim a sample: the joint fit (rim height free, Eq. 7.8 over both
+    // segments) has its zero-energy minimum at the generating curves and starts there.
+    const Ctrl in = interior_curve(0.225, 1.1, 0.35, 0.26, 0.55);
+    const Ctrl ex{V2(1.1, 0.35), V2(1.4, 0.35), V2(1.7, 0.27), V2(2.0, 0.29)};
+    std::vector<V2> d = sample_by_x(in, 94);
+    const std::vector<V2> e = sample_by_x(ex, 77);
+    d.insert(d.end(), e.begin() + 1, e.end());
+    const RimProfileFit f = fit_rim_profile(d, 94);
+    EXPECT_TRUE(f.converged);
+    EXPECT_NEAR(f.rim.x(), 1.1, 1e-15);
+    EXPECT_NEAR(f.rim.y(), 0.35, 1e-9);
+    EXPECT_NEAR(f.interior.control[1].x(), 0.26, 1e-8);
+    EXPECT_NEAR(f.interior.control[2].x(), 1.1 - 0.55, 1e-8);
+    EXPECT_NEAR(f.exterior.control[1].x(), 1.4, 1e-8);
+    EXPECT_NEAR(f.exterior.control[2].x(), 1.7, 1e-8);
+    EXPECT_NEAR(f.exterior.control[2].y(), 0.27, 1e-8);
+    EXPECT_EQ(f.interior.num_samples + f.exterior.num_samples, static_cast<int>(d.size()));
+    EXPECT_LT(std::sqrt((f.interior.sse_mm2 + f.exterior.sse_mm2) / d.size()), 1e-9);
+}
+
+TEST(CubeFit, RimHeightIsNotTheBiasedMaximumSample) {
+    // The same profile with a deterministic +-3 um alternating perturbation (zero mean): the
+    // maximum sample sits ~3 um above the crest, the joint least-squares rim height averages
+    // the ~40 samples near the crest and stays within 1 um (3 um / sqrt(40) ~ 0.5 um, x2).
+    const Ctrl in = interior_curve(0.225, 1.1, 0.35, 0.26, 0.55);
+    const Ctrl ex{V2(1.1, 0.35), V2(1.4, 0.35), V2(1.7, 0.27), V2(2.0, 0.29)};
+    std::vector<V2> d = sample_by_x(in, 94);
+    const std::vector<V2> e = sample_by_x(ex, 77);
+    d.insert(d.end(), e.begin() + 1, e.end());
+    for (std::size_t k = 1; k + 1 < d.size(); ++k) d[k].y() += (k % 2 == 0 ? 0.003 : -0.003);
+    const int rim = 94;
+    ASSERT_GT(d[rim].y(), 0.3525);  // the rim sample itself is 3 um high
+    const RimProfileFit f = fit_rim_profile(d, rim);
+    EXPECT_NEAR(f.rim.y(), 0.35, 0.001);
 }
 
 TEST(CubeFit, InteriorStaysAGraph) {
@@ -378,32 +417,35 @@ TEST(CubePhantom, SegmentationNoiseGivesRmseOfTheNoiseLevel) {
     // 1 axial pixel of thickness noise: ILM and BM each carry sigma / sqrt(2) so that ILM - BM
     // has SD sigma = 3.87 um. A radial sample is a bilinear mix of 4 nodes with weights w:
     // its noise SD is sigma sqrt(sum w^2), sqrt(4/9) = 0.67 sigma on average over positions,
-    // between 0.5 sigma and sigma; the fit absorbs little (4 of ~170 degrees of freedom).
+    // between 0.5 sigma and sigma; the fit absorbs little (~10 of ~170 degrees of freedom).
+    // Three seeds: a bound that held for one lucky seed only proves nothing.
     const double sigma_um = 3.8717;
-    MaculaPhantomParams p = volume_params(MaculaFamily::kBezier, 193);
-    p.noise_um = sigma_um / std::sqrt(2.0);
-    p.seed = 7;
-    const MaculaPhantom ph = make_macula_phantom(p);
-    const CubeResult r = analyse_macula(ph.scan);
-    const Errors e = errors(r, ph);
-    record("bezier_noise_193", e);
-    EXPECT_GT(r.rmse_um, 0.5 * sigma_um);
-    EXPECT_LT(r.rmse_um, 1.0 * sigma_um);
-    // Parameters within 2 %, for those that do not hinge on where the flat crest's maximum
-    // lies. The rim is the maximum sample (SPEC §4.4): on a crest that drops only
-    // |T''| d^2 / 2 = 5 um over d = 0.2 mm, ~2.6 um sample noise moves the argmax by
-    // ~sqrt(4 eps / |T''|) ~ 0.2 mm, so the rim radius, rim disk, V_r, V_p and beta miss 2 %
-    // under this noise (recorded above, left to a robust rim split; docs/algorithms/cube.md).
-    // Pit depth (0.125 mm) is the difference of a noisy minimum (CFT, biased low) and noisy
-    // maxima (rims, biased high): each bias is within 2 % of its own value but together they
-    // reach ~2.7 % of the depth, so the depth is not held to 2 % either.
-    const MaculaTruth& t = ph.truth;
-    EXPECT_LE(e.cft, 0.02 * t.cft_mm);
-    EXPECT_LE(e.rim_height, 0.02 * t.rim_height_mm);
-    EXPECT_LE(e.slope_diameter, 0.02 * t.slope.diameter_mm);
-    EXPECT_LE(e.slope_deg, 0.02 * t.max_pit_slope_deg);
-    EXPECT_LE(e.vir_rel, 0.02);
-    EXPECT_LE(e.alpha, 0.02 * *t.alpha_mean_mm);
+    for (const std::uint64_t seed : {7U, 8U, 9U}) {
+        SCOPED_TRACE(seed);
+        MaculaPhantomParams p = volume_params(MaculaFamily::kBezier, 193);
+        p.noise_um = sigma_um / std::sqrt(2.0);
+        p.seed = seed;
+        const MaculaPhantom ph = make_macula_phantom(p);
+        const CubeResult r = analyse_macula(ph.scan);
+        const Errors e = errors(r, ph);
+        record("bezier_noise_193_seed" + std::to_string(seed), e);
+        EXPECT_GT(r.rmse_um, 0.5 * sigma_um);
+        EXPECT_LT(r.rmse_um, 1.0 * sigma_um);
+        // The 2 % target, for the parameters that are model estimates from many samples:
+        // CFT (the shared P0.y of 24 interior fits, each over ~90 samples of SD ~2.6 um: its
+        // random error ~2.6 / sqrt(24 * 90 / c) um with c ~ 10 for the correlation of samples
+        // near the centre, ~0.2 um, plus the centre's offset; 2 % = 4.5 um), rim height (24
+        // joint estimates of h_rim, each from the ~40 samples within 5 um of the crest: ~0.4 um
+        // per line; 2 % = 7 um) and V_IR (integrates the interior up to 0.5 mm, averages 24
+        // curves). The rim radius, and what scales with it (rim disk, V_r, V_p, beta, pit-flat,
+        // slope disk, pit depth through the crest), misses 2 % at this noise: on a crest that
+        // falls ~5 um over 0.2 mm the data do not fix the radius (docs/algorithms/cube.md,
+        // "Accuracy"); those errors are recorded above, not asserted.
+        const MaculaTruth& t = ph.truth;
+        EXPECT_LE(e.cft, 0.02 * t.cft_mm);
+        EXPECT_LE(e.rim_height, 0.02 * t.rim_height_mm);
+        EXPECT_LE(e.vir_rel, 0.02);
+    }
 }
 
 TEST(CubePhantom, OsGivesTheParametersOfItsMirroredOdTwin) {

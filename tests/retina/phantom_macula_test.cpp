@@ -153,6 +153,39 @@ TEST(MaculaTruth, RimIsTheMaximumOfEachHalfLineWithinR) {
     }
 }
 
+TEST(MaculaTruth, RotationAndRadialScaleTransformTheEye) {
+    // rotation_deg turns the eye about the fovea, radial_scale stretches its pit: inside the
+    // rim, T(r, theta) = T0(r / k, theta - rot) for both families (the Bezier exterior keeps
+    // its 7 mm end, so only the interior obeys the plain stretch). The truth follows: rim
+    // radius k r0, rim height unchanged, slope tan(s) = tan(s0) / k.
+    for (const auto family : {MaculaFamily::kBezier, MaculaFamily::kScheibe}) {
+        const MaculaPhantomParams base = small(family);
+        MaculaPhantomParams p = base;
+        p.rotation_deg = 2.5;
+        p.radial_scale = 1.1;
+        const MaculaTruth t = macula_truth(p);
+        for (const auto& h : t.half_lines) {
+            const double th0 = h.angle_deg - 2.5;
+            for (const double r : {0.0, 0.3, 0.7, 0.95 * h.rim_radius_mm}) {
+                EXPECT_NEAR(macula_thickness_mm(p, r, h.angle_deg),
+                            macula_thickness_mm(base, r / 1.1, th0), 1e-12);
+            }
+            double best = -1.0;
+            double best_r = 0.0;
+            for (int k = 0; k <= 20000; ++k) {  // dense maximum, as in RimIsTheMaximum...
+                const double r = 2.0 * k / 20000;
+                const double v = macula_thickness_mm(base, r, th0);
+                if (v > best) {
+                    best = v;
+                    best_r = r;
+                }
+            }
+            EXPECT_NEAR(h.rim_radius_mm, 1.1 * best_r, 1.1 * 2e-4);
+            EXPECT_NEAR(h.rim_height_mm, best, 1e-9);
+        }
+    }
+}
+
 TEST(MaculaTruth, PitFlatRadiusIsWhereTheProfileRisesTau) {
     for (const auto family : {MaculaFamily::kBezier, MaculaFamily::kScheibe}) {
         for (const bool flat : {false, true}) {

@@ -55,6 +55,14 @@ struct CubeParams {
     double inner_radius_mm = 0.5;      // r_u of the inner rim volume (Eq. 7.28; ETDRS centre)
     double search_radius_mm = 1.0;     // centre search around the device centre (§7.2.1, 1 mm)
     double tie_tolerance_mm = 0.0005;  // minima within 0.5 um are ties -> median (SPEC §4.2)
+    // Gaussian SD of the smoothing applied to the thickness map for locating the centre only
+    // (docs/algorithms/cube.md "Centre"): the minimum of noisy nodes wanders over a flat pit
+    // floor and is biased low. 0 = the raw minimum of SPEC §4.2.
+    double centre_smoothing_mm = 0.05;
+    // Half-width of the window around the minimum node in which a quadratic surface is fitted
+    // to M; its vertex, when it lies in the window, is the centre (between nodes: B-scans are
+    // 39-125 um apart). 0 = the node (SPEC §4.2).
+    double centre_fit_radius_mm = 0.06;
     int max_rounds = 100;              // alternating LS / foot-point rounds (SPEC §4.5)
     double energy_tolerance = 1e-10;   // stop on relative energy change below this
     double rmse_warning_um = 10.0;     // QC "fit RMSE high" above this (thesis: 1.0-7.1 um)
@@ -77,6 +85,9 @@ struct BezierFit {
 struct FitSettings {
     int max_rounds = 100;
     double energy_tolerance = 1e-10;
+    // Interior only: P0.y (the centre height) is a fitted unknown instead of the first sample's
+    // height (the first sample stays at t = 0); used to estimate CFT from the model.
+    bool free_start_height = false;
 };
 
 // Interior fit (Eq. 7.5, 7.7-7.10): P0 = first sample, P3 = last sample, P1 = P0 + alpha (1,0),
@@ -87,6 +98,26 @@ struct FitSettings {
 // P3 = last sample; kept a graph (P0.x <= P1.x <= P2.x <= P3.x).
 [[nodiscard]] BezierFit fit_exterior(std::span<const Eigen::Vector2d> samples,
                                      const FitSettings& s = {});
+
+// A whole half-line profile: interior and exterior sharing the rim point.
+struct RimProfileFit {
+    BezierFit interior;  // samples [0, rim index] (the centre first at t = 0, the rim sample free)
+    BezierFit exterior;  // samples after the rim sample (the last one is P3, t = 1)
+    Eigen::Vector2d rim{0.0, 0.0};  // (r_rim, h_rim) = interior P3 = exterior P0, mm
+    int rounds = 0;                 // joint rounds run after the two start fits
+    bool converged = false;
+};
+
+// Fits a half-line profile (samples ordered by r; the first is the centre (0, CFT), the last
+// the exterior's end point) split at the rim sample `rim_index` (the maximum, SPEC §4.4) with
+// the rim *height* a model estimate (docs/algorithms/cube.md "Rim point"): r_rim is the rim
+// sample's radius; h_rim, the interior's (alpha, beta) and the exterior's (alpha, P2) minimise
+// the joint Eq. 7.8 energy of both segments (started from fit_interior / fit_exterior through
+// the rim sample; alternating a linear least-squares step under the graph constraints with
+// the foot points). Throws AnalysisError when a segment has too few samples.
+[[nodiscard]] RimProfileFit fit_rim_profile(std::span<const Eigen::Vector2d> samples,
+                                            int rim_index,
+                                            const FitSettings& s = {});
 
 [[nodiscard]] Eigen::Vector2d bezier_point(const std::array<Eigen::Vector2d, 4>& p, double t);
 [[nodiscard]] Eigen::Vector2d bezier_derivative(const std::array<Eigen::Vector2d, 4>& p, double t);
@@ -143,7 +174,8 @@ struct CubeResult {
     Eigen::Vector2d centre_mm = Eigen::Vector2d::Zero();  // grid mm
     int num_tied_minima = 0;
     double sample_spacing_mm = 0.0;
-    double cft_mm = kMissing;                // Eq. 7.14
+    double cft_mm = kMissing;                // Eq. 7.14, the model's shared P0.y
+    double cft_sample_mm = kMissing;         // M at the centre (the raw sample)
     double rim_height_mm = kMissing;         // Eq. 7.15
     double pit_depth_mm = kMissing;          // Eq. 7.19
     double max_pit_slope_deg = kMissing;     // mean of atan(s_i) (Eq. 7.20-7.21)

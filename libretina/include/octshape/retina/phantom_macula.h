@@ -66,6 +66,14 @@ struct MaculaPhantomParams {
     // The offset moves CFT and rim height alike (pit depth, slopes, diameters unchanged); the
     // scale multiplies the pit depth (and changes slopes and the pit-flat disk).
     double thickness_offset_mm = 0.0;  // within +-0.1 mm
+    // The eye rotated about the fovea against the scan grid (head tilt / cyclotorsion between
+    // re-scans), anatomical degrees (from nasal towards superior): the profile seen at
+    // anatomical angle theta is the eye's profile at theta - rotation_deg. Within +-45.
+    double rotation_deg = 0.0;
+    // Every radius of the profile (rim, alpha, beta, the exterior's inner control points)
+    // multiplied by this factor: a wider or narrower pit of the same family (the Bezier exterior
+    // still ends at 7 mm; Scheibe: mu / k^gamma). In [0.7, 1.3].
+    double radial_scale = 1.0;
     double pit_depth_scale = 1.0;      // in [0.5, 1.5]
     bool pixels = true;     // false: B-scan pixels are io::kNoPixelData
     std::uint64_t seed = 1;
