@@ -4,20 +4,16 @@
 #include <spdlog/spdlog.h>
 
 #include <filesystem>
-#include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
-#include <sstream>
 
 #include "commands/command.h"
+#include "commands/eye_output.h"
 #include "commands/macula_qc.h"
-#include "octshape/io/atomic_file.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/io/sha256.h"
 #include "octshape/retina/cube.h"
 #include "octshape/retina/cube_report.h"
-#include "octshape/retina/scan_summary.h"
-#include "octshape/version.h"
 
 namespace octshape::app {
 namespace {
@@ -31,15 +27,6 @@ struct MaculaOptions {
     double tau_um = 5.0;
 };
 
-std::string csv_line(const std::vector<std::string>& fields) {
-    std::string s;
-    for (std::size_t i = 0; i < fields.size(); ++i) {
-        if (i > 0) s += ',';
-        s += retina::csv_field(fields[i]);
-    }
-    return s + '\n';
-}
-
 void run(MaculaOptions& o) {
     o.params.tau_mm = o.tau_um * 1e-3;
     o.params.validate();
@@ -49,29 +36,20 @@ void run(MaculaOptions& o) {
     for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", o.file, f);
     for (const auto& n : r.notes) spdlog::info("{}: {}", o.file, n);
 
-    nlohmann::ordered_json j;
-    j["octshape_version"] = kVersion;
-    j["command"] = "macula";
-    j["input"] = {{"path", o.file}, {"sha256", sha}};
-    j["scan"] = retina::scan_summary(scan);  // without identifiers
+    nlohmann::ordered_json j = eye_json_preamble("macula", o.file, sha, scan);
     const auto cube = retina::cube_json(r, o.params);
     for (const auto& [k, v] : cube.items()) j[k] = v;
     const std::string eye(io::to_string(scan.meta.laterality));
 
-    std::vector<std::string> header{"file", "sha256", "eye", "scan_pattern", "num_bscans"};
-    std::vector<std::string> row{o.file, sha, eye, std::string(io::to_string(scan.meta.pattern)),
-                                 std::to_string(scan.num_bscans())};
+    std::vector<std::string> header = eye_csv_header();
+    std::vector<std::string> row = eye_csv_values(o.file, sha, scan);
     for (auto& h : retina::cube_csv_header()) header.push_back(std::move(h));
     for (auto& v : retina::cube_csv_values(r)) row.push_back(std::move(v));
-    const std::string csv = csv_line(header) + csv_line(row);
 
-    // Write the CSV first and the JSON last: neither appears half-written (atomic rename).
     if (!o.qc_dir.empty()) {
         write_macula_qc(r, o.qc_dir, std::filesystem::path(o.file).stem().string());
     }
-    if (!o.csv_out.empty()) io::write_text_atomically(o.csv_out, csv);
-    if (!o.json_out.empty()) io::write_text_atomically(o.json_out, j.dump(2) + "\n");
-    if (o.json_out.empty() && o.csv_out.empty()) std::cout << j.dump(2) << '\n';
+    publish_eye_outputs(o.json_out, o.csv_out, j, header, row);
     spdlog::info("{}: {} eye, CFT {:.4f} mm, rim height {:.4f} mm, RMSE {:.2f} um", o.file, eye,
                  r.cft_mm, r.rim_height_mm, r.rmse_um);
 }
