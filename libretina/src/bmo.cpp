@@ -94,9 +94,10 @@ BmoDetection detect_bmo_points(const GridSurface& bm, const BmoDetectionParams& 
     }
     // Height of the end point: the present value next to the gap extrapolated by half an A-scan
     // (linear, from the two present values) so that z belongs to the point's x.
+    // `step` points away from the gap: -1 at its start, +1 at its end.
     auto end_height = [&](int a_out, int step, int b) {
         const double z1 = bm.z[idx(a_out, b)];
-        const int a2 = a_out - step;
+        const int a2 = a_out + step;
         if (a2 >= 0 && a2 < nx && !missing(a2, b)) return z1 + 0.5 * (z1 - bm.z[idx(a2, b)]);
         return z1;
     };

@@ -150,6 +150,53 @@ void require_onh_volume(const io::Scan& scan) {
     }
 }
 
+OnhRegions measure_onh_regions(const mesh::Vertices& V,
+                               const mesh::Faces& F,
+                               const GridSurface& rpe,
+                               const BmoEllipse& ellipse,
+                               double disc_radius_mm) {
+    OnhRegions m;
+    const Eigen::Index nf = F.rows();
+    m.face_height_mm.resize(nf);
+    m.face_region.assign(static_cast<std::size_t>(nf), 0);
+    const Eigen::Vector2d c = ellipse.centre_mm;
+    for (Eigen::Index f = 0; f < nf; ++f) {
+        const Eigen::Vector3d a = V.row(F(f, 0));
+        const Eigen::Vector3d b = V.row(F(f, 1));
+        const Eigen::Vector3d d = V.row(F(f, 2));
+        const Eigen::Vector3d centroid = (a + b + d) / 3.0;
+        // Eq. 8.9: A_i = 1/2 (e0 x e1)_z of the projected triangle, signed.
+        const double area =
+            0.5 * ((b.x() - a.x()) * (d.y() - a.y()) - (d.x() - a.x()) * (b.y() - a.y()));
+        // Correspondence: the RPE height under the centroid, bilinear on the RPE grid (finer
+        // than the nearest node of Eq. 8.3-8.4).
+        const double under = rpe.bilinear(centroid.x(), centroid.y());
+        std::uint8_t reg = 0;
+        if (std::isnan(under)) {
+            reg = kRegionOutside;
+            ++m.faces_outside_rpe;
+            m.face_height_mm(f) = std::numeric_limits<double>::quiet_NaN();
+        } else {
+            const double h = centroid.z() - under;  // Eq. 8.9
+            m.face_height_mm(f) = h;
+            if (ellipse.inside(centroid.x(), centroid.y())) reg |= kRegionBmo;
+            if ((centroid.head<2>() - c).norm() <= disc_radius_mm) reg |= kRegionDisc;
+            if (h < 0.0) reg |= kRegionCup;
+            const double ah = area * h;  // A_i h_i with A_i signed
+            if (reg & kRegionCup) {
+                m.cup_volume_mm3 -= ah;  // Eq. 8.7-8.8, reported positive
+            } else {
+                if (reg & kRegionBmo) m.bmo_volume_mm3 += ah;    // Eq. 8.11-8.12
+                if (reg & kRegionDisc) m.total_volume_mm3 += ah;  // Eq. 8.14-8.15
+                // Eq. 8.16-8.17 as SPEC §5.6 reads it: the annulus minus the cup.
+                if ((reg & kRegionDisc) && !(reg & kRegionBmo)) m.annular_volume_mm3 += ah;
+            }
+        }
+        m.face_region[static_cast<std::size_t>(f)] = reg;
+    }
+    return m;
+}
+
 OnhResult analyse_onh(const io::Scan& scan,
                       const IlmSurface& ilm,
                       const OnhParams& params,
@@ -264,28 +311,19 @@ OnhResult analyse_onh(const io::Scan& scan,
     const mesh::FaceGeometry g = mesh::face_geometry(r.ilm_V, r.ilm_F);
     r.ilm_quality = mesh_quality_report(r.ilm_V, r.ilm_F, g, proj);
 
-    // ---- Correspondence (Eq. 8.3-8.4, bilinear) and regions (§8.1.5) ------------------------
+    // ---- Correspondence (Eq. 8.3-8.4, bilinear), regions (§8.1.5), volumes (Eq. 8.7-8.17) --
     const Eigen::Vector2d c = E.centre_mm;
     const double R = params.disc_radius_mm;
-    r.face_height_mm.resize(nf);
-    r.face_region.assign(static_cast<std::size_t>(nf), 0);
-    for (Eigen::Index f = 0; f < nf; ++f) {
-        const double x = g.centroids(f, 0);
-        const double y = g.centroids(f, 1);
-        const double rpe = r.rpe.bilinear(x, y);
-        std::uint8_t reg = 0;
-        if (std::isnan(rpe)) {
-            reg = kRegionOutside;
-            ++r.faces_outside_rpe;
-            r.face_height_mm(f) = kNaN;
-        } else {
-            const double h = g.centroids(f, 2) - rpe;  // Eq. 8.9
-            r.face_height_mm(f) = h;
-            if (E.inside(x, y)) reg |= kRegionBmo;
-            if ((Eigen::Vector2d(x, y) - c).norm() <= R) reg |= kRegionDisc;
-            if (h < 0.0) reg |= kRegionCup;
-        }
-        r.face_region[static_cast<std::size_t>(f)] = reg;
+    {
+        OnhRegions m = measure_onh_regions(r.ilm_V, r.ilm_F, r.rpe, E, R);
+        r.face_height_mm = std::move(m.face_height_mm);
+        r.face_region = std::move(m.face_region);
+        r.faces_outside_rpe = m.faces_outside_rpe;
+        r.cup_volume_mm3 = m.cup_volume_mm3;
+        r.has_cup = m.cup_volume_mm3 > 0.0;
+        r.bmo_volume_mm3 = m.bmo_volume_mm3;
+        r.total_volume_mm3 = m.total_volume_mm3;
+        r.annular_volume_mm3 = m.annular_volume_mm3;
     }
     if (r.faces_outside_rpe > 0) {
         r.notes.push_back(std::to_string(r.faces_outside_rpe) +
@@ -312,29 +350,6 @@ OnhResult analyse_onh(const io::Scan& scan,
         r.qc_flags.push_back(std::to_string(r.ilm_filled_in_disc) +
                              " ILM vertices within the disc were filled (missing ILM)");
     }
-
-    // ---- Volumes (Eq. 8.7-8.17) ----------------------------------------------------------
-    double cup = 0.0;
-    double vb = 0.0;
-    double vt = 0.0;
-    double va = 0.0;
-    for (Eigen::Index f = 0; f < nf; ++f) {
-        const std::uint8_t reg = r.face_region[static_cast<std::size_t>(f)];
-        if (reg & kRegionOutside) continue;
-        const double ah = proj(f) * r.face_height_mm(f);  // A_i h_i, A_i signed
-        if (reg & kRegionCup) {
-            cup -= ah;  // Eq. 8.8, reported positive
-            continue;
-        }
-        if (reg & kRegionBmo) vb += ah;                          // Eq. 8.12
-        if (reg & kRegionDisc) vt += ah;                         // Eq. 8.15
-        if ((reg & kRegionDisc) && !(reg & kRegionBmo)) va += ah;  // Eq. 8.17
-    }
-    r.cup_volume_mm3 = cup;
-    r.has_cup = cup > 0.0;
-    r.bmo_volume_mm3 = vb;
-    r.total_volume_mm3 = vt;
-    r.annular_volume_mm3 = va;
 
     // ---- CONHT (Eq. 8.10) ---------------------------------------------------------------
     r.ilm_centre_height_mm = top_crossing(r.ilm_V, r.ilm_F, c.x(), c.y());

@@ -143,6 +143,25 @@ struct OnhResult {
     double seconds = 0.0;  // analysis time (without building the ILM)
 };
 
+// Correspondence, regions and volumes of an ILM mesh over an RPE grid (Eq. 8.3-8.17): for
+// every face the RPE height under its centroid (bilinear), h = c_z - RPE, the region bits, and
+// the volumes as sums of h_i times the signed projected area A_i. A face whose centroid lies
+// outside the RPE grid gets h = NaN, kRegionOutside, and counts in no volume.
+struct OnhRegions {
+    Eigen::VectorXd face_height_mm;
+    std::vector<std::uint8_t> face_region;
+    int faces_outside_rpe = 0;
+    double cup_volume_mm3 = 0.0;      // -sum over h < 0 (every face below the RPE)
+    double bmo_volume_mm3 = 0.0;      // inside the ellipse, h >= 0
+    double total_volume_mm3 = 0.0;    // within disc_radius_mm of the ellipse centre, h >= 0
+    double annular_volume_mm3 = 0.0;  // the same outside the ellipse
+};
+[[nodiscard]] OnhRegions measure_onh_regions(const mesh::Vertices& V,
+                                             const mesh::Faces& F,
+                                             const GridSurface& rpe,
+                                             const BmoEllipse& ellipse,
+                                             double disc_radius_mm);
+
 // Runs the analysis of `scan` with the ILM surface `ilm`. `bmo_file_points`: measured BMO
 // points from a file instead of the automatic detection. Throws AnalysisError when the scan is
 // not a volume, has no BM line, or no BMO can be found.
