@@ -63,6 +63,7 @@ void write_meshes(const retina::OnhResult& r, const OnhOptions& o, const std::st
 }
 
 void run(OnhOptions& o) {
+    o.params.local_features = !o.mesh_dir.empty();  // the ENVT map is a mesh scalar only
     o.params.validate();
     const retina::IlmSource source = retina::ilm_source_from_string(o.ilm);
     if (o.mesh_format != "vtp" && o.mesh_format != "ply") {

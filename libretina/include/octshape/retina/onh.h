@@ -53,7 +53,8 @@ struct IlmSurface {
 struct OnhParams {
     int bmo_points = 360;           // resampled ellipse points (uniform in the parameter angle)
     double disc_radius_mm = 1.5;    // radius of the total-volume disc around the BMO centre
-    bool local_features = true;     // per-face local ENVT feature strength (mesh scalar)
+    bool local_features = false;    // per-face local ENVT feature strength (a mesh scalar for
+                                    // pictures; ~0.5 s on a full-size graph, so only on request)
     BmoDetectionParams detection;   // automatic BMO detection
 
     void validate() const;  // throws UsageError naming the field
