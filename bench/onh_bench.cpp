@@ -46,9 +46,9 @@ double peak_rss_mb() {
 int main(int argc, char** argv) {
     const int runs = argc > 1 ? std::max(1, std::atoi(argv[1])) : 3;
     const auto dir = std::filesystem::temp_directory_path();
-    std::printf("%-9s %8s %8s %9s %9s %8s %8s %11s %13s %9s %10s\n", "shape", "file_MB",
-                "read_ms", "pixels_ms", "sha256_ms", "ilm_ms", "faces", "params_ms",
-                "+envt_map_ms", "total_ms", "peakRSS_MB");
+    std::printf("%-9s %8s %8s %9s %9s %8s %8s %11s %13s %9s %10s\n", "shape", "file_MB", "read_ms",
+                "pixels_ms", "sha256_ms", "ilm_ms", "faces", "params_ms", "+envt_map_ms",
+                "total_ms", "peakRSS_MB");
     for (const auto shape : {retina::OnhShape::kCupped, retina::OnhShape::kOverhang}) {
         const auto path =
             (dir / ("octshape_onh_bench_" + retina::to_string(shape) + ".vol")).string();
@@ -90,7 +90,8 @@ int main(int argc, char** argv) {
                     median(ti), faces, median(ta), median(tn), total, peak_rss_mb());
         std::filesystem::remove(path);
     }
-    std::printf("total = read (no pixels) + sha256 + ILM + parameters, device ILM, one thread; "
-                "peak RSS of the whole run (a scan with pixels is held in memory once)\n");
+    std::printf(
+        "total = read (no pixels) + sha256 + ILM + parameters, device ILM, one thread; "
+        "peak RSS of the whole run (a scan with pixels is held in memory once)\n");
     return 0;
 }

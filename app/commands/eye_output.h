@@ -3,10 +3,9 @@
 // (version, command, input path + SHA-256, scan summary without identifiers), the leading CSV
 // columns, and the atomic publication of the JSON and CSV files (or the JSON on stdout).
 
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "octshape/io/scan.h"
 

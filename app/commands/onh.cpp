@@ -2,6 +2,8 @@
 // [--mesh-out DIR]`: the optic nerve head analysis (SPEC §5, docs/algorithms/onh.md); outputs
 // documented in docs/outputs.md.
 
+#include "octshape/retina/onh.h"
+
 #include <spdlog/spdlog.h>
 
 #include <filesystem>
@@ -17,7 +19,6 @@
 #include "octshape/io/scan_reader.h"
 #include "octshape/io/sha256.h"
 #include "octshape/retina/bmo.h"
-#include "octshape/retina/onh.h"
 #include "octshape/retina/onh_report.h"
 
 namespace octshape::app {
@@ -56,7 +57,8 @@ void write_meshes(const retina::OnhResult& r, const OnhOptions& o, const std::st
     Eigen::VectorXd filled(r.rpe_F.rows());
     for (Eigen::Index f = 0; f < r.rpe_F.rows(); ++f) {
         bool any = false;
-        for (int k = 0; k < 3; ++k) any = any || r.rpe.filled[static_cast<std::size_t>(r.rpe_F(f, k))];
+        for (int k = 0; k < 3; ++k)
+            any = any || r.rpe.filled[static_cast<std::size_t>(r.rpe_F(f, k))];
         filled(f) = any ? 1.0 : 0.0;
     }
     io::write_mesh(d / (stem + "_rpe." + o.mesh_format), r.rpe_V, r.rpe_F, {{"filled", filled}});
@@ -99,10 +101,11 @@ void run(OnhOptions& o) {
     if (!o.qc_dir.empty()) write_onh_qc(scan, r, o.params, o.qc_dir, stem);
     if (!o.mesh_dir.empty()) write_meshes(r, o, stem);
     publish_eye_outputs(o.json_out, o.csv_out, j, header, row);
-    spdlog::info("{}: {} eye, ILM {}, BMO area {:.4f} mm2, cup {:.4f} mm3, CONHT {:.4f} mm, "
-                 "MRW {:.4f} mm",
-                 o.file, r.eye, r.ilm_source, r.ellipse.area_mm2, r.cup_volume_mm3, r.conht_mm,
-                 r.mrw_mean_mm);
+    spdlog::info(
+        "{}: {} eye, ILM {}, BMO area {:.4f} mm2, cup {:.4f} mm3, CONHT {:.4f} mm, "
+        "MRW {:.4f} mm",
+        o.file, r.eye, r.ilm_source, r.ellipse.area_mm2, r.cup_volume_mm3, r.conht_mm,
+        r.mrw_mean_mm);
 }
 
 }  // namespace

@@ -17,14 +17,14 @@
 namespace octshape::app {
 namespace {
 
-const cv::Scalar kEllipse(40, 40, 230);      // red (BGR)
-const cv::Scalar kDisc(0, 220, 255);         // yellow
-const cv::Scalar kBmo(255, 255, 255);        // white
-const cv::Scalar kDeviceIlm(60, 200, 60);    // green
-const cv::Scalar kUsedIlm(40, 40, 240);      // red
-const cv::Scalar kBm(230, 150, 40);          // blue
-const cv::Scalar kFilled(230, 230, 0);       // cyan
-const cv::Scalar kMrw(230, 60, 230);         // magenta
+const cv::Scalar kEllipse(40, 40, 230);    // red (BGR)
+const cv::Scalar kDisc(0, 220, 255);       // yellow
+const cv::Scalar kBmo(255, 255, 255);      // white
+const cv::Scalar kDeviceIlm(60, 200, 60);  // green
+const cv::Scalar kUsedIlm(40, 40, 240);    // red
+const cv::Scalar kBm(230, 150, 40);        // blue
+const cv::Scalar kFilled(230, 230, 0);     // cyan
+const cv::Scalar kMrw(230, 60, 230);       // magenta
 
 void save_png(const cv::Mat& img, const std::string& path) {
     std::vector<uchar> buf;
@@ -109,8 +109,8 @@ cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p) {
     cv::findContours(cup_big, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
     cv::drawContours(img, contours, -1, cv::Scalar(0, 0, 0), 2, cv::LINE_AA);
     const Eigen::Vector2d c = r.ellipse.centre_mm;
-    cv::circle(img, px(c.x(), c.y()), static_cast<int>(std::lround(p.disc_radius_mm * ppm)),
-               kDisc, 2, cv::LINE_AA);
+    cv::circle(img, px(c.x(), c.y()), static_cast<int>(std::lround(p.disc_radius_mm * ppm)), kDisc,
+               2, cv::LINE_AA);
     std::vector<cv::Point> poly;
     for (const auto& q : r.ellipse.points_mm) poly.push_back(px(q.x(), q.y()));
     cv::polylines(img, poly, true, kEllipse, 2, cv::LINE_AA);
@@ -170,12 +170,14 @@ cv::Mat bscan_panel(const io::Scan& scan, const retina::OnhResult& r, int b) {
     if (bs.pixels.size() == static_cast<std::size_t>(W) * static_cast<std::size_t>(H)) {
         for (int z = 0; z < H; ++z) {
             for (int x = 0; x < W; ++x) {
-                const float v = bs.pixels[static_cast<std::size_t>(z) * static_cast<std::size_t>(W) +
-                                          static_cast<std::size_t>(x)];
+                const float v =
+                    bs.pixels[static_cast<std::size_t>(z) * static_cast<std::size_t>(W) +
+                              static_cast<std::size_t>(x)];
                 const double d = (v >= io::kNoPixelData || !(v > 0.0F))
                                      ? 0.0
                                      : std::pow(static_cast<double>(v), 0.25);  // display
-                grey.at<uchar>(z, x) = static_cast<uchar>(std::lround(255 * std::clamp(d, 0.0, 1.0)));
+                grey.at<uchar>(z, x) =
+                    static_cast<uchar>(std::lround(255 * std::clamp(d, 0.0, 1.0)));
             }
         }
     }
@@ -228,12 +230,12 @@ cv::Mat bscans_picture(const io::Scan& scan, const retina::OnhResult& r) {
     const double th = r.ellipse.orientation_deg * std::numbers::pi / 180.0;
     const double a = r.ellipse.semi_major_mm;
     const double bb = r.ellipse.semi_minor_mm;
-    const double half_y = std::sqrt(a * a * std::sin(th) * std::sin(th) +
-                                    bb * bb * std::cos(th) * std::cos(th));
+    const double half_y =
+        std::sqrt(a * a * std::sin(th) * std::sin(th) + bb * bb * std::cos(th) * std::cos(th));
     std::vector<int> picks;
     for (const double off : {-0.5 * half_y, 0.0, 0.5 * half_y}) {
-        picks.push_back(std::clamp(static_cast<int>(std::lround((cy + off) / dy)), 0,
-                                   scan.num_bscans() - 1));
+        picks.push_back(
+            std::clamp(static_cast<int>(std::lround((cy + off) / dy)), 0, scan.num_bscans() - 1));
     }
     std::vector<cv::Mat> panels;
     for (const int b : picks) panels.push_back(bscan_panel(scan, r, b));
@@ -260,8 +262,9 @@ cv::Mat mrw_picture(const retina::OnhResult& r) {
     for (const double m : r.mrw_mm) hi = std::max(hi, m);
     hi *= 1.1;
     auto px = [&](double deg, double m) {
-        return cv::Point(plot.x + static_cast<int>(std::lround(deg / 360.0 * plot.width)),
-                         plot.y + plot.height - static_cast<int>(std::lround(m / hi * plot.height)));
+        return cv::Point(
+            plot.x + static_cast<int>(std::lround(deg / 360.0 * plot.width)),
+            plot.y + plot.height - static_cast<int>(std::lround(m / hi * plot.height)));
     };
     for (int k = 0; k < 12; ++k) {
         const double lo = std::max(0.0, 30.0 * k - 15.0);
@@ -283,8 +286,7 @@ cv::Mat mrw_picture(const retina::OnhResult& r) {
                 "BMO-MRW per BMO point (magenta) and clock-hour sector means (red) against the "
                 "anatomical angle (0 nasal, 90 superior); mean " +
                     fmt("%.3f mm", r.mrw_mean_mm),
-                {10, H - 14}, cv::FONT_HERSHEY_SIMPLEX, 0.42, cv::Scalar(0, 0, 0), 1,
-                cv::LINE_AA);
+                {10, H - 14}, cv::FONT_HERSHEY_SIMPLEX, 0.42, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
     return img;
 }
 

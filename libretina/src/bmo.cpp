@@ -4,9 +4,8 @@
 #include <cmath>
 #include <fstream>
 #include <numbers>
-#include <sstream>
-
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 
 #include "octshape/io/error.h"
 
@@ -79,8 +78,8 @@ BmoDetection detect_bmo_points(const GridSurface& bm, const BmoDetectionParams& 
     if (sizes.empty()) {
         throw AnalysisError("no BMO: the BM segmentation has no gap (give the BMO with --bmo)");
     }
-    const auto disc = static_cast<int>(std::max_element(sizes.begin(), sizes.end()) -
-                                       sizes.begin());
+    const auto disc =
+        static_cast<int>(std::max_element(sizes.begin(), sizes.end()) - sizes.begin());
     const double cell = bm.dx_mm * bm.dy_mm;
     det.gap_area_mm2 = sizes[static_cast<std::size_t>(disc)] * cell;
     det.other_gaps = static_cast<int>(sizes.size()) - 1;

@@ -1,13 +1,13 @@
 #include "octshape/retina/onh.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numbers>
 #include <stdexcept>
-
-#include <Eigen/Eigenvalues>
 
 #include "octshape/io/error.h"
 #include "octshape/mesh/closest_point.h"
@@ -186,7 +186,7 @@ OnhRegions measure_onh_regions(const mesh::Vertices& V,
             if (reg & kRegionCup) {
                 m.cup_volume_mm3 -= ah;  // Eq. 8.7-8.8, reported positive
             } else {
-                if (reg & kRegionBmo) m.bmo_volume_mm3 += ah;    // Eq. 8.11-8.12
+                if (reg & kRegionBmo) m.bmo_volume_mm3 += ah;     // Eq. 8.11-8.12
                 if (reg & kRegionDisc) m.total_volume_mm3 += ah;  // Eq. 8.14-8.15
                 // Eq. 8.16-8.17 as SPEC §5.6 reads it: the annulus minus the cup.
                 if ((reg & kRegionDisc) && !(reg & kRegionBmo)) m.annular_volume_mm3 += ah;
@@ -356,8 +356,9 @@ OnhResult analyse_onh(const io::Scan& scan,
     r.rpe_centre_height_mm = r.rpe.bilinear(c.x(), c.y());
     r.conht_mm = r.ilm_centre_height_mm - r.rpe_centre_height_mm;
     if (std::isnan(r.conht_mm)) {
-        r.qc_flags.push_back("CONHT undefined: the vertical line through the BMO centre misses "
-                             "the ILM surface");
+        r.qc_flags.push_back(
+            "CONHT undefined: the vertical line through the BMO centre misses "
+            "the ILM surface");
     }
 
     // ---- Bending energy (Eq. 8.18-8.20: one area-weighted tensor of the BMO region) ------
@@ -417,9 +418,9 @@ OnhResult analyse_onh(const io::Scan& scan,
     // Eq. 8.23: quad i = (p_i, p_i+1, q_i+1, q_i), area = |d1 x d2| / 2 with its diagonals.
     for (std::size_t i = 0; i < np; ++i) {
         const std::size_t j = (i + 1) % np;
-        r.mrw_area_mm2 += 0.5 * (r.mrw_points_mm[j] - E.points_mm[i])
-                                    .cross(r.mrw_points_mm[i] - E.points_mm[j])
-                                    .norm();
+        r.mrw_area_mm2 +=
+            0.5 *
+            (r.mrw_points_mm[j] - E.points_mm[i]).cross(r.mrw_points_mm[i] - E.points_mm[j]).norm();
     }
     r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return r;

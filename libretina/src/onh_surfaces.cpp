@@ -1,12 +1,11 @@
 #include "octshape/retina/onh_surfaces.h"
 
-#include <algorithm>
-#include <cmath>
-#include <array>
-#include <limits>
-
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
 
 #include "octshape/io/error.h"
 
@@ -108,7 +107,8 @@ ThinPlateFillResult thin_plate_fill(GridSurface& s) {
     const double cxy = std::sqrt(2.0) / (s.dx_mm * s.dy_mm);
     auto add_row = [&](const std::array<std::pair<std::size_t, double>, 4>& terms, int n) {
         bool any = false;
-        for (int t = 0; t < n; ++t) any = any || unknown[terms[static_cast<std::size_t>(t)].first] >= 0;
+        for (int t = 0; t < n; ++t)
+            any = any || unknown[terms[static_cast<std::size_t>(t)].first] >= 0;
         if (!any) return;
         const int row = static_cast<int>(rhs.size());
         double b = 0.0;

@@ -56,10 +56,10 @@ TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
     test::TempDir dir;
     const auto vol = make_phantom(dir);
     const json truth = json::parse(slurp(dir / "onh.truth.json"));
-    const auto r = test::run_octshape("onh " + vol.string() + " -o " + (dir / "eye.json").string() +
-                                      " --csv " + (dir / "eye.csv").string() + " --qc " +
-                                      (dir / "qc").string() + " --mesh-out " +
-                                      (dir / "mesh").string());
+    const auto r =
+        test::run_octshape("onh " + vol.string() + " -o " + (dir / "eye.json").string() +
+                           " --csv " + (dir / "eye.csv").string() + " --qc " +
+                           (dir / "qc").string() + " --mesh-out " + (dir / "mesh").string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const json j = json::parse(slurp(dir / "eye.json"));
     EXPECT_EQ(j["command"], "onh");
@@ -138,9 +138,9 @@ TEST(OnhCli, UserBmoFileReplacesTheDetection) {
               << '\n';
         }
     }
-    const auto r = test::run_octshape("onh " + vol.string() + " --bmo " +
-                                      (dir / "bmo.csv").string() + " -o " +
-                                      (dir / "eye.json").string());
+    const auto r =
+        test::run_octshape("onh " + vol.string() + " --bmo " + (dir / "bmo.csv").string() + " -o " +
+                           (dir / "eye.json").string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const json j = json::parse(slurp(dir / "eye.json"));
     EXPECT_EQ(j["options"]["bmo_source"], "file");
@@ -168,9 +168,9 @@ TEST(OnhCli, RefusalsHaveTheirExitCodesAndWriteNothing) {
     const auto bad_ilm = test::run_octshape("onh " + vol.string() + " --ilm graph");
     EXPECT_EQ(bad_ilm.exit_code, 64) << bad_ilm.err;
     std::ofstream(dir / "bad.csv") << "x,y\n1,2\n";
-    const auto bad_bmo = test::run_octshape("onh " + vol.string() + " --bmo " +
-                                            (dir / "bad.csv").string() + " -o " +
-                                            (dir / "b.json").string());
+    const auto bad_bmo =
+        test::run_octshape("onh " + vol.string() + " --bmo " + (dir / "bad.csv").string() + " -o " +
+                           (dir / "b.json").string());
     EXPECT_EQ(bad_bmo.exit_code, 65) << bad_bmo.err;
     EXPECT_FALSE(std::filesystem::exists(dir / "b.json"));
 }

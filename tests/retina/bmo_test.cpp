@@ -1,6 +1,8 @@
 // BMO: automatic detection from the BM gap, the user CSV, the direct ellipse fit and its
 // resampling (SPEC §5.3).
 
+#include "octshape/retina/bmo.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,7 +11,6 @@
 #include <numbers>
 
 #include "octshape/io/error.h"
-#include "octshape/retina/bmo.h"
 #include "test_paths.h"
 
 namespace octshape::retina {
@@ -17,8 +18,8 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-std::vector<BmoPoint> ellipse_points(Eigen::Vector2d c, double a, double b, double deg, int n,
-                                     double phase = 0.3) {
+std::vector<BmoPoint> ellipse_points(
+    Eigen::Vector2d c, double a, double b, double deg, int n, double phase = 0.3) {
     std::vector<BmoPoint> pts;
     const double th = deg * kPi / 180.0;
     for (int i = 0; i < n; ++i) {
@@ -85,8 +86,7 @@ TEST(BmoEllipse, ResampledHeightsComeFromTheNearestMeasuredPointInAngle) {
 }
 
 TEST(BmoEllipse, RefusesTooFewPoints) {
-    EXPECT_THROW((void)fit_bmo_ellipse(ellipse_points({1, 1}, 0.5, 0.4, 0, 5), 360),
-                 AnalysisError);
+    EXPECT_THROW((void)fit_bmo_ellipse(ellipse_points({1, 1}, 0.5, 0.4, 0, 5), 360), AnalysisError);
 }
 
 // A BM height field (plane z = -1 + 0.05 x) on an anisotropic grid with an elliptical gap and a
@@ -219,8 +219,7 @@ TEST(BmoCsv, BadFilesGiveInputErrors) {
     const std::string six = "1,1,-1\n1.1,1,-1\n1.2,1,-1\n1.3,1,-1\n1.4,1,-1\n1.5,1,-1\n";
     EXPECT_THROW((void)read_bmo_csv((dir / "none.csv").string(), meta(), 145), InputError);
     EXPECT_THROW((void)read_bmo_csv(write("h.csv", "x,y,z\n" + six), meta(), 145), InputError);
-    EXPECT_THROW((void)read_bmo_csv(write("n.csv", "x_mm,y_mm,z_mm\n1,abc,2\n" + six), meta(),
-                                    145),
+    EXPECT_THROW((void)read_bmo_csv(write("n.csv", "x_mm,y_mm,z_mm\n1,abc,2\n" + six), meta(), 145),
                  InputError);
     EXPECT_THROW((void)read_bmo_csv(write("c.csv", "x_mm,y_mm,z_mm\n1,1\n" + six), meta(), 145),
                  InputError);

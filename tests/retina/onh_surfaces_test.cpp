@@ -1,16 +1,16 @@
 // Graph surfaces of the ONH analysis: the thin-plate (biharmonic) fill reproduces a quadratic
 // BM exactly where a harmonic fill cannot (SPEC §5.1), bilinear interpolation, graph meshes.
 
-#include <gtest/gtest.h>
+#include "octshape/retina/onh_surfaces.h"
 
-#include <cmath>
-#include <limits>
+#include <gtest/gtest.h>
 
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
+#include <cmath>
+#include <limits>
 
 #include "octshape/io/error.h"
-#include "octshape/retina/onh_surfaces.h"
 
 namespace octshape::retina {
 namespace {
@@ -80,7 +80,9 @@ std::vector<double> harmonic_fill(const GridSurface& s) {
             if (id[i] < 0) continue;
             t.emplace_back(id[i], id[i], 2 * cx + 2 * cy);
             const std::array<std::pair<std::size_t, double>, 4> nb{
-                {{i - 1, cx}, {i + 1, cx}, {i - static_cast<std::size_t>(s.cols), cy},
+                {{i - 1, cx},
+                 {i + 1, cx},
+                 {i - static_cast<std::size_t>(s.cols), cy},
                  {i + static_cast<std::size_t>(s.cols), cy}}};
             for (const auto& [j, c] : nb) {
                 if (id[j] >= 0) {

@@ -20,6 +20,8 @@
 // A 1 % bound on every volume is > 4 sigma + the PL term; the target for the level set
 // is 2 %.
 
+#include "octshape/retina/onh.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -27,7 +29,6 @@
 #include <numbers>
 
 #include "octshape/io/error.h"
-#include "octshape/retina/onh.h"
 #include "octshape/retina/phantom_onh.h"
 
 namespace octshape::retina {
@@ -46,8 +47,8 @@ IlmSurface refine(const IlmSurface& in) {
         const auto key = std::minmax(a, b);
         const auto it = mid.find(key);
         if (it != mid.end()) return it->second;
-        verts.push_back(0.5 * (verts[static_cast<std::size_t>(a)] +
-                               verts[static_cast<std::size_t>(b)]));
+        verts.push_back(0.5 *
+                        (verts[static_cast<std::size_t>(a)] + verts[static_cast<std::size_t>(b)]));
         const int id = static_cast<int>(verts.size()) - 1;
         mid.emplace(key, id);
         return id;
@@ -66,7 +67,8 @@ IlmSurface refine(const IlmSurface& in) {
         tris.push_back({ab, bc, ca});
     }
     out.V.resize(static_cast<Eigen::Index>(verts.size()), 3);
-    for (std::size_t i = 0; i < verts.size(); ++i) out.V.row(static_cast<Eigen::Index>(i)) = verts[i];
+    for (std::size_t i = 0; i < verts.size(); ++i)
+        out.V.row(static_cast<Eigen::Index>(i)) = verts[i];
     out.F.resize(static_cast<Eigen::Index>(tris.size()), 3);
     for (std::size_t f = 0; f < tris.size(); ++f) {
         out.F.row(static_cast<Eigen::Index>(f)) << tris[f][0], tris[f][1], tris[f][2];

@@ -4,11 +4,10 @@
 // Fitzgibbon direct least-squares ellipse through them (cv::fitEllipseDirect) and its uniform
 // resampling.
 
+#include <Eigen/Core>
 #include <array>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "octshape/io/scan.h"
 #include "octshape/retina/onh_surfaces.h"

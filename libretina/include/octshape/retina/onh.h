@@ -7,13 +7,12 @@
 // projected area of face i (Eq. 8.8-8.9). Where the ILM comes from is the caller's choice
 // (IlmSource); the RPE/BM surface, the BMO and every parameter come from here.
 
+#include <Eigen/Core>
 #include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "octshape/io/scan.h"
 #include "octshape/mesh/mesh.h"
@@ -32,10 +31,10 @@ enum class IlmSource { kDevice };
 
 // An ILM surface ready for the analysis.
 struct IlmSurface {
-    mesh::Vertices V;  // grid mm
-    mesh::Faces F;     // any orientation; the analysis orients it (normals towards the vitreous)
-    std::string source;        // "device", ...
-    int filled_vertices = 0;   // vertices whose height was filled (device: missing ILM values)
+    mesh::Vertices V;    // grid mm
+    mesh::Faces F;       // any orientation; the analysis orients it (normals towards the vitreous)
+    std::string source;  // "device", ...
+    int filled_vertices = 0;  // vertices whose height was filled (device: missing ILM values)
     std::vector<std::uint8_t> vertex_filled;  // #V flags (1 = filled), or empty
     std::vector<std::string> notes;
 };
@@ -51,11 +50,11 @@ struct IlmSurface {
 [[nodiscard]] bool ilm_needs_pixels(IlmSource source);
 
 struct OnhParams {
-    int bmo_points = 360;           // resampled ellipse points (uniform in the parameter angle)
-    double disc_radius_mm = 1.5;    // radius of the total-volume disc around the BMO centre
-    bool local_features = false;    // per-face local ENVT feature strength (a mesh scalar for
-                                    // pictures; ~0.5 s on a full-size graph, so only on request)
-    BmoDetectionParams detection;   // automatic BMO detection
+    int bmo_points = 360;          // resampled ellipse points (uniform in the parameter angle)
+    double disc_radius_mm = 1.5;   // radius of the total-volume disc around the BMO centre
+    bool local_features = false;   // per-face local ENVT feature strength (a mesh scalar for
+                                   // pictures; ~0.5 s on a full-size graph, so only on request)
+    BmoDetectionParams detection;  // automatic BMO detection
 
     void validate() const;  // throws UsageError naming the field
 };
@@ -73,9 +72,9 @@ struct MeshQuality {
     int faces = 0;
     int boundary_edges = 0;
     int nonmanifold_edges = 0;
-    int degenerate_faces = 0;           // zero area
+    int degenerate_faces = 0;                  // zero area
     double negative_projected_area_mm2 = 0.0;  // faces facing down (undersides of overhangs)
-    double quality = 0.0;               // mean circumradius / shortest edge (1/sqrt 3 ideal)
+    double quality = 0.0;                      // mean circumradius / shortest edge (1/sqrt 3 ideal)
 };
 
 struct OnhResult {
@@ -87,14 +86,14 @@ struct OnhResult {
     Eigen::Matrix2d grid_to_anatomical = Eigen::Matrix2d::Identity();  // ScanGeometry's map
 
     // Surfaces (grid mm). The ILM is oriented with its normals towards the vitreous.
-    GridSurface rpe;                    // BM heights, filled inside the BMO (flags in .filled)
+    GridSurface rpe;  // BM heights, filled inside the BMO (flags in .filled)
     mesh::Vertices rpe_V;
     mesh::Faces rpe_F;
     mesh::Vertices ilm_V;
     mesh::Faces ilm_F;
-    bool ilm_flipped = false;           // the input's faces were reversed to orient it
+    bool ilm_flipped = false;  // the input's faces were reversed to orient it
     // Per ILM face.
-    Eigen::VectorXd face_height_mm;     // h = c_z - RPE(c_xy) (NaN outside the RPE grid)
+    Eigen::VectorXd face_height_mm;           // h = c_z - RPE(c_xy) (NaN outside the RPE grid)
     Eigen::VectorXd face_projected_area_mm2;  // signed (Eq. 8.9)
     std::vector<std::uint8_t> face_region;    // OnhRegion bits
     Eigen::VectorXd face_envt_strength;       // local lambda2 + lambda3 (empty if not asked)
@@ -109,16 +108,16 @@ struct OnhResult {
 
     // Parameters (SPEC §5.6).
     bool has_cup = false;
-    double cup_volume_mm3 = 0.0;       // Eq. 8.8, positive
-    double conht_mm = 0.0;             // Eq. 8.10 (top ILM crossing above the BMO centre)
+    double cup_volume_mm3 = 0.0;  // Eq. 8.8, positive
+    double conht_mm = 0.0;        // Eq. 8.10 (top ILM crossing above the BMO centre)
     double ilm_centre_height_mm = 0.0;
     double rpe_centre_height_mm = 0.0;
-    double bmo_volume_mm3 = 0.0;       // Eq. 8.11-8.12
-    double total_volume_mm3 = 0.0;     // Eq. 8.14-8.15
-    double annular_volume_mm3 = 0.0;   // Eq. 8.16-8.17 (annulus minus cup)
-    double bending_energy = 0.0;       // Eq. 8.18-8.20, one tensor for the BMO region
+    double bmo_volume_mm3 = 0.0;                     // Eq. 8.11-8.12
+    double total_volume_mm3 = 0.0;                   // Eq. 8.14-8.15
+    double annular_volume_mm3 = 0.0;                 // Eq. 8.16-8.17 (annulus minus cup)
+    double bending_energy = 0.0;                     // Eq. 8.18-8.20, one tensor for the BMO region
     std::array<double, 3> bmo_tensor_eigenvalues{};  // descending
-    double bmo_region_area_mm2 = 0.0;  // 3-D area of the ILM faces inside the BMO
+    double bmo_region_area_mm2 = 0.0;                // 3-D area of the ILM faces inside the BMO
     // MRW (Eq. 8.21-8.23), per resampled BMO point and summarised.
     std::vector<Eigen::Vector3d> mrw_points_mm;
     std::vector<double> mrw_mm;
@@ -128,13 +127,13 @@ struct OnhResult {
     double mrw_max_mm = 0.0;
     std::array<double, 12> mrw_sector_mm{};  // anatomical 0, 30, ..., 330 (NaN: no point)
     std::array<int, 12> mrw_sector_points{};
-    double mrw_area_mm2 = 0.0;               // Eq. 8.23
+    double mrw_area_mm2 = 0.0;  // Eq. 8.23
 
     // QC.
     int rpe_filled_vertices = 0;
-    double rpe_fill_area_mm2 = 0.0;          // filled nodes * dx dy
-    double rpe_fill_outside_bmo_mm2 = 0.0;   // of it, outside the BMO ellipse
-    double rpe_fill_residual = 0.0;          // relative residual of the fill's solve
+    double rpe_fill_area_mm2 = 0.0;         // filled nodes * dx dy
+    double rpe_fill_outside_bmo_mm2 = 0.0;  // of it, outside the BMO ellipse
+    double rpe_fill_residual = 0.0;         // relative residual of the fill's solve
     int ilm_filled_vertices = 0;
     int ilm_filled_in_disc = 0;
     int faces_outside_rpe = 0;
@@ -166,11 +165,11 @@ struct OnhRegions {
 // Runs the analysis of `scan` with the ILM surface `ilm`. `bmo_file_points`: measured BMO
 // points from a file instead of the automatic detection. Throws AnalysisError when the scan is
 // not a volume, has no BM line, or no BMO can be found.
-[[nodiscard]] OnhResult analyse_onh(const io::Scan& scan,
-                                    const IlmSurface& ilm,
-                                    const OnhParams& params = {},
-                                    const std::optional<std::vector<BmoPoint>>& bmo_file_points =
-                                        std::nullopt);
+[[nodiscard]] OnhResult analyse_onh(
+    const io::Scan& scan,
+    const IlmSurface& ilm,
+    const OnhParams& params = {},
+    const std::optional<std::vector<BmoPoint>>& bmo_file_points = std::nullopt);
 
 // Throws AnalysisError with a one-line reason unless `scan` is a volume scan with a B-scan
 // distance (the ONH analysis needs the 3-D grid).

@@ -2,10 +2,9 @@
 // The per-eye ONH outputs: the JSON object and the CSV row (docs/outputs.md, "onh", documents
 // every key and column). Missing values are JSON null and CSV "NA"; units are in every name.
 
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "octshape/retina/onh.h"
 

@@ -4,10 +4,9 @@
 // thin-plate (biharmonic) fill, and the field as a triangle mesh in the grid mm frame
 // (x = A-scan index * ScaleX, y = B-scan index * Distance, z = -depth * ScaleZ).
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "octshape/io/scan.h"
 #include "octshape/mesh/mesh.h"
@@ -16,12 +15,12 @@ namespace octshape::retina {
 
 // A height field on the scan grid: node (a, b) is A-scan a of B-scan b, at (a dx, b dy).
 struct GridSurface {
-    int cols = 0;          // A-scans per B-scan
-    int rows = 0;          // B-scans
-    double dx_mm = 0.0;    // ScaleX
-    double dy_mm = 0.0;    // Distance
-    std::vector<double> z;              // rows*cols heights (mm), row-major (b * cols + a)
-    std::vector<std::uint8_t> filled;   // 1 = the value was missing and has been filled
+    int cols = 0;                      // A-scans per B-scan
+    int rows = 0;                      // B-scans
+    double dx_mm = 0.0;                // ScaleX
+    double dy_mm = 0.0;                // Distance
+    std::vector<double> z;             // rows*cols heights (mm), row-major (b * cols + a)
+    std::vector<std::uint8_t> filled;  // 1 = the value was missing and has been filled
 
     [[nodiscard]] double at(int a, int b) const {
         return z[static_cast<std::size_t>(b) * static_cast<std::size_t>(cols) +
@@ -38,8 +37,8 @@ struct GridSurface {
 [[nodiscard]] GridSurface line_height_field(const io::Scan& scan, io::Layer layer);
 
 struct ThinPlateFillResult {
-    int filled = 0;          // values filled (NaN before)
-    double residual = 0.0;   // max |normal-equation residual| / max |rhs| of the solve
+    int filled = 0;         // values filled (NaN before)
+    double residual = 0.0;  // max |normal-equation residual| / max |rhs| of the solve
 };
 
 // Fills every NaN of `s` (and flags it in s.filled) by minimising the discrete thin-plate

@@ -2,10 +2,9 @@
 // Small helpers shared by the per-eye reports (cube_report.h, onh_report.h): how a number is
 // written in JSON and CSV, and CSV quoting. Missing values are JSON null and CSV "NA".
 
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 namespace octshape::retina {
 
