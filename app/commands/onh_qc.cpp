@@ -283,8 +283,8 @@ cv::Mat mrw_picture(const retina::OnhResult& r) {
     cv::putText(img, fmt("%.2f mm", hi), {4, plot.y + 10}, cv::FONT_HERSHEY_SIMPLEX, 0.4,
                 cv::Scalar(80, 80, 80), 1, cv::LINE_AA);
     cv::putText(img,
-                "BMO-MRW per BMO point (magenta) and clock-hour sector means (red) against the "
-                "anatomical angle (0 nasal, 90 superior); mean " +
+                "MRW per BMO point (magenta), sector means (red) vs anatomical angle "
+                "(0 nasal, 90 sup.); mean " +
                     fmt("%.3f mm", r.mrw_mean_mm),
                 {10, H - 14}, cv::FONT_HERSHEY_SIMPLEX, 0.42, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
     return img;
