@@ -68,6 +68,7 @@ int main(int argc, char** argv) {
     octshape::app::add_merge_command(app, ctx);
     octshape::app::add_stats_command(app, ctx);
     octshape::app::add_gallery_command(app, ctx);
+    octshape::app::add_onh_command(app, ctx);
     auto* phantom = app.add_subcommand(
         "phantom", "Write a synthetic Spectralis export whose true shape parameters are known");
     phantom->require_subcommand(1);

@@ -14,6 +14,7 @@ struct RunContext {
 
 void add_info_command(CLI::App& app, RunContext& ctx);
 void add_macula_command(CLI::App& app, RunContext& ctx);
+void add_onh_command(CLI::App& app, RunContext& ctx);
 void add_denoise_command(CLI::App& app, RunContext& ctx);
 void add_metrics_command(CLI::App& app, RunContext& ctx);
 void add_features_command(CLI::App& app, RunContext& ctx);

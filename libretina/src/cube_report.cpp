@@ -8,7 +8,7 @@ namespace {
 
 using J = nlohmann::ordered_json;
 
-J num(double v) { return std::isfinite(v) ? J(v) : J(nullptr); }
+J num(double v) { return json_number(v); }
 
 template <std::size_t N>
 J arr(const std::array<double, N>& a) {
@@ -23,13 +23,7 @@ J points(const std::array<Eigen::Vector2d, 4>& c) {
     return j;
 }
 
-std::string csv_num(double v) {
-    if (!std::isfinite(v)) return "NA";
-    std::ostringstream s;
-    s.precision(10);
-    s << v;
-    return s.str();
-}
+std::string csv_num(double v) { return csv_number(v); }
 
 struct Column {
     const char* name;
@@ -187,16 +181,6 @@ std::vector<std::string> cube_csv_values(const CubeResult& r) {
     for (const auto& f : r.qc_flags) flags += (flags.empty() ? "" : ";") + f;
     v.push_back(flags);
     return v;
-}
-
-std::string csv_field(const std::string& s) {
-    if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
-    std::string out = "\"";
-    for (const char ch : s) {
-        if (ch == '"') out += '"';
-        out += ch;
-    }
-    return out + "\"";
 }
 
 }  // namespace octshape::retina

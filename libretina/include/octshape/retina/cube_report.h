@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "octshape/retina/cube.h"
+#include "octshape/retina/report_util.h"  // csv_field
 
 namespace octshape::retina {
 
@@ -18,8 +19,5 @@ namespace octshape::retina {
 // columns the caller adds.
 [[nodiscard]] std::vector<std::string> cube_csv_header();
 [[nodiscard]] std::vector<std::string> cube_csv_values(const CubeResult& r);
-
-// Quotes a CSV field when it holds a comma, quote or newline (RFC 4180).
-[[nodiscard]] std::string csv_field(const std::string& s);
 
 }  // namespace octshape::retina

@@ -1,0 +1,97 @@
+// Per-eye time of `octshape onh`'s work on full-size ONH phantom volumes (145 B-scans x 384
+// A-scans x 496 px, ~111 MB with pixels, docs/phantoms.md): reading the .vol without and with
+// pixels, SHA-256 of the file, building the device ILM graph mesh, and the parameter stage
+// (RPE thin-plate fill, BMO detection and ellipse, regions and volumes, CONHT, bending energy,
+// MRW) -- and the same with the local ENVT feature map that --mesh-out adds.
+// Usage: onh_bench [RUNS]   (default 3; the median per case is printed)
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "octshape/io/scan_reader.h"
+#include "octshape/io/sha256.h"
+#include "octshape/io/vol.h"
+#include "octshape/retina/onh.h"
+#include "octshape/retina/phantom_onh.h"
+
+namespace {
+
+using namespace octshape;
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+}
+
+double peak_rss_mb() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return static_cast<double>(u.ru_maxrss) / 1024.0;  // Linux: kB
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    const int runs = argc > 1 ? std::max(1, std::atoi(argv[1])) : 3;
+    const auto dir = std::filesystem::temp_directory_path();
+    std::printf("%-9s %8s %8s %9s %9s %8s %8s %11s %13s %9s %10s\n", "shape", "file_MB", "read_ms",
+                "pixels_ms", "sha256_ms", "ilm_ms", "faces", "params_ms", "+envt_map_ms",
+                "total_ms", "peakRSS_MB");
+    for (const auto shape : {retina::OnhShape::kCupped, retina::OnhShape::kOverhang}) {
+        const auto path =
+            (dir / ("octshape_onh_bench_" + retina::to_string(shape) + ".vol")).string();
+        io::write_vol_file(retina::render_onh_scan(retina::onh_phantom_preset(shape)), path);
+        const double mb = static_cast<double>(std::filesystem::file_size(path)) / 1e6;
+        std::vector<double> tr, tp, th, ti, ta, tn;
+        long faces = 0;
+        for (int i = 0; i < runs; ++i) {
+            auto t0 = Clock::now();
+            const io::Scan scan = io::read_scan(path);
+            tr.push_back(ms_since(t0));
+            t0 = Clock::now();
+            {
+                io::ReadOptions with_pixels;
+                with_pixels.pixels = true;
+                const io::Scan full = io::read_scan(path, with_pixels);
+                tp.push_back(ms_since(t0));
+            }
+            t0 = Clock::now();
+            const std::string sha = io::sha256_file(path);
+            th.push_back(ms_since(t0));
+            t0 = Clock::now();
+            const retina::IlmSurface ilm = retina::device_ilm_surface(scan);
+            ti.push_back(ms_since(t0));
+            faces = static_cast<long>(ilm.F.rows());
+            t0 = Clock::now();
+            const retina::OnhResult r = retina::analyse_onh(scan, ilm);
+            ta.push_back(ms_since(t0));
+            retina::OnhParams with_envt;  // what --mesh-out adds
+            with_envt.local_features = true;
+            t0 = Clock::now();
+            const retina::OnhResult r2 = retina::analyse_onh(scan, ilm, with_envt);
+            tn.push_back(ms_since(t0));
+            if (r.cup_volume_mm3 != r2.cup_volume_mm3 || sha.empty()) return 1;
+        }
+        const double total = median(tr) + median(th) + median(ti) + median(ta);
+        std::printf("%-9s %8.1f %8.1f %9.1f %9.1f %8.1f %8ld %11.1f %13.1f %9.1f %10.1f\n",
+                    retina::to_string(shape).c_str(), mb, median(tr), median(tp), median(th),
+                    median(ti), faces, median(ta), median(tn), total, peak_rss_mb());
+        std::filesystem::remove(path);
+    }
+    std::printf(
+        "total = read (no pixels) + sha256 + ILM + parameters, device ILM, one thread; "
+        "peak RSS of the whole run (a scan with pixels is held in memory once)\n");
+    return 0;
+}

@@ -1,0 +1,178 @@
+#pragma once
+// Optic nerve head shape analysis (thesis §8.1, SPEC §5, docs/algorithms/onh.md).
+//
+// The analysis measures an ILM given as a triangle mesh in the grid mm frame (x = A-scan index
+// * ScaleX, y = B-scan index * Distance, z = -depth * ScaleZ), never as a height field, so an
+// ILM that folds over itself is measured right: every volume is a sum of h_i times the *signed*
+// projected area of face i (Eq. 8.8-8.9). Where the ILM comes from is the caller's choice
+// (IlmSource); the RPE/BM surface, the BMO and every parameter come from here.
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "octshape/io/scan.h"
+#include "octshape/mesh/mesh.h"
+#include "octshape/retina/bmo.h"
+#include "octshape/retina/onh_surfaces.h"
+
+namespace octshape::retina {
+
+// Where the ILM surface comes from. `kDevice`: the device ILM line as a graph mesh (its missing
+// values thin-plate filled). A level-set ILM plugs in as another source of an IlmSurface.
+enum class IlmSource { kDevice };
+
+[[nodiscard]] std::string to_string(IlmSource source);
+// Parses "device"; throws UsageError naming the valid sources otherwise.
+[[nodiscard]] IlmSource ilm_source_from_string(const std::string& name);
+
+// An ILM surface ready for the analysis.
+struct IlmSurface {
+    mesh::Vertices V;    // grid mm
+    mesh::Faces F;       // any orientation; the analysis orients it (normals towards the vitreous)
+    std::string source;  // "device", ...
+    int filled_vertices = 0;  // vertices whose height was filled (device: missing ILM values)
+    std::vector<std::uint8_t> vertex_filled;  // #V flags (1 = filled), or empty
+    std::vector<std::string> notes;
+};
+
+// The device ILM line as a graph mesh on the scan grid, missing values thin-plate filled
+// (docs/algorithms/onh.md "Device ILM"). Throws AnalysisError if the line is absent or too
+// sparse to fill.
+[[nodiscard]] IlmSurface device_ilm_surface(const io::Scan& scan);
+
+// Builds the ILM of `source` (the one place a new source is added).
+[[nodiscard]] IlmSurface build_ilm_surface(const io::Scan& scan, IlmSource source);
+// True when `source` needs the B-scan pixels (read_scan with ReadOptions::pixels).
+[[nodiscard]] bool ilm_needs_pixels(IlmSource source);
+
+struct OnhParams {
+    int bmo_points = 360;          // resampled ellipse points (uniform in the parameter angle)
+    double disc_radius_mm = 1.5;   // radius of the total-volume disc around the BMO centre
+    bool local_features = false;   // per-face local ENVT feature strength (a mesh scalar for
+                                   // pictures; ~0.5 s on a full-size graph, so only on request)
+    BmoDetectionParams detection;  // automatic BMO detection
+
+    void validate() const;  // throws UsageError naming the field
+};
+
+// Region bits of an ILM face (projected centroid).
+enum OnhRegion : std::uint8_t {
+    kRegionBmo = 1,      // inside the BMO ellipse
+    kRegionDisc = 2,     // within disc_radius_mm of the BMO centre
+    kRegionCup = 4,      // h < 0 (below the RPE)
+    kRegionOutside = 8,  // centroid outside the RPE grid: no height, in no volume
+};
+
+struct MeshQuality {
+    int vertices = 0;
+    int faces = 0;
+    int boundary_edges = 0;
+    int nonmanifold_edges = 0;
+    int degenerate_faces = 0;                  // zero area
+    double negative_projected_area_mm2 = 0.0;  // faces facing down (undersides of overhangs)
+    double quality = 0.0;                      // mean circumradius / shortest edge (1/sqrt 3 ideal)
+};
+
+struct OnhResult {
+    // Inputs as measured.
+    std::string ilm_source;
+    std::string bmo_source;  // "automatic" or "file"
+    std::string eye;         // OD / OS / unknown
+    bool oriented_from_positions = false;
+    Eigen::Matrix2d grid_to_anatomical = Eigen::Matrix2d::Identity();  // ScanGeometry's map
+
+    // Surfaces (grid mm). The ILM is oriented with its normals towards the vitreous.
+    GridSurface rpe;  // BM heights, filled inside the BMO (flags in .filled)
+    mesh::Vertices rpe_V;
+    mesh::Faces rpe_F;
+    mesh::Vertices ilm_V;
+    mesh::Faces ilm_F;
+    bool ilm_flipped = false;  // the input's faces were reversed to orient it
+    // Per ILM face.
+    Eigen::VectorXd face_height_mm;           // h = c_z - RPE(c_xy) (NaN outside the RPE grid)
+    Eigen::VectorXd face_projected_area_mm2;  // signed (Eq. 8.9)
+    std::vector<std::uint8_t> face_region;    // OnhRegion bits
+    Eigen::VectorXd face_envt_strength;       // local lambda2 + lambda3 (empty if not asked)
+
+    // BMO.
+    std::vector<BmoPoint> bmo_measured;
+    std::vector<int> bmo_points_per_bscan;  // automatic detection only
+    double bmo_gap_area_mm2 = 0.0;          // automatic detection only
+    int bmo_other_gaps = 0;
+    BmoEllipse ellipse;
+    double bmo_orientation_anatomical_deg = 0.0;  // major axis from nasal towards superior
+
+    // Parameters (SPEC §5.6).
+    bool has_cup = false;
+    double cup_volume_mm3 = 0.0;  // Eq. 8.8, positive
+    double conht_mm = 0.0;        // Eq. 8.10 (top ILM crossing above the BMO centre)
+    double ilm_centre_height_mm = 0.0;
+    double rpe_centre_height_mm = 0.0;
+    double bmo_volume_mm3 = 0.0;                     // Eq. 8.11-8.12
+    double total_volume_mm3 = 0.0;                   // Eq. 8.14-8.15
+    double annular_volume_mm3 = 0.0;                 // Eq. 8.16-8.17 (annulus minus cup)
+    double bending_energy = 0.0;                     // Eq. 8.18-8.20, one tensor for the BMO region
+    std::array<double, 3> bmo_tensor_eigenvalues{};  // descending
+    double bmo_region_area_mm2 = 0.0;                // 3-D area of the ILM faces inside the BMO
+    // MRW (Eq. 8.21-8.23), per resampled BMO point and summarised.
+    std::vector<Eigen::Vector3d> mrw_points_mm;
+    std::vector<double> mrw_mm;
+    std::vector<double> bmo_anatomical_deg;
+    double mrw_mean_mm = 0.0;
+    double mrw_min_mm = 0.0;
+    double mrw_max_mm = 0.0;
+    std::array<double, 12> mrw_sector_mm{};  // anatomical 0, 30, ..., 330 (NaN: no point)
+    std::array<int, 12> mrw_sector_points{};
+    double mrw_area_mm2 = 0.0;  // Eq. 8.23
+
+    // QC.
+    int rpe_filled_vertices = 0;
+    double rpe_fill_area_mm2 = 0.0;         // filled nodes * dx dy
+    double rpe_fill_outside_bmo_mm2 = 0.0;  // of it, outside the BMO ellipse
+    double rpe_fill_residual = 0.0;         // relative residual of the fill's solve
+    int ilm_filled_vertices = 0;
+    int ilm_filled_in_disc = 0;
+    int faces_outside_rpe = 0;
+    MeshQuality ilm_quality;
+    std::vector<std::string> qc_flags;
+    std::vector<std::string> notes;
+    double seconds = 0.0;  // analysis time (without building the ILM)
+};
+
+// Correspondence, regions and volumes of an ILM mesh over an RPE grid (Eq. 8.3-8.17): for
+// every face the RPE height under its centroid (bilinear), h = c_z - RPE, the region bits, and
+// the volumes as sums of h_i times the signed projected area A_i. A face whose centroid lies
+// outside the RPE grid gets h = NaN, kRegionOutside, and counts in no volume.
+struct OnhRegions {
+    Eigen::VectorXd face_height_mm;
+    std::vector<std::uint8_t> face_region;
+    int faces_outside_rpe = 0;
+    double cup_volume_mm3 = 0.0;      // -sum over h < 0 (every face below the RPE)
+    double bmo_volume_mm3 = 0.0;      // inside the ellipse, h >= 0
+    double total_volume_mm3 = 0.0;    // within disc_radius_mm of the ellipse centre, h >= 0
+    double annular_volume_mm3 = 0.0;  // the same outside the ellipse
+};
+[[nodiscard]] OnhRegions measure_onh_regions(const mesh::Vertices& V,
+                                             const mesh::Faces& F,
+                                             const GridSurface& rpe,
+                                             const BmoEllipse& ellipse,
+                                             double disc_radius_mm);
+
+// Runs the analysis of `scan` with the ILM surface `ilm`. `bmo_file_points`: measured BMO
+// points from a file instead of the automatic detection. Throws AnalysisError when the scan is
+// not a volume, has no BM line, or no BMO can be found.
+[[nodiscard]] OnhResult analyse_onh(
+    const io::Scan& scan,
+    const IlmSurface& ilm,
+    const OnhParams& params = {},
+    const std::optional<std::vector<BmoPoint>>& bmo_file_points = std::nullopt);
+
+// Throws AnalysisError with a one-line reason unless `scan` is a volume scan with a B-scan
+// distance (the ONH analysis needs the 3-D grid).
+void require_onh_volume(const io::Scan& scan);
+
+}  // namespace octshape::retina

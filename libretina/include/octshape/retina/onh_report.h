@@ -1,0 +1,22 @@
+#pragma once
+// The per-eye ONH outputs: the JSON object and the CSV row (docs/outputs.md, "onh", documents
+// every key and column). Missing values are JSON null and CSV "NA"; units are in every name.
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "octshape/retina/onh.h"
+
+namespace octshape::retina {
+
+// "analysis", "orientation", "options", "parameters", "bmo", "bmo_points", "qc", "qc_flags" and
+// "notes" of one eye.
+[[nodiscard]] nlohmann::ordered_json onh_json(const OnhResult& r, const OnhParams& p);
+
+// Stable CSV columns (one header line, one row per eye), without the leading file/sha256/eye
+// columns the caller adds.
+[[nodiscard]] std::vector<std::string> onh_csv_header();
+[[nodiscard]] std::vector<std::string> onh_csv_values(const OnhResult& r);
+
+}  // namespace octshape::retina

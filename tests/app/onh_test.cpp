@@ -1,0 +1,179 @@
+// `octshape onh` end to end on a reduced ONH phantom: JSON and CSV outputs, QC pictures, mesh
+// output, a user BMO file, and the refusals (exit codes documented in README.md).
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "octshape/io/mesh_io.h"
+#include "octshape/io/sha256.h"
+#include "octshape/io/vol.h"
+#include "octshape/retina/phantom_onh.h"
+#include "test_paths.h"
+
+namespace octshape {
+namespace {
+
+using nlohmann::json;
+
+std::string slurp(const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+std::vector<std::string> split_csv(const std::string& line) {
+    std::vector<std::string> out;
+    std::string cur;
+    bool quoted = false;
+    for (const char c : line) {
+        if (c == '"') {
+            quoted = !quoted;
+        } else if (c == ',' && !quoted) {
+            out.push_back(cur);
+            cur.clear();
+        } else {
+            cur += c;
+        }
+    }
+    out.push_back(cur);
+    return out;
+}
+
+// A reduced cupped phantom (49 B-scans x 192 A-scans) written with its truth file.
+std::filesystem::path make_phantom(const test::TempDir& dir) {
+    const auto vol = dir / "onh.vol";
+    const auto r = test::run_octshape("phantom onh --shape cupped --bscans 49 --ascans 192 -o " +
+                                      vol.string());
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return vol;
+}
+
+TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
+    test::TempDir dir;
+    const auto vol = make_phantom(dir);
+    const json truth = json::parse(slurp(dir / "onh.truth.json"));
+    const auto r =
+        test::run_octshape("onh " + vol.string() + " -o " + (dir / "eye.json").string() +
+                           " --csv " + (dir / "eye.csv").string() + " --qc " +
+                           (dir / "qc").string() + " --mesh-out " + (dir / "mesh").string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const json j = json::parse(slurp(dir / "eye.json"));
+    EXPECT_EQ(j["command"], "onh");
+    EXPECT_EQ(j["input"]["sha256"], io::sha256_file(vol.string()));
+    EXPECT_EQ(slurp(dir / "eye.json").find("FAKE-PHANTOM"), std::string::npos);  // no identifiers
+    EXPECT_EQ(j["options"]["ilm_source"], "device");
+    EXPECT_EQ(j["options"]["bmo_source"], "automatic");
+    EXPECT_NE(j["orientation"].get<std::string>().find("0 deg nasal"), std::string::npos);
+    const json& v = j["parameters"];
+    const json& t = truth["truth"];
+    // The reduced grid (dx 22.7 um, dy 90.6 um) keeps the BMO area well within 1 % (the fit
+    // averages the +-dx/2 quantisation of ~40 end points).
+    EXPECT_NEAR(v["bmo_area_mm2"].get<double>(), t["bmo_area_mm2"].get<double>(),
+                0.01 * t["bmo_area_mm2"].get<double>());
+    EXPECT_TRUE(v["has_cup"].get<bool>());
+    EXPECT_EQ(j["bmo_points"].size(), 360U);
+    EXPECT_EQ(v["mrw_sector_mm"].size(), 12U);
+    EXPECT_EQ(j["bmo"]["points_per_bscan"].size(), 49U);
+    EXPECT_GT(j["bmo"]["measured"].size(), 20U);
+    EXPECT_GT(j["qc"]["rpe_fill_area_mm2"].get<double>(), 2.0);  // the BMO, ~2.2 mm2
+
+    // CSV: one header line, one row, same width; values match the JSON.
+    std::istringstream csv(slurp(dir / "eye.csv"));
+    std::string header;
+    std::string row;
+    std::string extra;
+    ASSERT_TRUE(std::getline(csv, header));
+    ASSERT_TRUE(std::getline(csv, row));
+    EXPECT_FALSE(std::getline(csv, extra));
+    const auto hv = split_csv(header);
+    const auto rv = split_csv(row);
+    ASSERT_EQ(hv.size(), rv.size());
+    EXPECT_EQ(hv.front(), "file");
+    int checked = 0;
+    for (std::size_t i = 0; i < hv.size(); ++i) {
+        for (const char* key : {"cup_volume_mm3", "conht_mm", "mrw_mean_mm", "bmo_area_mm2"}) {
+            if (hv[i] == key) {
+                EXPECT_NEAR(std::stod(rv[i]), v[key].get<double>(), 1e-8) << key;
+                ++checked;
+            }
+        }
+        if (hv[i] == "mrw_sector_090_mm") {
+            EXPECT_NEAR(std::stod(rv[i]), v["mrw_sector_mm"]["90"].get<double>(), 1e-8);
+            ++checked;
+        }
+    }
+    EXPECT_EQ(checked, 5);
+
+    for (const char* name : {"onh_enface.png", "onh_bscans.png", "onh_mrw.png"}) {
+        const std::string png = slurp(dir / "qc" / name);
+        ASSERT_GT(png.size(), 1000U) << name;
+        EXPECT_EQ(png.substr(1, 3), "PNG") << name;
+    }
+    const io::MeshData ilm = io::read_mesh(dir / "mesh" / "onh_ilm.vtp");
+    EXPECT_EQ(ilm.F.rows(), 2 * 48 * 191);
+    EXPECT_EQ(ilm.V.rows(), 49 * 192);
+    const io::MeshData rpe = io::read_mesh(dir / "mesh" / "onh_rpe.vtp");
+    EXPECT_EQ(rpe.V.rows(), 49 * 192);
+    const std::string vtp = slurp(dir / "mesh" / "onh_ilm.vtp");
+    for (const char* scalar : {"height_above_rpe_mm", "region", "envt_strength"}) {
+        EXPECT_NE(vtp.find(scalar), std::string::npos) << scalar;
+    }
+}
+
+TEST(OnhCli, UserBmoFileReplacesTheDetection) {
+    test::TempDir dir;
+    const auto vol = make_phantom(dir);
+    const json truth = json::parse(slurp(dir / "onh.truth.json"));
+    {
+        std::ofstream f(dir / "bmo.csv");
+        f << "# the phantom's true BMO points\nx_mm,y_mm,z_mm\n";
+        f.precision(17);
+        for (const auto& p : truth["bmo_points"]) {
+            const auto& q = p["bmo_mm"];
+            f << q[0].get<double>() << ',' << q[1].get<double>() << ',' << q[2].get<double>()
+              << '\n';
+        }
+    }
+    const auto r =
+        test::run_octshape("onh " + vol.string() + " --bmo " + (dir / "bmo.csv").string() + " -o " +
+                           (dir / "eye.json").string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const json j = json::parse(slurp(dir / "eye.json"));
+    EXPECT_EQ(j["options"]["bmo_source"], "file");
+    EXPECT_EQ(j["bmo"]["measured_points"], truth["bmo_points"].size());
+    // Exact ellipse points: only cv::fitEllipseDirect's own error on exact points remains
+    // (<= 1e-4 mm on the axes, tests/retina/bmo_test.cpp): <= 3e-4 mm2.
+    EXPECT_NEAR(j["parameters"]["bmo_area_mm2"].get<double>(),
+                truth["truth"]["bmo_area_mm2"].get<double>(), 3e-4);
+}
+
+TEST(OnhCli, RefusalsHaveTheirExitCodesAndWriteNothing) {
+    test::TempDir dir;
+    for (const char* name : {"onh_circle_716_2.vol", "onh_circle_valid.vol"}) {
+        const auto r = test::run_octshape("onh " + test::realdata(name).string() + " -o " +
+                                          (dir / "c.json").string());
+        EXPECT_EQ(r.exit_code, 69) << r.err;
+        EXPECT_NE(r.err.find("volume scan is needed"), std::string::npos) << r.err;
+        EXPECT_NE(r.err.find(name), std::string::npos) << r.err;  // names the file
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+        EXPECT_FALSE(std::filesystem::exists(dir / "c.json"));
+    }
+    const auto missing = test::run_octshape("onh " + (dir / "nope.vol").string());
+    EXPECT_EQ(missing.exit_code, 66) << missing.err;
+    const auto vol = make_phantom(dir);
+    const auto bad_ilm = test::run_octshape("onh " + vol.string() + " --ilm graph");
+    EXPECT_EQ(bad_ilm.exit_code, 64) << bad_ilm.err;
+    std::ofstream(dir / "bad.csv") << "x,y\n1,2\n";
+    const auto bad_bmo =
+        test::run_octshape("onh " + vol.string() + " --bmo " + (dir / "bad.csv").string() + " -o " +
+                           (dir / "b.json").string());
+    EXPECT_EQ(bad_bmo.exit_code, 65) << bad_bmo.err;
+    EXPECT_FALSE(std::filesystem::exists(dir / "b.json"));
+}
+
+}  // namespace
+}  // namespace octshape
