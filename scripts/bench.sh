@@ -3,8 +3,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cmake --preset release >/dev/null
-cmake --build --preset release -j 2 --target read_bench octshape_mesh_bench macula_bench octshape_shape_bench
+cmake --build --preset release -j 2 --target read_bench octshape_mesh_bench macula_bench octshape_shape_bench onh_bench
 ./build/release/bench/read_bench
 ./build/release/bench/octshape_mesh_bench
 ./build/release/bench/macula_bench
 ./build/release/bench/octshape_shape_bench
+./build/release/bench/onh_bench
