@@ -68,14 +68,19 @@ public:
         : w_(w), phi_(phi), image_(image), p_(p), h_{hx, hy, hz} {
         layer_.assign(static_cast<std::size_t>(w.size), kNotInBand);
         flips_.assign(static_cast<std::size_t>(w.size), 0);
-        tiles_x_ = (w.na + p.tile_columns - 1) / p.tile_columns;
-        tiles_y_ = (w.nb + p.tile_columns - 1) / p.tile_columns;
+        // Tiles about tile_mm square: the activity of a front is judged over the same physical
+        // area at any sampling.
+        tile_a_ = std::max(1, static_cast<int>(std::lround(p.tile_mm / hx)));
+        tile_b_ = std::max(1, static_cast<int>(std::lround(p.tile_mm / hy)));
+        tiles_x_ = (w.na + tile_a_ - 1) / tile_a_;
+        tiles_y_ = (w.nb + tile_b_ - 1) / tile_b_;
         tile_last_change_.assign(static_cast<std::size_t>(tiles_x_ * tiles_y_), 0);
         tile_active_.assign(tile_last_change_.size(), 1);
         far_ = static_cast<float>((p.band_layers + 1) * std::max({hx, hy, hz}));
         const double inv_h = 1.0 / hx + 1.0 / hy + 1.0 / hz;
         const double inv_h2 = 1.0 / (hx * hx) + 1.0 / (hy * hy) + 1.0 / (hz * hz);
         dt_ = p.cfl / (inv_h + 2.0 * p.mu_mm * inv_h2);
+        patience_ = p.patience;
         // Region sums for c_vitreous and c_tissue (Eq. LS-2), kept exact under sign changes.
         for (std::int64_t v = 0; v < w.size; ++v) {
             const auto i = static_cast<std::size_t>(v);
@@ -90,6 +95,7 @@ public:
     }
 
     [[nodiscard]] double dt() const { return dt_; }
+    [[nodiscard]] int patience() const { return patience_; }
     [[nodiscard]] double c_vitreous() const { return n_out_ > 0 ? sum_out_ / n_out_ : 0.0; }
     [[nodiscard]] double c_tissue() const { return n_in_ > 0 ? sum_in_ / n_in_ : 0.0; }
     [[nodiscard]] bool reached_edge() const { return reached_edge_; }
@@ -110,7 +116,7 @@ public:
                         last = std::max(last, tile_last_change_[static_cast<std::size_t>(y * tiles_x_ + x)]);
                     }
                 }
-                const bool on = iteration - last <= p_.patience;
+                const bool on = iteration - last <= patience_;
                 tile_active_[static_cast<std::size_t>(ty * tiles_x_ + tx)] = on ? 1 : 0;
                 active += on ? 1 : 0;
             }
@@ -143,10 +149,10 @@ public:
         // tiles new to the region, every window voxel.
         candidates_.clear();
         for (const Voxel& vx : band_) {
-            layer_[static_cast<std::size_t>(vx.index)] = kNotInBand;
-            const int b = vx.column / w_.na;
-            const int a = vx.column % w_.na;
+            const int b = vx.b;
+            const int a = vx.a;
             if (region_[static_cast<std::size_t>(tile_of(b, a))]) candidates_.push_back(vx);
+            layer_[static_cast<std::size_t>(vx.index)] = kNotInBand;
         }
         band_.clear();
         for (int b = 0; b < w_.nb; ++b) {
@@ -156,7 +162,7 @@ public:
                 const int c = w_.column(b, a);
                 const int lo = w_.lo[static_cast<std::size_t>(c)];
                 const std::int64_t base = w_.offset[static_cast<std::size_t>(c)] - lo;
-                for (int d = lo; d < w_.hi(c); ++d) candidates_.push_back({base + d, c, d});
+                for (int d = lo; d < w_.hi(c); ++d) candidates_.push_back(make_voxel(base + d, b, a, d));
             }
         }
         // Layer 0: voxels with a 6-neighbour of the other sign; distance by linear
@@ -164,9 +170,9 @@ public:
         std::vector<float> values;
         {
             for (const Voxel& cand : candidates_) {
-                const int c = cand.column;
-                const int b = c / w_.na;
-                const int a = c % w_.na;
+                const int b = cand.b;
+                const int a = cand.a;
+                const int c = w_.column(b, a);
                 const int lo = w_.lo[static_cast<std::size_t>(c)];
                 const int hi = w_.hi(c);
                 const std::int64_t base = w_.offset[static_cast<std::size_t>(c)] - lo;
@@ -203,7 +209,7 @@ public:
                     if (d == lo || d == hi - 1) reached_edge_ = true;
                     const double dist = inv2 >= 1e300 ? 0.0 : 1.0 / std::sqrt(inv2);
                     const auto idx = base + d;
-                    band_.push_back({idx, c, d});
+                    band_.push_back(make_voxel(idx, b, a, d));
                     values.push_back(static_cast<float>(s0 ? dist : -dist));
                     layer_[static_cast<std::size_t>(idx)] = 0;
                 }
@@ -219,8 +225,8 @@ public:
             const std::size_t layer_end = band_.size();
             for (std::size_t i = layer_begin; i < layer_end; ++i) {
                 const Voxel vx = band_[i];
-                const int b = vx.column / w_.na;
-                const int a = vx.column % w_.na;
+                const int b = vx.b;
+                const int a = vx.a;
                 for (int axis = 0; axis < 3; ++axis) {
                     for (int dir = -1; dir <= 1; dir += 2) {
                         int nb = b, na = a, nd = vx.depth;
@@ -236,7 +242,7 @@ public:
                         auto& l = layer_[static_cast<std::size_t>(idx)];
                         if (l != kNotInBand) continue;
                         l = static_cast<std::int8_t>(k);
-                        band_.push_back({idx, c, nd});
+                        band_.push_back(make_voxel(idx, nb, na, nd));
                     }
                 }
             }
@@ -258,8 +264,8 @@ public:
         next_.clear();
         for (const Voxel& vx : band_) {
             if (layer_[static_cast<std::size_t>(vx.index)] >= p_.band_layers) continue;
-            const int b = vx.column / w_.na;
-            const int a = vx.column % w_.na;
+            const int b = vx.b;
+            const int a = vx.a;
             if (!tile_active_[static_cast<std::size_t>(tile_of(b, a))]) continue;
             active_.push_back(vx);
             next_.push_back(evolve(vx, b, a, cv, ct, contrast));
@@ -290,8 +296,7 @@ public:
             auto& flips = flips_[i];
             if (flips < 2) {
                 ++flips;
-                const int c = active_[k].column;
-                tile_last_change_[static_cast<std::size_t>(tile_of(c / w_.na, c % w_.na))] = iteration;
+                tile_last_change_[static_cast<std::size_t>(tile_of(active_[k].b, active_[k].a))] = iteration;
             }
         }
         updated = static_cast<std::int64_t>(active_.size());
@@ -299,14 +304,19 @@ public:
     }
 
 private:
+    // A band voxel: 12 bytes, B-scan and A-scan kept so that no division is needed.
     struct Voxel {
-        std::int64_t index;  // into the window storage
-        int column;
-        int depth;
+        std::uint32_t index;  // into the window storage (size checked < 2^32)
+        std::uint16_t b;
+        std::uint16_t a;
+        std::int32_t depth;
     };
 
+    [[nodiscard]] static Voxel make_voxel(std::int64_t index, int b, int a, int d) {
+        return {static_cast<std::uint32_t>(index), static_cast<std::uint16_t>(b), static_cast<std::uint16_t>(a), d};
+    }
     [[nodiscard]] int tile_of(int b, int a) const {
-        return (b / p_.tile_columns) * tiles_x_ + a / p_.tile_columns;
+        return (b / tile_b_) * tiles_x_ + a / tile_a_;
     }
     [[nodiscard]] bool in_region(int b, int a) const {
         return region_[static_cast<std::size_t>(tile_of(b, a))] != 0;
@@ -322,8 +332,8 @@ private:
     }
 
     [[nodiscard]] float eikonal(const Voxel& vx, int k) const {
-        const int b = vx.column / w_.na;
-        const int a = vx.column % w_.na;
+        const int b = vx.b;
+        const int a = vx.a;
         const float self = phi_[static_cast<std::size_t>(vx.index)];
         std::array<std::pair<double, double>, 3> cand{};  // (|φ| of the best neighbour, h)
         int n = 0;
@@ -450,6 +460,7 @@ private:
     std::vector<Voxel> band_;
     std::vector<Voxel> active_;
     std::vector<float> next_;
+    int tile_a_ = 1, tile_b_ = 1;  // A-scans and B-scans per tile
     int tiles_x_ = 0, tiles_y_ = 0;
     std::vector<int> tile_last_change_;
     std::vector<std::uint8_t> tile_active_;
@@ -458,6 +469,7 @@ private:
     std::vector<Voxel> candidates_;
     float far_ = 1.0F;
     double dt_ = 0.0;
+    int patience_ = 1;
     double sum_in_ = 0.0, sum_out_ = 0.0;
     std::int64_t n_in_ = 0, n_out_ = 0;
     bool reached_edge_ = false;
@@ -623,7 +635,7 @@ void LevelSetParams::validate() const {
     }
     if (!(cfl > 0.0 && cfl <= 1.0)) bad("cfl", "must be in (0, 1]");
     if (max_iterations < 1) bad("max_iterations", "must be >= 1");
-    if (tile_columns < 1) bad("tile_columns", "must be >= 1");
+    if (!(tile_mm > 0.0) || !std::isfinite(tile_mm)) bad("tile_mm", "must be finite and > 0");
     if (patience < 1) bad("patience", "must be >= 1");
     if (slab_bscans < 2) bad("slab_bscans", "must be >= 2");
     try {
@@ -700,6 +712,9 @@ LevelSetResult run_levelset(const io::Scan& scan, const LevelSetParams& params, 
         w.size = off;
     }
     res.window_voxels = w.size;
+    if (w.size >= (std::int64_t{1} << 32) || nb > 65535 || na > 65535) {
+        throw AnalysisError("level-set ILM: the volume is too large (window voxels, B-scans or A-scans)");
+    }
 
     // Display transform v^0.25 and per-B-scan despeckling, stored on the windows.
     std::vector<float> image(static_cast<std::size_t>(w.size));
@@ -766,6 +781,7 @@ LevelSetResult run_levelset(const io::Scan& scan, const LevelSetParams& params, 
     {
         Evolver ev(w, phi, image, params, hx, hy, hz);
         res.time_step = ev.dt();
+        res.patience = ev.patience();
         ev.update_activity(0);
         ev.rebuild();
         res.band_voxels = ev.band_size();

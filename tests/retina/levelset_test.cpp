@@ -293,10 +293,10 @@ INSTANTIATE_TEST_SUITE_P(Shapes, LevelSetPhantom,
 
 // On the overhanging disc the level set follows the ILM under the rim lip, which the device's
 // graph line cannot: the hidden true surface is much closer to the level-set surface than to
-// the device-ILM graph mesh, and the level-set surface as a whole is closer to the truth than
-// the device graph is (distances from the true surface's samples).
-TEST(LevelSetOverhang, FollowsTheIlmUnderTheRimLip) {
-    const Case& c = get_case(OnhShape::kOverhang);
+// the device-ILM graph mesh, and over the whole disc (the true surface inside the BMO, where
+// the ILM folds) the level-set surface is closer to the truth than the device graph. Outside
+// the fold the phantom's device line is exact by construction, so no method can beat it there.
+void expect_follows_overhang(const Case& c) {
     const std::vector<Eigen::Vector3d> hidden = hidden_points(*c.geometry, c.scan);
     ASSERT_GT(hidden.size(), 1000U);
     const mesh::TriangleTree ls(c.result.V, c.result.F);
@@ -309,22 +309,34 @@ TEST(LevelSetOverhang, FollowsTheIlmUnderTheRimLip) {
     std::printf("hidden true ILM (%zu points): mean distance to level set %.2f µm (before RoFi %.2f), "
                 "to device graph %.2f µm\n",
                 hidden.size(), d_ls * 1e3, d_raw * 1e3, d_dev * 1e3);
-    EXPECT_LT(d_ls, 0.5 * d_dev);
-    // All true-surface samples inside the scan (the hidden ones included).
-    std::vector<Eigen::Vector3d> all;
-    const double xmax = (c.scan.meta.size_x - 1) * c.scan.meta.scale_x_mm;
-    const double ymax = (c.scan.num_bscans() - 1) * c.scan.meta.distance_mm;
-    for (double s = 0.002; s < 2.0; s += 0.004) {
-        for (int j = 0; j < 360; ++j) {
-            const Eigen::Vector3d p = c.geometry->surface(s, 2.0 * kPi * j / 360);
-            if (p.x() >= 0.0 && p.x() <= xmax && p.y() >= 0.0 && p.y() <= ymax) all.push_back(p);
-        }
+    // The lip undercuts the wall by up to B = 0.2 BMO radii (~0.15 mm); a surface that follows
+    // it errs by the ~1 px bias argued above, a graph by tens of µm.
+    EXPECT_LT(d_ls, 2.0 * c.scan.meta.scale_z_mm);
+    EXPECT_LT(d_ls, 0.2 * d_dev);
+    std::vector<Eigen::Vector3d> disc;
+    for (double s = 0.002; s < 1.6; s += 0.002) {
+        if (c.geometry->rho(s) >= 1.0) continue;
+        for (int j = 0; j < 360; ++j) disc.push_back(c.geometry->surface(s, 2.0 * kPi * j / 360));
     }
-    const double all_ls = mean_distance_to(all, ls);
-    const double all_dev = mean_distance_to(all, device);
-    std::printf("true ILM (%zu points): mean distance to level set %.2f µm, to device graph %.2f µm\n", all.size(),
-                all_ls * 1e3, all_dev * 1e3);
-    EXPECT_LT(all_ls, all_dev);
+    const double disc_ls = mean_distance_to(disc, ls);
+    const double disc_dev = mean_distance_to(disc, device);
+    std::printf("true ILM inside the BMO (%zu points): mean distance to level set %.2f µm, to device graph "
+                "%.2f µm\n",
+                disc.size(), disc_ls * 1e3, disc_dev * 1e3);
+    EXPECT_LT(disc_ls, disc_dev);
+}
+
+TEST(LevelSetOverhang, FollowsTheIlmUnderTheRimLip) { expect_follows_overhang(get_case(OnhShape::kOverhang)); }
+
+// The same at the full 145 × 384 × 496 size (ctest label "slow").
+TEST(LevelSetOverhangFullSize, FollowsTheIlmUnderTheRimLip) {
+    Case c;
+    c.params = onh_phantom_preset(OnhShape::kOverhang);
+    c.geometry = std::make_unique<OnhPhantomGeometry>(c.params);
+    c.scan = render_onh_scan(c.params);
+    c.result = levelset_ilm(c.scan);
+    EXPECT_TRUE(c.result.converged);
+    expect_follows_overhang(c);
 }
 
 // Missing device ILM values (a block of A-scans and a whole B-scan): φ0 is filled from the

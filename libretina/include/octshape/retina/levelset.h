@@ -58,10 +58,13 @@ struct LevelSetParams {
     int reinit_interval = 2;
     double cfl = 0.9;           // dt = cfl / (Σ 1/h + 2 μ Σ 1/h²); in (0, 1]
     int max_iterations = 400;   // cap; the result says whether it converged; ≥ 1
-    // Tiles of tile_columns × tile_columns A-scans × B-scans freeze when neither they nor their
-    // 8 neighbours had a sign change in the last `patience` iterations; the run stops (converged)
-    // when every tile is frozen: "the band stops changing sign". Both ≥ 1.
-    int tile_columns = 8;
+    // The volume's columns are grouped in tiles of about tile_mm × tile_mm (rounded to whole
+    // A-scans and B-scans; 9 × 3 columns at the full 145 × 384 size). A tile freezes when
+    // neither it nor its 8 neighbours had a sign change in the last `patience` iterations; the
+    // run stops (converged) when every tile is frozen: "the band stops changing sign". The
+    // tile must be wide enough that a front moving sideways (into an overhang) flips some
+    // voxel of it every few iterations (measured in docs/algorithms/levelset.md). Both > 0.
+    double tile_mm = 0.1;
     int patience = 4;
 
     // --- Mesh ---
@@ -88,7 +91,8 @@ struct LevelSetResult {
     std::int64_t last_sign_changes = 0;    // of those, how many changed sign
     double last_sign_change_fraction = 0.0;  // last_sign_changes / last_updated_voxels (0 if 0)
     std::int64_t voxel_updates = 0;      // total over all iterations
-    double time_step = 0.0;              // dt (mm per unit speed)
+    double time_step = 0.0;              // global dt (mm per unit speed); voxels use local steps
+    int patience = 0;                    // effective patience (≥ params.patience, see there)
     double c_vitreous = 0.0;             // final region means (display units)
     double c_tissue = 0.0;
     bool front_reached_window_edge = false;  // interface touched a window's top or bottom row
