@@ -11,9 +11,9 @@ PKGS=(
   libeigen3-dev
   libvtk9-dev
   libopencv-dev
+  libssl-dev                          # libcrypto: SHA-256 (CPU SHA extensions), HMAC
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-
 )
 missing=()
 for p in "${PKGS[@]}"; do

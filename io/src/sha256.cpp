@@ -1,7 +1,10 @@
 #include "octshape/io/sha256.h"
 
-#include <cstring>
-#include <fstream>
+#include <openssl/evp.h>
+#include <openssl/hmac.h>
+
+#include <cstdio>
+#include <stdexcept>
 #include <vector>
 
 #include "octshape/io/error.h"
@@ -9,114 +12,59 @@
 namespace octshape::io {
 namespace {
 
-constexpr std::array<std::uint32_t, 64> kRound = {
-    0x428a2f98, 0x71374491, 0xb5c0fbcf, 0xe9b5dba5, 0x3956c25b, 0x59f111f1, 0x923f82a4,
-    0xab1c5ed5, 0xd807aa98, 0x12835b01, 0x243185be, 0x550c7dc3, 0x72be5d74, 0x80deb1fe,
-    0x9bdc06a7, 0xc19bf174, 0xe49b69c1, 0xefbe4786, 0x0fc19dc6, 0x240ca1cc, 0x2de92c6f,
-    0x4a7484aa, 0x5cb0a9dc, 0x76f988da, 0x983e5152, 0xa831c66d, 0xb00327c8, 0xbf597fc7,
-    0xc6e00bf3, 0xd5a79147, 0x06ca6351, 0x14292967, 0x27b70a85, 0x2e1b2138, 0x4d2c6dfc,
-    0x53380d13, 0x650a7354, 0x766a0abb, 0x81c2c92e, 0x92722c85, 0xa2bfe8a1, 0xa81a664b,
-    0xc24b8b70, 0xc76c51a3, 0xd192e819, 0xd6990624, 0xf40e3585, 0x106aa070, 0x19a4c116,
-    0x1e376c08, 0x2748774c, 0x34b0bcb5, 0x391c0cb3, 0x4ed8aa4a, 0x5b9cca4f, 0x682e6ff3,
-    0x748f82ee, 0x78a5636f, 0x84c87814, 0x8cc70208, 0x90befffa, 0xa4506ceb, 0xbef9a3f7,
-    0xc67178f2};
+std::string to_hex(const std::uint8_t* bytes, std::size_t n) {
+    static constexpr char kHex[] = "0123456789abcdef";
+    std::string s;
+    s.reserve(2 * n);
+    for (std::size_t i = 0; i < n; ++i) {
+        s += kHex[bytes[i] >> 4];
+        s += kHex[bytes[i] & 15];
+    }
+    return s;
+}
 
-constexpr std::uint32_t rotr(std::uint32_t x, int n) { return (x >> n) | (x << (32 - n)); }
+// libcrypto failing to hash is an environment fault (no memory, broken provider), not a
+// property of the input: report it as such.
+[[noreturn]] void crypto_failure(const char* what) {
+    throw std::runtime_error(std::string("OpenSSL SHA-256 failed in ") + what);
+}
 
 }  // namespace
 
-Sha256::Sha256()
-    : h_{0x6a09e667, 0xbb67ae85, 0x3c6ef372, 0xa54ff53a, 0x510e527f, 0x9b05688c, 0x1f83d9ab,
-         0x5be0cd19} {}
+struct Sha256::Impl {
+    EVP_MD_CTX* ctx = nullptr;
+    ~Impl() { EVP_MD_CTX_free(ctx); }
+};
 
-void Sha256::block(const std::uint8_t* p) {
-    std::array<std::uint32_t, 64> w{};
-    for (int i = 0; i < 16; ++i) {
-        w[i] = (std::uint32_t{p[4 * i]} << 24) | (std::uint32_t{p[4 * i + 1]} << 16) |
-               (std::uint32_t{p[4 * i + 2]} << 8) | std::uint32_t{p[4 * i + 3]};
+Sha256::Sha256() : impl_(std::make_unique<Impl>()) {
+    impl_->ctx = EVP_MD_CTX_new();
+    if (impl_->ctx == nullptr) crypto_failure("EVP_MD_CTX_new");
+    if (EVP_DigestInit_ex(impl_->ctx, EVP_sha256(), nullptr) != 1) {
+        crypto_failure("EVP_DigestInit_ex");
     }
-    for (int i = 16; i < 64; ++i) {
-        const std::uint32_t s0 = rotr(w[i - 15], 7) ^ rotr(w[i - 15], 18) ^ (w[i - 15] >> 3);
-        const std::uint32_t s1 = rotr(w[i - 2], 17) ^ rotr(w[i - 2], 19) ^ (w[i - 2] >> 10);
-        w[i] = w[i - 16] + s0 + w[i - 7] + s1;
-    }
-    std::uint32_t a = h_[0], b = h_[1], c = h_[2], d = h_[3];
-    std::uint32_t e = h_[4], f = h_[5], g = h_[6], h = h_[7];
-    for (int i = 0; i < 64; ++i) {
-        const std::uint32_t s1 = rotr(e, 6) ^ rotr(e, 11) ^ rotr(e, 25);
-        const std::uint32_t ch = (e & f) ^ (~e & g);
-        const std::uint32_t t1 = h + s1 + ch + kRound[i] + w[i];
-        const std::uint32_t s0 = rotr(a, 2) ^ rotr(a, 13) ^ rotr(a, 22);
-        const std::uint32_t maj = (a & b) ^ (a & c) ^ (b & c);
-        const std::uint32_t t2 = s0 + maj;
-        h = g;
-        g = f;
-        f = e;
-        e = d + t1;
-        d = c;
-        c = b;
-        b = a;
-        a = t1 + t2;
-    }
-    h_[0] += a;
-    h_[1] += b;
-    h_[2] += c;
-    h_[3] += d;
-    h_[4] += e;
-    h_[5] += f;
-    h_[6] += g;
-    h_[7] += h;
 }
 
+Sha256::~Sha256() = default;
+Sha256::Sha256(Sha256&&) noexcept = default;
+Sha256& Sha256::operator=(Sha256&&) noexcept = default;
+
 void Sha256::update(const void* data, std::size_t n) {
-    const auto* p = static_cast<const std::uint8_t*>(data);
-    total_ += n;
-    if (buf_len_ > 0) {
-        const std::size_t take = std::min(n, 64 - buf_len_);
-        std::memcpy(buf_.data() + buf_len_, p, take);
-        buf_len_ += take;
-        p += take;
-        n -= take;
-        if (buf_len_ == 64) {
-            block(buf_.data());
-            buf_len_ = 0;
-        }
-    }
-    while (n >= 64) {
-        block(p);
-        p += 64;
-        n -= 64;
-    }
-    if (n > 0) {
-        std::memcpy(buf_.data(), p, n);
-        buf_len_ = n;
-    }
+    if (n == 0) return;
+    if (EVP_DigestUpdate(impl_->ctx, data, n) != 1) crypto_failure("EVP_DigestUpdate");
 }
 
 std::array<std::uint8_t, 32> Sha256::finish() {
-    const std::uint64_t bits = total_ * 8;
-    const std::uint8_t one = 0x80;
-    update(&one, 1);
-    const std::uint8_t zero = 0;
-    while (buf_len_ != 56) update(&zero, 1);
-    std::array<std::uint8_t, 8> len{};
-    for (int i = 0; i < 8; ++i) len[i] = static_cast<std::uint8_t>(bits >> (56 - 8 * i));
-    update(len.data(), len.size());
     std::array<std::uint8_t, 32> out{};
-    for (int i = 0; i < 8; ++i) {
-        for (int j = 0; j < 4; ++j) out[4 * i + j] = static_cast<std::uint8_t>(h_[i] >> (24 - 8 * j));
+    unsigned int len = 0;
+    if (EVP_DigestFinal_ex(impl_->ctx, out.data(), &len) != 1 || len != out.size()) {
+        crypto_failure("EVP_DigestFinal_ex");
     }
     return out;
 }
 
 std::string Sha256::hex() {
-    static constexpr char kHex[] = "0123456789abcdef";
-    std::string s;
-    for (std::uint8_t byte : finish()) {
-        s += kHex[byte >> 4];
-        s += kHex[byte & 15];
-    }
-    return s;
+    const auto digest = finish();
+    return to_hex(digest.data(), digest.size());
 }
 
 std::string sha256_hex(std::string_view bytes) {
@@ -126,17 +74,32 @@ std::string sha256_hex(std::string_view bytes) {
 }
 
 std::string sha256_file(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw InputError::unreadable(path, "cannot open");
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (f == nullptr) throw InputError::unreadable(path, "cannot open");
     Sha256 h;
-    std::vector<char> chunk(1 << 20);
-    while (in) {
-        in.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
-        const std::streamsize got = in.gcount();
-        if (got > 0) h.update(chunk.data(), static_cast<std::size_t>(got));
-    }
-    if (in.bad()) throw InputError::unreadable(path, "read error");
+    std::vector<unsigned char> chunk(std::size_t{1} << 20);
+    std::size_t got = 0;
+    while ((got = std::fread(chunk.data(), 1, chunk.size(), f)) > 0) h.update(chunk.data(), got);
+    const bool failed = std::ferror(f) != 0;
+    std::fclose(f);
+    if (failed) throw InputError::unreadable(path, "read error");
     return h.hex();
+}
+
+std::string hmac_sha256_hex(std::string_view key, std::string_view message) {
+    std::array<std::uint8_t, EVP_MAX_MD_SIZE> out{};
+    unsigned int len = 0;
+    // A zero-length key is legal in HMAC; OpenSSL wants a non-null pointer for it.
+    static const unsigned char kEmpty = 0;
+    const void* key_ptr = key.empty() ? static_cast<const void*>(&kEmpty) : key.data();
+    const unsigned char* msg_ptr =
+        message.empty() ? &kEmpty : reinterpret_cast<const unsigned char*>(message.data());
+    if (HMAC(EVP_sha256(), key_ptr, static_cast<int>(key.size()), msg_ptr, message.size(),
+             out.data(), &len) == nullptr ||
+        len != 32) {
+        crypto_failure("HMAC");
+    }
+    return to_hex(out.data(), len);
 }
 
 }  // namespace octshape::io

@@ -43,5 +43,27 @@ TEST(Sha256, FileMatchesMemory) {
     EXPECT_THROW((void)sha256_file((dir / "missing").string()), InputError);
 }
 
+// A file longer than the 1 MiB read chunk, with a length that is not a multiple of it.
+TEST(Sha256, MultiChunkFileMatchesMemory) {
+    test::TempDir dir;
+    const auto p = dir / "big.bin";
+    std::string data((std::size_t{1} << 20) * 2 + 12345, '\0');
+    for (std::size_t i = 0; i < data.size(); ++i) data[i] = static_cast<char>((i * 131) >> 3);
+    std::ofstream(p, std::ios::binary) << data;
+    EXPECT_EQ(sha256_file(p.string()), sha256_hex(data));
+}
+
+// RFC 4231 test cases 1, 2 and 6 (the last with a key longer than the block size).
+TEST(HmacSha256, Rfc4231Vectors) {
+    EXPECT_EQ(hmac_sha256_hex(std::string(20, '\x0b'), "Hi There"),
+              "b0344c61d8db38535ca8afceaf0bf12b881dc200c9833da726e9376c2e32cff7");
+    EXPECT_EQ(hmac_sha256_hex("Jefe", "what do ya want for nothing?"),
+              "5bdcc146bf60754e6a042426089575c75a003f089d2739839dec58b964ec3843");
+    EXPECT_EQ(hmac_sha256_hex(std::string(131, '\xaa'),
+                              "Test Using Larger Than Block-Size Key - Hash Key First"),
+              "60e431591ee0b67f0d8a26aacbf5b77f8e0bc6213728c5140546040f0ee37f54");
+    EXPECT_NE(hmac_sha256_hex("", "x"), hmac_sha256_hex("k", "x"));
+}
+
 }  // namespace
 }  // namespace octshape::io

@@ -13,38 +13,11 @@
 
 #include "octshape/io/mesh_io.h"
 #include "octshape/io/registration.h"
+#include "fixtures/ilm_patch.h"
 #include "test_paths.h"
 
 namespace octshape::test {
 namespace {
-
-// An ILM-like open surface (mm): a tilted, curved 3 mm × 3 mm patch with an elliptical,
-// off-centre foveal pit, so that no rotation maps it onto itself (ICP has a unique answer).
-// (n+1)² vertices, grid step 3/n mm.
-mesh::Surface ilm_surface(int n) {
-    mesh::Surface s;
-    s.V.resize((n + 1) * (n + 1), 3);
-    s.F.resize(2 * n * n, 3);
-    const double h = 3.0 / n;
-    for (int j = 0; j <= n; ++j) {
-        for (int i = 0; i <= n; ++i) {
-            const double x = -1.5 + i * h;
-            const double y = -1.5 + j * h;
-            const double pit = std::exp(-(std::pow(x - 0.2, 2) / (2 * 0.45 * 0.45) +
-                                          std::pow(y + 0.1, 2) / (2 * 0.3 * 0.3)));
-            s.V.row(j * (n + 1) + i) << x, y, 0.3 - 0.12 * pit + 0.05 * x + 0.03 * y * y;
-        }
-    }
-    int f = 0;
-    for (int j = 0; j < n; ++j) {
-        for (int i = 0; i < n; ++i) {
-            const int a = j * (n + 1) + i;
-            s.F.row(f++) << a, a + 1, a + n + 2;
-            s.F.row(f++) << a, a + n + 2, a + n + 1;
-        }
-    }
-    return s;
-}
 
 // Area-weighted unit vertex normals.
 mesh::Vertices vertex_normals(const mesh::Surface& s) {
@@ -72,7 +45,7 @@ double rotation_error_deg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b
 }
 
 TEST(Icp, RecoversKnownRotations) {
-    const mesh::Surface ref = ilm_surface(30);
+    const mesh::Surface ref = ilm_patch(30);
     const std::vector<Eigen::Isometry3d> moves{
         rigid(2.0, {0, 0, 1}, {0.05, -0.02, 0.01}), rigid(5.0, {1, 0.3, 0}, {-0.1, 0.0, 0.05}),
         rigid(10.0, {0.2, -1, 0.5}, {0.2, 0.1, -0.1}), rigid(15.0, {0, 0.4, 1}, {0, 0.3, 0})};
@@ -98,7 +71,7 @@ TEST(Icp, RecoversKnownRotations) {
 }
 
 TEST(MeanShape, RigidCopiesGiveTheOriginalWithZeroSd) {
-    const mesh::Surface ref = ilm_surface(30);
+    const mesh::Surface ref = ilm_patch(30);
     std::vector<mesh::Surface> others;
     for (const auto& T : {rigid(4.0, {0, 0, 1}, {0.1, 0, 0}), rigid(7.0, {1, 1, 0}, {0, 0.1, 0}),
                           rigid(3.0, {0, 1, 1}, {0, 0, 0.2})}) {
@@ -124,7 +97,7 @@ TEST(MeanShape, NoisyCopiesGiveTheExpectedSd) {
     // reference vertex on copy i is that copy's vertex to a relative error ~1e-4.
     const int n_s = 8;
     const double sigma = 5e-4;
-    const mesh::Surface clean = ilm_surface(40);
+    const mesh::Surface clean = ilm_patch(40);
     const mesh::Vertices N = vertex_normals(clean);
     std::mt19937 rng(2024);
     std::normal_distribution<double> gauss(0.0, sigma);
@@ -167,7 +140,7 @@ TEST(MeanShape, NoisyCopiesGiveTheExpectedSd) {
 
 TEST(MeanShape, CommandWritesMeanWithSdAndReportsIcpResiduals) {
     const TempDir dir;
-    const mesh::Surface ref = ilm_surface(24);
+    const mesh::Surface ref = ilm_patch(24);
     io::write_mesh(dir / "a.ply", ref.V, ref.F);
     io::write_mesh(dir / "b.ply", io::transformed(ref.V, rigid(6.0, {0, 1, 1}, {0.1, 0, 0})),
                    ref.F);

@@ -1,10 +1,13 @@
 #pragma once
 // SHA-256 (FIPS 180-4) of inputs, recorded in every output so a number can be traced to the
-// exact bytes it came from. Self-contained: no crypto library is needed for a checksum.
+// exact bytes it came from, and HMAC-SHA256 (RFC 2104) for keyed subject pseudonyms. Backed by
+// OpenSSL's libcrypto, which uses the CPU's SHA extensions where present: hashing must not be
+// what limits a cohort run (docs/cohort.md).
 
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <string_view>
 
@@ -13,6 +16,12 @@ namespace octshape::io {
 class Sha256 {
 public:
     Sha256();
+    ~Sha256();
+    Sha256(const Sha256&) = delete;
+    Sha256& operator=(const Sha256&) = delete;
+    Sha256(Sha256&&) noexcept;
+    Sha256& operator=(Sha256&&) noexcept;
+
     void update(const void* data, std::size_t n);
     // Finishes and returns the digest; the object must not be updated afterwards.
     std::array<std::uint8_t, 32> finish();
@@ -20,15 +29,14 @@ public:
     std::string hex();
 
 private:
-    void block(const std::uint8_t* p);
-    std::array<std::uint32_t, 8> h_{};
-    std::array<std::uint8_t, 64> buf_{};
-    std::size_t buf_len_ = 0;
-    std::uint64_t total_ = 0;
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
 };
 
 [[nodiscard]] std::string sha256_hex(std::string_view bytes);
 // Hash of a whole file, read in chunks. Throws InputError if it cannot be read.
 [[nodiscard]] std::string sha256_file(const std::string& path);
+// HMAC-SHA256 of `message` under `key`, lowercase hex (64 characters).
+[[nodiscard]] std::string hmac_sha256_hex(std::string_view key, std::string_view message);
 
 }  // namespace octshape::io
