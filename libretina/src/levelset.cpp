@@ -394,10 +394,11 @@ private:
                 const int c = w_.column(bb, aa);
                 const int lo = w_.lo[static_cast<std::size_t>(c)];
                 const int hi = w_.hi(c);
-                const float* col = phi_.data() + w_.offset[static_cast<std::size_t>(c)] - lo;
+                const std::int64_t base = w_.offset[static_cast<std::size_t>(c)] - lo;
                 for (int dd = -1; dd <= 1; ++dd) {
                     const int d = vx.depth + dd;
-                    P[db + 1][da + 1][dd + 1] = d < lo ? far_ : (d >= hi ? -far_ : col[d]);
+                    P[db + 1][da + 1][dd + 1] =
+                        d < lo ? far_ : (d >= hi ? -far_ : phi_[static_cast<std::size_t>(base + d)]);
                 }
             }
         }

@@ -54,7 +54,8 @@ struct LevelSetParams {
     // W only feeds the differences. In [2, 100].
     int band_layers = 2;
     // Iterations between band rebuild + re-initialisation; in [1, W]. The front moves at most
-    // dt·1 ≈ 0.3 ScaleZ per iteration, so two steps stay inside the updated layers 0..1.
+    // cfl of a voxel along its normal per step (LS-7); where it would leave the updated layers
+    // 0..W−1 before the next rebuild it waits at their edge, and the rebuild moves the band on.
     int reinit_interval = 2;
     double cfl = 0.9;           // dt = cfl / (Σ 1/h + 2 μ Σ 1/h²); in (0, 1]
     int max_iterations = 400;   // cap; the result says whether it converged; ≥ 1
