@@ -29,7 +29,7 @@ struct OnhOptions {
     std::string json_out;
     std::string csv_out;
     std::string qc_dir;
-    std::string ilm = "device";
+    std::string ilm = "levelset";
     std::string bmo_file;
     std::string mesh_dir;
     std::string mesh_format = "vtp";
@@ -126,7 +126,9 @@ void add_onh_command(CLI::App& app, RunContext& /*ctx*/) {
                     "Write QC pictures here: STEM_enface.png (height map, BMO points, ellipse, "
                     "disc), STEM_bscans.png (B-scans through the disc, ILM used vs device ILM, "
                     "MRW vectors), STEM_mrw.png (MRW against the anatomical angle)");
-    cmd->add_option("--ilm", opts->ilm, "ILM surface: device (the device ILM as a graph mesh)")
+    cmd->add_option("--ilm", opts->ilm,
+                    "ILM surface: levelset (3-D Chan-Vese level set on the B-scans, marching "
+                    "cubes, RoFi; follows overhangs) or device (the device ILM as a graph mesh)")
         ->capture_default_str();
     cmd->add_option("--bmo", opts->bmo_file,
                     "BMO points from a CSV file (header x_mm,y_mm,z_mm or ascan,bscan,depth_px; "

@@ -7,12 +7,14 @@
 #include <cstdio>
 #include <limits>
 #include <numbers>
+#include <sstream>
 #include <stdexcept>
 
 #include "octshape/io/error.h"
 #include "octshape/mesh/closest_point.h"
 #include "octshape/mesh/envt.h"
 #include "octshape/mesh/metrics.h"
+#include "octshape/retina/levelset.h"
 #include "octshape/retina/scan_geometry.h"
 
 namespace octshape::retina {
@@ -73,6 +75,8 @@ MeshQuality mesh_quality_report(const mesh::Vertices& V,
 
 std::string to_string(IlmSource source) {
     switch (source) {
+        case IlmSource::kLevelSet:
+            return "levelset";
         case IlmSource::kDevice:
             return "device";
     }
@@ -80,8 +84,35 @@ std::string to_string(IlmSource source) {
 }
 
 IlmSource ilm_source_from_string(const std::string& name) {
+    if (name == "levelset") return IlmSource::kLevelSet;
     if (name == "device") return IlmSource::kDevice;
-    throw UsageError("--ilm: unknown ILM source '" + name + "' (valid: device)");
+    throw UsageError("--ilm: unknown ILM source '" + name + "' (valid: levelset, device)");
+}
+
+IlmSurface levelset_ilm_surface(const io::Scan& scan) {
+    require_onh_volume(scan);
+    const LevelSetResult ls = levelset_ilm(scan);
+    IlmSurface out;
+    out.V = ls.V;
+    out.F = ls.F;
+    out.source = "levelset";
+    out.notes = ls.warnings;
+    std::ostringstream s;
+    s << "level-set ILM: " << ls.iterations << " iterations ("
+      << (ls.converged ? "converged" : "stopped at the iteration limit") << "), "
+      << ls.raw_faces << " marching-cubes faces, " << ls.F.rows() << " faces after clip and "
+      << "component, " << ls.rofi_iterations << " RoFi iterations";
+    out.notes.push_back(s.str());
+    if (!ls.converged) out.qc_flags.push_back("level set did not converge");
+    if (ls.front_reached_window_edge) {
+        out.qc_flags.push_back("level-set front reached the edge of its depth window");
+    }
+    if (ls.missing_ilm_columns > 0) {
+        out.notes.push_back(std::to_string(ls.missing_ilm_columns) +
+                            " columns without a device ILM value were filled for the "
+                            "level set's start");
+    }
+    return out;
 }
 
 IlmSurface device_ilm_surface(const io::Scan& scan) {
@@ -107,6 +138,8 @@ IlmSurface device_ilm_surface(const io::Scan& scan) {
 
 IlmSurface build_ilm_surface(const io::Scan& scan, IlmSource source) {
     switch (source) {
+        case IlmSource::kLevelSet:
+            return levelset_ilm_surface(scan);
         case IlmSource::kDevice:
             return device_ilm_surface(scan);
     }
@@ -115,6 +148,8 @@ IlmSurface build_ilm_surface(const io::Scan& scan, IlmSource source) {
 
 bool ilm_needs_pixels(IlmSource source) {
     switch (source) {
+        case IlmSource::kLevelSet:
+            return true;
         case IlmSource::kDevice:
             return false;
     }
@@ -290,6 +325,7 @@ OnhResult analyse_onh(const io::Scan& scan,
     r.ilm_F = ilm.F;
     r.ilm_filled_vertices = ilm.filled_vertices;
     for (const auto& n : ilm.notes) r.notes.push_back(n);
+    for (const auto& f : ilm.qc_flags) r.qc_flags.push_back(f);
     const Eigen::Index nf = r.ilm_F.rows();
     Eigen::VectorXd proj(nf);
     auto projected_areas = [&] {

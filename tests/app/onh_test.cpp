@@ -59,7 +59,8 @@ TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
     const auto r =
         test::run_octshape("onh " + vol.string() + " -o " + (dir / "eye.json").string() +
                            " --csv " + (dir / "eye.csv").string() + " --qc " +
-                           (dir / "qc").string() + " --mesh-out " + (dir / "mesh").string());
+                           (dir / "qc").string() + " --mesh-out " + (dir / "mesh").string() +
+                           " --ilm device");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const json j = json::parse(slurp(dir / "eye.json"));
     EXPECT_EQ(j["command"], "onh");

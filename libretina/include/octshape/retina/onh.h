@@ -23,10 +23,10 @@ namespace octshape::retina {
 
 // Where the ILM surface comes from. `kDevice`: the device ILM line as a graph mesh (its missing
 // values thin-plate filled). A level-set ILM plugs in as another source of an IlmSurface.
-enum class IlmSource { kDevice };
+enum class IlmSource { kLevelSet, kDevice };
 
 [[nodiscard]] std::string to_string(IlmSource source);
-// Parses "device"; throws UsageError naming the valid sources otherwise.
+// Parses "levelset" or "device"; throws UsageError naming the valid sources otherwise.
 [[nodiscard]] IlmSource ilm_source_from_string(const std::string& name);
 
 // An ILM surface ready for the analysis.
@@ -37,12 +37,17 @@ struct IlmSurface {
     int filled_vertices = 0;  // vertices whose height was filled (device: missing ILM values)
     std::vector<std::uint8_t> vertex_filled;  // #V flags (1 = filled), or empty
     std::vector<std::string> notes;
+    std::vector<std::string> qc_flags;  // e.g. "level set did not converge"
 };
 
 // The device ILM line as a graph mesh on the scan grid, missing values thin-plate filled
 // (docs/algorithms/onh.md "Device ILM"). Throws AnalysisError if the line is absent or too
 // sparse to fill.
 [[nodiscard]] IlmSurface device_ilm_surface(const io::Scan& scan);
+
+// The level-set ILM (retina/levelset.h: Chan–Vese narrow band on the B-scan intensities,
+// marching cubes, RoFi) with its diagnostics as notes and QC flags. Needs the pixels.
+[[nodiscard]] IlmSurface levelset_ilm_surface(const io::Scan& scan);
 
 // Builds the ILM of `source` (the one place a new source is added).
 [[nodiscard]] IlmSurface build_ilm_surface(const io::Scan& scan, IlmSource source);
