@@ -24,11 +24,14 @@
 
 #include "commands/command.h"
 #include "commands/eye_record.h"
+#include "commands/gallery.h"
 #include "commands/macula_eye.h"
+#include "commands/onh_eye.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/io/error.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/io/sha256.h"
+#include "octshape/retina/report_util.h"
 #include "octshape/retina/scan_type.h"
 
 namespace octshape::app {
@@ -46,6 +49,7 @@ struct CohortOptions {
     bool qc = false;
     bool retry_failed = false;
     MaculaEyeOptions eye;
+    OnhEyeOptions onh;
     SubjectOptions subjects;
 };
 
@@ -201,17 +205,24 @@ std::string signal_name(int sig) {
             why = c.reason;
         }
         if (type == retina::ScanType::kUnsupported) throw AnalysisError("not analysable: " + why);
+        EyeResult r;
         if (type == retina::ScanType::kOnh) {
-            throw AnalysisError("ONH scan (" + why +
-                                "): the ONH analysis is not part of this octshape build");
+            OnhEyeOptions eo = o.onh;
+            if (o.qc) {
+                eo.qc_dir = (out / "qc").string();
+                eo.qc_stem = item.key;
+            }
+            // Reads the file again, with the pixels the level set needs.
+            r = analyse_onh_eye(item.path, facts, eo, subjects);
+        } else {
+            MaculaEyeOptions eo = o.eye;
+            eo.check_scan_type = false;  // decided above
+            if (o.qc) {
+                eo.qc_dir = (out / "qc").string();
+                eo.qc_stem = item.key;
+            }
+            r = analyse_macula_eye(item.path, facts, scan, eo, subjects);
         }
-        MaculaEyeOptions eo = o.eye;
-        eo.check_scan_type = false;  // decided above
-        if (o.qc) {
-            eo.qc_dir = (out / "qc").string();
-            eo.qc_stem = item.key;
-        }
-        const MaculaEye r = analyse_macula_eye(item.path, facts, scan, eo, subjects);
         // Atomic, not fsync'ed: the parent syncs the file system once before the tables.
         io::write_text_atomically((out / "eyes" / (item.key + ".json")).string(),
                                   r.json.dump(2) + "\n", {.durable = false});
@@ -335,8 +346,8 @@ std::string failures_csv(const std::vector<Item>& items, const std::vector<Skipp
     }
     for (const auto& s : skipped) rows.push_back({s.path, s.reason, std::to_string(s.exit_code)});
     std::sort(rows.begin(), rows.end());
-    std::string s = csv_line({"file", "reason", "exit_code"});
-    for (const auto& r : rows) s += csv_line(r);
+    std::string s = retina::csv_line({"file", "reason", "exit_code"});
+    for (const auto& r : rows) s += retina::csv_line(r);
     return s;
 }
 
@@ -368,9 +379,16 @@ void run(CohortOptions& o, RunContext& ctx) {
     }
 
     // The eye record's options, and the failure record's (which also depend on --type).
-    const std::string eye_options =
+    // The options an eye's record must carry to count as done, per scan type (changing an ONH
+    // option redoes the ONH eyes only).
+    const std::string macula_options =
         macula_options_text(o.eye) + " subjects=" + subjects.fingerprint();
-    const std::string fail_options = eye_options + " type=" + o.type + (o.qc ? " qc" : "");
+    const std::string onh_options = onh_options_text(o.onh) + " subjects=" + subjects.fingerprint();
+    const auto eye_options_of = [&](const std::string& type) -> const std::string& {
+        return type == "onh" ? onh_options : macula_options;
+    };
+    const std::string fail_options = macula_options + " " + onh_options + " type=" + o.type +
+                                     (o.qc ? " qc" : "");
 
     std::vector<Skipped> skipped;
     const auto files = discover(o.inputs, out, skipped);
@@ -393,9 +411,14 @@ void run(CohortOptions& o, RunContext& ctx) {
         if (fs::exists(eye_json, ec)) {
             try {
                 nlohmann::json j = read_json_file(eye_json.string());
-                const bool qc_ok = !o.qc || fs::exists(out / "qc" / (it.key + "_thickness.png"));
-                if (j.contains("cohort") && record_is_current(j["cohort"], it.facts, eye_options) &&
-                    (o.type == "auto" || o.type == j["cohort"].value("scan_type", "")) && qc_ok) {
+                const std::string type = j.contains("cohort")
+                                             ? j["cohort"].value("scan_type", std::string())
+                                             : std::string();
+                const char* picture = type == "onh" ? "_enface.png" : "_thickness.png";
+                const bool qc_ok = !o.qc || fs::exists(out / "qc" / (it.key + picture));
+                if (j.contains("cohort") &&
+                    record_is_current(j["cohort"], it.facts, eye_options_of(type)) &&
+                    (o.type == "auto" || o.type == type) && qc_ok) {
                     it.done = true;
                     it.slim = slim(j);
                 }
@@ -510,11 +533,25 @@ void run(CohortOptions& o, RunContext& ctx) {
         }
         if (it.failed) ++failed;
     }
+    // One table per scan type (their parameter columns differ): eyes.csv holds the maculae,
+    // eyes_onh.csv the optic nerve heads (written when the cohort has any).
     io::write_text_atomically((out / "eyes.csv").string(),
                               eyes_csv(eyes, names, "macula", groups));
+    const bool any_onh = std::any_of(eyes.begin(), eyes.end(), [](const nlohmann::json& e) {
+        return e.contains("cohort") && e["cohort"].value("scan_type", std::string()) == "onh";
+    });
+    if (any_onh) {
+        io::write_text_atomically((out / "eyes_onh.csv").string(),
+                                  eyes_csv(eyes, names, "onh", groups));
+    }
     io::write_text_atomically((out / "failures.csv").string(), failures_csv(items, skipped));
     spdlog::info("{} eyes in {}, {} failed (see {})", eyes.size(), (out / "eyes.csv").string(),
                  failed, (out / "failures.csv").string());
+    if (o.qc) {
+        const GalleryResult g = write_qc_gallery(out);
+        spdlog::info("QC gallery: {} ({} eyes, {} failures, {} pictures)",
+                     (out / "qc" / "index.html").string(), g.eyes, g.failures, g.pictures);
+    }
     if (failed > 0) ctx.exit_code = static_cast<int>(ExitCode::kPartial);
 }
 
@@ -542,6 +579,7 @@ void add_cohort_command(CLI::App& app, RunContext& ctx) {
                   "Redo inputs whose failure is recorded (by default a recorded failure of an "
                   "unchanged file with the same options is kept)");
     add_macula_analysis_options(cmd, opts->eye);
+    add_onh_analysis_options(cmd, opts->onh, /*per_eye_files=*/false);
     add_subject_options(cmd, opts->subjects);
     cmd->callback([opts, &ctx] { run(*opts, ctx); });
 }

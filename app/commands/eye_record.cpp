@@ -1,5 +1,6 @@
 #include "commands/eye_record.h"
 
+#include <spdlog/spdlog.h>
 #include <sys/stat.h>
 
 #include <algorithm>
@@ -11,6 +12,7 @@
 #include "octshape/io/error.h"
 #include "octshape/io/sha256.h"
 #include "octshape/retina/cube_report.h"
+#include "octshape/retina/onh_report.h"
 #include "octshape/version.h"
 
 namespace octshape::app {
@@ -295,8 +297,35 @@ std::vector<std::string> eyes_common_header() {
     return {"subject_id", "eye", "visit_date", "scan_type", "file", "sha256", "group"};
 }
 
+void attach_cohort_record(nlohmann::ordered_json& j,
+                          const std::vector<std::string>& type_columns,
+                          const std::vector<std::string>& type_values,
+                          const FileFacts& facts,
+                          const std::string& options_text,
+                          const std::string& scan_type,
+                          const io::Scan& scan,
+                          const SubjectSource& subjects,
+                          const std::string& file) {
+    nlohmann::ordered_json row;
+    for (std::size_t i = 0; i < type_columns.size() && i < type_values.size(); ++i) {
+        row[type_columns[i]] = type_values[i];
+    }
+    j["csv_row"] = row;
+    auto rec = cohort_record(facts, options_text, scan_type);
+    const auto subject = subjects.subject_id(scan, facts.path);
+    rec["subject_id"] = subject ? nlohmann::json(*subject) : nlohmann::json(nullptr);
+    if (!subject && subjects.kind() != SubjectSource::Kind::kNone) {
+        spdlog::warn("{}: no subject id for this eye (NA)", file);
+    }
+    const auto visit = visit_date(scan);
+    rec["visit_date"] = visit ? nlohmann::json(*visit) : nlohmann::json(nullptr);
+    rec["eye"] = std::string(io::to_string(scan.meta.laterality));
+    j["cohort"] = rec;
+}
+
 std::vector<std::string> eyes_type_header(const std::string& scan_type) {
     if (scan_type == "macula") return retina::cube_csv_header();
+    if (scan_type == "onh") return retina::onh_csv_header();
     throw UsageError("no eyes table for scan type '" + scan_type + "'");
 }
 

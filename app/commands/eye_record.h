@@ -83,6 +83,26 @@ struct FileFacts {
                                      const FileFacts& facts,
                                      const std::string& options_text);
 
+// The per-eye outputs of any analysis (macula, onh): the JSON object with its "cohort" record
+// and "csv_row", and the single-eye CSV (header + row) of `octshape macula|onh --csv`.
+struct EyeResult {
+    nlohmann::ordered_json json;
+    std::vector<std::string> csv_header;
+    std::vector<std::string> csv_row;
+};
+
+// Completes an eye's result for cohorts: `j["csv_row"]` (the `type_columns` of the row by name)
+// and `j["cohort"]` (cohort_record + subject id, visit date, eye).
+void attach_cohort_record(nlohmann::ordered_json& j,
+                          const std::vector<std::string>& type_columns,
+                          const std::vector<std::string>& type_values,
+                          const FileFacts& facts,
+                          const std::string& options_text,
+                          const std::string& scan_type,
+                          const io::Scan& scan,
+                          const SubjectSource& subjects,
+                          const std::string& file);
+
 // ---- eyes.csv -----------------------------------------------------------------------------
 
 // `--groups map.csv`: header `subject_id,group` or `file,group` (file = absolute path or file
@@ -102,7 +122,8 @@ private:
 
 // The leading columns of every eyes table.
 [[nodiscard]] std::vector<std::string> eyes_common_header();
-// Per-type parameter columns ("macula": retina::cube_csv_header()).
+// Per-type parameter columns ("macula": retina::cube_csv_header(), "onh":
+// retina::onh_csv_header()).
 [[nodiscard]] std::vector<std::string> eyes_type_header(const std::string& scan_type);
 
 // Builds the CSV (header + rows sorted by subject_id, eye, visit_date, file) of the eyes of

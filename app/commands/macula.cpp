@@ -2,14 +2,13 @@
 // (SPEC §4, docs/algorithms/cube.md); outputs documented in docs/outputs.md. The per-eye work is
 // analyse_macula_eye (commands/macula_eye.h), shared with `octshape cohort`.
 
-#include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
 
 #include "commands/command.h"
+#include "commands/eye_output.h"
 #include "commands/eye_record.h"
 #include "commands/macula_eye.h"
-#include "octshape/io/atomic_file.h"
 
 namespace octshape::app {
 namespace {
@@ -25,12 +24,7 @@ struct MaculaOptions {
 void run(const MaculaOptions& o) {
     const SubjectSource subjects = SubjectSource::from_options(o.subjects);
     const MaculaEye r = analyse_macula_eye(o.file, o.eye, subjects);
-    // Each file is written atomically (temporary file + rename): none appears half-written.
-    if (!o.csv_out.empty()) {
-        io::write_text_atomically(o.csv_out, csv_line(r.csv_header) + csv_line(r.csv_row));
-    }
-    if (!o.json_out.empty()) io::write_text_atomically(o.json_out, r.json.dump(2) + "\n");
-    if (o.json_out.empty() && o.csv_out.empty()) std::cout << r.json.dump(2) << '\n';
+    publish_eye_outputs(o.json_out, o.csv_out, r.json, r.csv_header, r.csv_row);
 }
 
 }  // namespace

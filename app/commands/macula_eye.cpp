@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "commands/eye_output.h"
 #include "commands/macula_qc.h"
 #include "octshape/io/error.h"
 #include "octshape/io/scan_reader.h"
@@ -15,15 +16,6 @@
 #include "octshape/version.h"
 
 namespace octshape::app {
-
-std::string csv_line(const std::vector<std::string>& fields) {
-    std::string s;
-    for (std::size_t i = 0; i < fields.size(); ++i) {
-        if (i > 0) s += ',';
-        s += retina::csv_field(fields[i]);
-    }
-    return s + '\n';
-}
 
 std::string macula_options_text(const MaculaEyeOptions& o) {
     const auto& p = o.params;
@@ -87,36 +79,20 @@ MaculaEye analyse_macula_eye(const std::string& file,
 
     MaculaEye out;
     auto& j = out.json;
-    j["octshape_version"] = kVersion;
-    j["command"] = "macula";
-    j["input"] = {{"path", file}, {"sha256", sha}};
-    j["scan"] = retina::scan_summary(scan);  // without identifiers
+    j = eye_json_preamble("macula", file, sha, scan);
     const auto cube = retina::cube_json(r, o.params);
     for (const auto& [k, v] : cube.items()) j[k] = v;
     const std::string eye(io::to_string(scan.meta.laterality));
 
-    out.csv_header = {"file", "sha256", "eye", "scan_pattern", "num_bscans"};
-    out.csv_row = {file, sha, eye, std::string(io::to_string(scan.meta.pattern)),
-                   std::to_string(scan.num_bscans())};
     const auto cols = retina::cube_csv_header();
     const auto vals = retina::cube_csv_values(r);
-    nlohmann::ordered_json row;
-    for (std::size_t i = 0; i < cols.size(); ++i) row[cols[i]] = vals[i];
+    out.csv_header = eye_csv_header();
+    out.csv_row = eye_csv_values(file, sha, scan);
     out.csv_header.insert(out.csv_header.end(), cols.begin(), cols.end());
     out.csv_row.insert(out.csv_row.end(), vals.begin(), vals.end());
-    j["csv_row"] = row;
-
-    auto rec = cohort_record(facts, macula_options_text(o) + " subjects=" +
-                                        subjects.fingerprint(), "macula");
-    const auto subject = subjects.subject_id(scan, facts.path);
-    rec["subject_id"] = subject ? nlohmann::json(*subject) : nlohmann::json(nullptr);
-    if (!subject && subjects.kind() != SubjectSource::Kind::kNone) {
-        spdlog::warn("{}: no subject id for this eye (NA)", file);
-    }
-    const auto visit = visit_date(scan);
-    rec["visit_date"] = visit ? nlohmann::json(*visit) : nlohmann::json(nullptr);
-    rec["eye"] = eye;
-    j["cohort"] = rec;
+    attach_cohort_record(j, cols, vals, facts,
+                         macula_options_text(o) + " subjects=" + subjects.fingerprint(), "macula",
+                         scan, subjects, file);
 
     if (!o.qc_dir.empty()) {
         const std::string stem =

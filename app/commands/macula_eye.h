@@ -22,11 +22,8 @@ struct MaculaEyeOptions {
     bool check_scan_type = true;
 };
 
-struct MaculaEye {
-    nlohmann::ordered_json json;         // the per-eye object, with its "cohort" record
-    std::vector<std::string> csv_header;  // the `macula --csv` columns
-    std::vector<std::string> csv_row;
-};
+// The per-eye object (with its "cohort" record) and the `macula --csv` columns.
+using MaculaEye = EyeResult;
 
 // Throws InputError (file), AnalysisError (scan not analysable), OutputError (QC pictures).
 // `record` carries the subject settings and the option signature; its file facts are filled
@@ -48,8 +45,5 @@ struct MaculaEye {
 
 // Adds the CuBe options (--half-lines, --radius-mm, ...) to a command.
 void add_macula_analysis_options(CLI::App* cmd, MaculaEyeOptions& options);
-
-// One CSV line (RFC 4180 quoting, '\n' terminated).
-[[nodiscard]] std::string csv_line(const std::vector<std::string>& fields);
 
 }  // namespace octshape::app

@@ -76,7 +76,9 @@ void add_merge_command(CLI::App& app, RunContext& /*ctx*/) {
     cmd->add_option("-o,--output", opts->out, "Write the CSV here (default: stdout)");
     cmd->add_option("--groups", opts->groups,
                     "Group column from a CSV with header subject_id,group or file,group");
-    cmd->add_option("--type", opts->type, "Which eyes: macula")->capture_default_str();
+    cmd->add_option("--type", opts->type,
+                    "Which eyes: macula (the eyes.csv table) or onh (eyes_onh.csv)")
+        ->capture_default_str();
     cmd->callback([opts] { run(*opts); });
 }
 

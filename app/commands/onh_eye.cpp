@@ -1,0 +1,141 @@
+#include "commands/onh_eye.h"
+
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+#include <optional>
+#include <sstream>
+#include <vector>
+
+#include "commands/eye_output.h"
+#include "commands/onh_qc.h"
+#include "octshape/io/error.h"
+#include "octshape/io/mesh_io.h"
+#include "octshape/io/scan_reader.h"
+#include "octshape/io/sha256.h"
+#include "octshape/retina/bmo.h"
+#include "octshape/retina/onh_report.h"
+
+namespace octshape::app {
+namespace {
+
+// DIR/STEM_ilm.EXT (per-face height above the RPE, region bits, signed projected area, local
+// ENVT strength) and DIR/STEM_rpe.EXT (per-face: 1 where a corner was filled).
+void write_meshes(const retina::OnhResult& r, const OnhEyeOptions& o, const std::string& stem) {
+    std::error_code ec;
+    std::filesystem::create_directories(o.mesh_dir, ec);
+    if (ec) throw OutputError(o.mesh_dir, "cannot create the mesh directory: " + ec.message());
+    const std::filesystem::path d(o.mesh_dir);
+    Eigen::VectorXd region(r.ilm_F.rows());
+    for (Eigen::Index f = 0; f < region.size(); ++f) {
+        region(f) = r.face_region[static_cast<std::size_t>(f)];
+    }
+    io::FaceScalars ilm{{"height_above_rpe_mm", r.face_height_mm},
+                        {"region", region},
+                        {"signed_projected_area_mm2", r.face_projected_area_mm2}};
+    if (r.face_envt_strength.size() == r.ilm_F.rows()) {
+        ilm.emplace_back("envt_strength", r.face_envt_strength);
+    }
+    io::write_mesh(d / (stem + "_ilm." + o.mesh_format), r.ilm_V, r.ilm_F, ilm);
+    Eigen::VectorXd filled(r.rpe_F.rows());
+    for (Eigen::Index f = 0; f < r.rpe_F.rows(); ++f) {
+        bool any = false;
+        for (int k = 0; k < 3; ++k)
+            any = any || r.rpe.filled[static_cast<std::size_t>(r.rpe_F(f, k))];
+        filled(f) = any ? 1.0 : 0.0;
+    }
+    io::write_mesh(d / (stem + "_rpe." + o.mesh_format), r.rpe_V, r.rpe_F, {{"filled", filled}});
+}
+
+}  // namespace
+
+std::string onh_options_text(const OnhEyeOptions& o) {
+    const auto& p = o.params;
+    std::ostringstream s;
+    s.precision(17);
+    s << "onh ilm=" << o.ilm << " bmo_file=" << o.bmo_file << " bmo_points=" << p.bmo_points
+      << " disc_radius_mm=" << p.disc_radius_mm
+      << " min_gap_area_mm2=" << p.detection.min_gap_area_mm2
+      << " mesh=" << (o.mesh_dir.empty() ? std::string("none") : o.mesh_format);
+    return s.str();
+}
+
+void add_onh_analysis_options(CLI::App* cmd, OnhEyeOptions& o, bool per_eye_files) {
+    cmd->add_option("--ilm", o.ilm,
+                    "ILM surface: levelset (3-D Chan-Vese level set on the B-scans, marching "
+                    "cubes, RoFi; follows overhangs) or device (the device ILM as a graph mesh)")
+        ->capture_default_str();
+    if (per_eye_files) {
+        cmd->add_option("--bmo", o.bmo_file,
+                        "BMO points from a CSV file (header x_mm,y_mm,z_mm or "
+                        "ascan,bscan,depth_px; docs/algorithms/onh.md) instead of the automatic "
+                        "detection");
+    }
+    auto& p = o.params;
+    cmd->add_option("--bmo-points", p.bmo_points,
+                    "Resampled BMO ellipse points (uniform in the parameter angle)")
+        ->capture_default_str();
+    cmd->add_option("--disc-radius-mm", p.disc_radius_mm,
+                    "Radius of the total-volume disc around the BMO centre (mm)")
+        ->capture_default_str();
+    cmd->add_option("--min-gap-area-mm2", p.detection.min_gap_area_mm2,
+                    "Smallest BM gap accepted as the disc by the automatic BMO detection (mm2)")
+        ->capture_default_str();
+}
+
+EyeResult analyse_onh_eye(const std::string& file,
+                          const FileFacts& facts,
+                          OnhEyeOptions o,
+                          const SubjectSource& subjects) {
+    o.params.local_features = !o.mesh_dir.empty();  // the ENVT map is a mesh scalar only
+    o.params.validate();
+    const retina::IlmSource source = retina::ilm_source_from_string(o.ilm);
+    if (o.mesh_format != "vtp" && o.mesh_format != "ply") {
+        throw UsageError("--mesh-format must be vtp or ply");
+    }
+    io::ReadOptions read;
+    // Pixels: for an ILM source that segments them, and for the B-scans of the QC pictures.
+    read.pixels = retina::ilm_needs_pixels(source) || !o.qc_dir.empty();
+    const io::Scan scan = io::read_scan(file, read);
+    try {
+        retina::require_onh_volume(scan);
+    } catch (const AnalysisError& e) {
+        throw AnalysisError(file + ": " + e.what());  // one line naming the file
+    }
+    const std::string sha = io::sha256_file(file);
+    std::optional<std::vector<retina::BmoPoint>> bmo;
+    if (!o.bmo_file.empty()) bmo = retina::read_bmo_csv(o.bmo_file, scan.meta, scan.num_bscans());
+    const retina::IlmSurface ilm = retina::build_ilm_surface(scan, source);
+    const retina::OnhResult r = retina::analyse_onh(scan, ilm, o.params, bmo);
+    for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", file, f);
+    for (const auto& n : r.notes) spdlog::info("{}: {}", file, n);
+
+    EyeResult out;
+    auto& j = out.json;
+    j = eye_json_preamble("onh", file, sha, scan);
+    const nlohmann::ordered_json body = retina::onh_json(r, o.params);
+    for (const auto& [k, v] : body.items()) j[k] = v;
+    if (!o.bmo_file.empty()) j["options"]["bmo_file"] = o.bmo_file;
+    const auto cols = retina::onh_csv_header();
+    const auto vals = retina::onh_csv_values(r);
+    out.csv_header = eye_csv_header();
+    out.csv_row = eye_csv_values(file, sha, scan);
+    out.csv_header.insert(out.csv_header.end(), cols.begin(), cols.end());
+    out.csv_row.insert(out.csv_row.end(), vals.begin(), vals.end());
+    attach_cohort_record(j, cols, vals, facts,
+                         onh_options_text(o) + " subjects=" + subjects.fingerprint(), "onh", scan,
+                         subjects, file);
+
+    const std::string stem =
+        o.qc_stem.empty() ? std::filesystem::path(file).stem().string() : o.qc_stem;
+    if (!o.qc_dir.empty()) write_onh_qc(scan, r, o.params, o.qc_dir, stem);
+    if (!o.mesh_dir.empty()) write_meshes(r, o, stem);
+    spdlog::info(
+        "{}: {} eye, ILM {}, BMO area {:.4f} mm2, cup {:.4f} mm3, CONHT {:.4f} mm, "
+        "MRW {:.4f} mm",
+        file, r.eye, r.ilm_source, r.ellipse.area_mm2, r.cup_volume_mm3, r.conht_mm,
+        r.mrw_mean_mm);
+    return out;
+}
+
+}  // namespace octshape::app
