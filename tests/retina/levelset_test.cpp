@@ -319,19 +319,17 @@ void expect_follows_overhang(const Case& c) {
     EXPECT_LT(disc_ls, disc_dev);
 }
 
-class LevelSetPhantom : public ::testing::TestWithParam<OnhShape> {};
-
 // One test per shape (ctest runs each test in its own process: one render per shape).
-TEST_P(LevelSetPhantom, OneSheetNearTheTruthAndRofiRemovesTheStaircase) {
-    const Case& c = get_case(GetParam());
-    expect_one_sheet_near_truth(c, GetParam());
-    expect_rofi_removes_staircase(c, GetParam());
-    if (GetParam() == OnhShape::kOverhang) expect_follows_overhang(c);
+void check_shape(OnhShape shape) {
+    const Case& c = get_case(shape);
+    expect_one_sheet_near_truth(c, shape);
+    expect_rofi_removes_staircase(c, shape);
+    if (shape == OnhShape::kOverhang) expect_follows_overhang(c);
 }
 
-INSTANTIATE_TEST_SUITE_P(Shapes, LevelSetPhantom,
-                         ::testing::Values(OnhShape::kCupped, OnhShape::kSwollen, OnhShape::kOverhang),
-                         [](const auto& param_info) { return to_string(param_info.param); });
+TEST(LevelSetPhantom, Cupped) { check_shape(OnhShape::kCupped); }
+TEST(LevelSetPhantom, Swollen) { check_shape(OnhShape::kSwollen); }
+TEST(LevelSetPhantom, Overhang) { check_shape(OnhShape::kOverhang); }
 
 // The same at the full 145 × 384 × 496 size (ctest label "slow").
 TEST(LevelSetOverhangFullSize, FollowsTheIlmUnderTheRimLip) {
