@@ -26,7 +26,8 @@ namespace {
 struct MeanShapeOptions {
     std::vector<std::string> inputs;
     std::string output;
-    int max_iterations = 500;
+    int max_iterations = io::IcpParams{}.max_iterations;
+    int refine_iterations = io::IcpParams{}.refine_iterations;
     int threads = 1;
 };
 
@@ -39,6 +40,7 @@ void run_meanshape(const MeanShapeOptions& o) {
     const auto t0 = std::chrono::steady_clock::now();
     io::IcpParams icp;
     icp.max_iterations = o.max_iterations;
+    icp.refine_iterations = o.refine_iterations;
     validate_options(icp);
     const io::MeshData first = read_valid_mesh(o.inputs[0]);
     const mesh::Surface reference{first.V, first.F};
@@ -47,6 +49,7 @@ void run_meanshape(const MeanShapeOptions& o) {
     surfaces.push_back({{"input", o.inputs[0]},
                         {"vertices", first.V.rows()},
                         {"icp_iterations", 0},
+                        {"icp_refine_iterations", 0},
                         {"icp_rotation_deg", 0.0},
                         {"icp_translation_mm", 0.0},
                         {"icp_mean_distance_mm", 0.0},
@@ -55,11 +58,14 @@ void run_meanshape(const MeanShapeOptions& o) {
     for (std::size_t s = 1; s < o.inputs.size(); ++s) {
         const io::MeshData m = read_valid_mesh(o.inputs[s]);
         const io::IcpResult r = io::icp_rigid(m.V, reference.V, reference.F, icp);
-        spdlog::info("{}: ICP {} iterations, rotation {:.3f} deg, RMS residual {:.4g} mm",
-                     o.inputs[s], r.iterations, r.rotation_deg, r.rms_distance);
+        spdlog::info("{}: ICP {} + {} point-to-plane iterations, rotation {:.3f} deg, RMS "
+                     "residual {:.4g} mm",
+                     o.inputs[s], r.iterations, r.refine_iterations, r.rotation_deg,
+                     r.rms_distance);
         surfaces.push_back({{"input", o.inputs[s]},
                             {"vertices", m.V.rows()},
                             {"icp_iterations", r.iterations},
+                            {"icp_refine_iterations", r.refine_iterations},
                             {"icp_rotation_deg", r.rotation_deg},
                             {"icp_translation_mm", r.translation},
                             {"icp_mean_distance_mm", r.mean_distance},
@@ -90,6 +96,7 @@ void run_meanshape(const MeanShapeOptions& o) {
                               {"mean_sd_mm", result.sd.size() > 0 ? result.sd.mean() : 0.0},
                               {"max_sd_mm", result.sd.size() > 0 ? result.sd.maxCoeff() : 0.0},
                               {"icp_max_iterations", o.max_iterations},
+                              {"icp_refine_iterations", o.refine_iterations},
                               {"seconds", seconds}};
     std::cout << j.dump(2) << '\n';
 }
@@ -108,8 +115,14 @@ void add_meanshape_command(CLI::App& app, RunContext& /*ctx*/) {
         ->required();
     cmd->add_option("-o,--output", opts->output, "Mean shape with sd_mm (.vtp or .ply)")
         ->required();
-    cmd->add_option("--max-iterations", opts->max_iterations, "ICP iterations at most (500)")
-        ->check(CLI::Range(1, 100000));
+    cmd->add_option("--max-iterations", opts->max_iterations,
+                    "VTK point-to-point ICP iterations at most")
+        ->check(CLI::Range(1, 100000))
+        ->capture_default_str();
+    cmd->add_option("--refine-iterations", opts->refine_iterations,
+                    "Point-to-plane refinement steps after it at most (0 = none)")
+        ->check(CLI::Range(0, 10000))
+        ->capture_default_str();
     cmd->add_option("--threads", opts->threads, "Threads (results are identical for any number)")
         ->check(CLI::Range(1, 256));
     cmd->callback([opts] { run_meanshape(*opts); });

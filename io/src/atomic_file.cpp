@@ -45,8 +45,8 @@ void fsync_path(const fs::path& p, const std::string& dest) {
 
 }  // namespace
 
-void write_file_atomically(const std::string& path,
-                           const std::function<void(std::ostream&)>& write) {
+void write_path_atomically(const std::string& path,
+                           const std::function<void(const std::string& tmp)>& write) {
     const fs::path dest(path);
     if (dest.filename().empty()) throw OutputError(path, "not a file name");
     fs::path dir = dest.parent_path();
@@ -55,26 +55,21 @@ void write_file_atomically(const std::string& path,
     if (!fs::is_directory(dir, ec)) throw OutputError(path, "directory does not exist");
     if (fs::is_directory(dest, ec)) throw OutputError(path, "is a directory");
 
-    // Hidden, unique temporary name in the same directory (same file system => atomic rename).
+    // Hidden, unique temporary name in the same directory (same file system => atomic rename);
+    // it keeps the destination's extension, which some writers look at.
     std::random_device rd;
     // (Built with append: GCC 12 -O3 emits a false -Wrestrict on chained operator+.)
     std::string tmp_name(".");
-    tmp_name.append(dest.filename().string())
+    tmp_name.append(dest.stem().string())
         .append(".tmp-")
         .append(std::to_string(::getpid()))
         .append("-")
-        .append(std::to_string(rd()));
+        .append(std::to_string(rd()))
+        .append(dest.extension().string());
     const fs::path tmp = dir / tmp_name;
     TempGuard guard(tmp);
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        if (!out) throw OutputError(path, std::string("cannot create: ") + std::strerror(errno));
-        write(out);
-        out.flush();
-        if (!out) throw OutputError(path, "write failed (disk full?)");
-        out.close();
-        if (out.fail()) throw OutputError(path, "close failed");
-    }
+    write(tmp.string());
+    if (!fs::is_regular_file(tmp, ec)) throw OutputError(path, "the writer produced no file");
     fsync_path(tmp, path);
     if (::rename(tmp.c_str(), dest.c_str()) != 0) {
         throw OutputError(path, std::string("rename failed: ") + std::strerror(errno));
@@ -86,6 +81,19 @@ void write_file_atomically(const std::string& path,
         ::fsync(dfd);
         ::close(dfd);
     }
+}
+
+void write_file_atomically(const std::string& path,
+                           const std::function<void(std::ostream&)>& write) {
+    write_path_atomically(path, [&](const std::string& tmp) {
+        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+        if (!out) throw OutputError(path, std::string("cannot create: ") + std::strerror(errno));
+        write(out);
+        out.flush();
+        if (!out) throw OutputError(path, "write failed (disk full?)");
+        out.close();
+        if (out.fail()) throw OutputError(path, "close failed");
+    });
 }
 
 void write_text_atomically(const std::string& path, std::string_view text) {

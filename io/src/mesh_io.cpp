@@ -18,7 +18,9 @@
 #include <vtkCellArray.h>
 #include <vtkCellData.h>
 #include <vtkCommand.h>
+#include <vtkDataSetAttributes.h>
 #include <vtkDoubleArray.h>
+#include <vtkPointData.h>
 #include <vtkNew.h>
 #include <vtkOBJReader.h>
 #include <vtkOBJWriter.h>
@@ -31,36 +33,14 @@
 #include <vtkXMLPolyDataReader.h>
 #include <vtkXMLPolyDataWriter.h>
 
+#include "mesh_io_detail.h"
+#include "octshape/io/atomic_file.h"
 #include "octshape/io/error.h"
 
 namespace octshape::io {
 namespace {
 
 namespace fs = std::filesystem;
-
-// Collects the first error or warning a VTK algorithm reports (instead of printing it).
-class VtkErrorCatcher : public vtkCommand {
-public:
-    static VtkErrorCatcher* New() { return new VtkErrorCatcher; }
-    void Execute(vtkObject* /*caller*/, unsigned long event, void* data) override {
-        if (event == vtkCommand::ErrorEvent && message_.empty()) {
-            message_ = data != nullptr ? static_cast<const char*>(data) : "unknown VTK error";
-            // VTK messages span lines and name source files: keep the first line only.
-            message_ = message_.substr(0, message_.find('\n'));
-        }
-    }
-    [[nodiscard]] const std::string& message() const { return message_; }
-
-private:
-    std::string message_;
-};
-
-std::string lower_extension(const fs::path& path) {
-    std::string ext = path.extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return ext;
-}
 
 void check_input_file(const fs::path& path) {
     std::error_code ec;
@@ -124,16 +104,8 @@ MeshData from_polydata(vtkPolyData* poly, const std::string& name) {
 
 template <class Reader>
 MeshData read_with_vtk(const fs::path& path) {
-    vtkNew<Reader> reader;
-    vtkNew<VtkErrorCatcher> catcher;
-    reader->AddObserver(vtkCommand::ErrorEvent, catcher);
-    reader->AddObserver(vtkCommand::WarningEvent, catcher);
-    reader->SetFileName(path.string().c_str());
-    reader->Update();
-    if (!catcher->message().empty()) {
-        throw InputError::corrupt(path.string(), "VTK reader: " + catcher->message());
-    }
-    return from_polydata(reader->GetOutput(), path.string());
+    const vtkSmartPointer<vtkPolyData> poly = detail::read_polydata<Reader>(path);
+    return from_polydata(poly, path.string());
 }
 
 // ---------------------------------------------------------------- OFF, by hand
@@ -188,80 +160,75 @@ private:
     std::size_t pos_ = 0;
 };
 
-// ---------------------------------------------------------------- writing helpers
+// ---------------------------------------------------------------- writing
 
-vtkSmartPointer<vtkPolyData> to_polydata(const mesh::Vertices& V,
-                                         const mesh::Faces& F,
-                                         const FaceScalars& scalars) {
-    vtkNew<vtkPoints> points;
-    points->SetDataTypeToDouble();
-    points->SetNumberOfPoints(V.rows());
-    for (Eigen::Index i = 0; i < V.rows(); ++i) points->SetPoint(i, V(i, 0), V(i, 1), V(i, 2));
-    vtkNew<vtkCellArray> polys;
-    polys->AllocateExact(F.rows(), F.rows() * 3);
-    for (Eigen::Index f = 0; f < F.rows(); ++f) {
-        const std::array<vtkIdType, 3> ids{F(f, 0), F(f, 1), F(f, 2)};
-        polys->InsertNextCell(3, ids.data());
-    }
-    auto poly = vtkSmartPointer<vtkPolyData>::New();
-    poly->SetPoints(points);
-    poly->SetPolys(polys);
+template <class Scalars>
+void check_scalars(const Scalars& scalars, Eigen::Index expected, const char* kind,
+                   const char* elements) {
     for (const auto& [name, values] : scalars) {
-        vtkNew<vtkDoubleArray> array;
-        array->SetName(name.c_str());
-        array->SetNumberOfValues(values.size());
-        for (Eigen::Index f = 0; f < values.size(); ++f) array->SetValue(f, values(f));
-        poly->GetCellData()->AddArray(array);
-    }
-    return poly;
-}
-
-template <class T>
-void put_le(std::ostream& out, T value) {
-    std::array<char, sizeof(T)> bytes{};
-    std::memcpy(bytes.data(), &value, sizeof(T));
-    if constexpr (std::endian::native == std::endian::big) std::reverse(bytes.begin(), bytes.end());
-    out.write(bytes.data(), sizeof(T));
-}
-
-void write_ply(std::ostream& out,
-               const mesh::Vertices& V,
-               const mesh::Faces& F,
-               const FaceScalars& scalars) {
-    out << "ply\nformat binary_little_endian 1.0\ncomment written by octshape\n"
-        << "element vertex " << V.rows() << "\nproperty double x\nproperty double y\n"
-        << "property double z\nelement face " << F.rows()
-        << "\nproperty list uchar int vertex_indices\n";
-    for (const auto& s : scalars) out << "property double " << s.first << '\n';
-    out << "end_header\n";
-    for (Eigen::Index i = 0; i < V.rows(); ++i) {
-        for (int k = 0; k < 3; ++k) put_le<double>(out, V(i, k));
-    }
-    for (Eigen::Index f = 0; f < F.rows(); ++f) {
-        put_le<std::uint8_t>(out, 3);
-        for (int k = 0; k < 3; ++k) put_le<std::int32_t>(out, F(f, k));
-        for (const auto& s : scalars) put_le<double>(out, s.second(f));
+        if (values.size() != expected) {
+            throw UsageError(std::string(kind) + " scalar '" + name + "' has " +
+                             std::to_string(values.size()) + " values for " +
+                             std::to_string(expected) + " " + elements);
+        }
+        if (name.empty() || std::any_of(name.begin(), name.end(), [](unsigned char c) {
+                return std::isspace(c) != 0;
+            })) {
+            throw UsageError(std::string(kind) + " scalar name '" + name + "' must be one word");
+        }
     }
 }
 
-template <class Writer>
-void write_with_vtk(const fs::path& tmp,
-                    const fs::path& path,
-                    vtkPolyData* poly,
-                    Writer* writer) {
-    vtkNew<VtkErrorCatcher> catcher;
-    writer->AddObserver(vtkCommand::ErrorEvent, catcher);
-    writer->SetFileName(tmp.string().c_str());
-    writer->SetInputData(poly);
-    if (writer->Write() != 1 || !catcher->message().empty()) {
-        throw OutputError(path.string(), "VTK writer: " + catcher->message());
+// Every mesh writer ends here: scalars are checked, then the file is written under a temporary
+// name and renamed (io/atomic_file.h).
+void write_mesh_file(const fs::path& path,
+                     const mesh::Vertices& V,
+                     const mesh::Faces& F,
+                     const VertexScalars& vertex_scalars,
+                     const FaceScalars& face_scalars) {
+    const MeshFormat format = mesh_format_from_extension(path);
+    check_scalars(vertex_scalars, V.rows(), "vertex", "vertices");
+    check_scalars(face_scalars, F.rows(), "face", "faces");
+    const std::string dest = path.string();
+    switch (format) {
+        case MeshFormat::kOff:
+            write_file_atomically(dest, [&](std::ostream& out) { write_off(out, V, F); });
+            return;
+        case MeshFormat::kPly:
+            write_file_atomically(dest, [&](std::ostream& out) {
+                detail::write_ply(out, V, F, vertex_scalars, face_scalars);
+            });
+            return;
+        case MeshFormat::kObj:
+            write_path_atomically(dest, [&](const std::string& tmp) {
+                vtkNew<vtkOBJWriter> writer;
+                detail::write_polydata(writer.Get(), detail::to_polydata(V, F, {}, {}), tmp,
+                                       dest);
+            });
+            return;
+        case MeshFormat::kStl:
+            write_path_atomically(dest, [&](const std::string& tmp) {
+                vtkNew<vtkSTLWriter> writer;
+                writer->SetFileTypeToBinary();
+                detail::write_polydata(writer.Get(), detail::to_polydata(V, F, {}, {}), tmp,
+                                       dest);
+            });
+            return;
+        case MeshFormat::kVtp:
+            write_path_atomically(dest, [&](const std::string& tmp) {
+                vtkNew<vtkXMLPolyDataWriter> writer;
+                detail::write_polydata(
+                    writer.Get(), detail::to_polydata(V, F, vertex_scalars, face_scalars), tmp,
+                    dest);
+            });
+            return;
     }
 }
 
 }  // namespace
 
 MeshFormat mesh_format_from_extension(const fs::path& path) {
-    const std::string ext = lower_extension(path);
+    const std::string ext = detail::lower_extension(path);
     if (ext == ".ply") return MeshFormat::kPly;
     if (ext == ".obj") return MeshFormat::kObj;
     if (ext == ".off") return MeshFormat::kOff;
@@ -366,7 +333,7 @@ MeshData read_mesh(const fs::path& path) {
         format = MeshFormat::kVtp;
     } else if (binary_stl || h.starts_with("solid")) {
         format = MeshFormat::kStl;
-    } else if (lower_extension(path) == ".obj") {
+    } else if (detail::lower_extension(path) == ".obj") {
         format = MeshFormat::kObj;
     } else {
         throw InputError::unsupported(name, "not a PLY, OFF, VTP, STL or OBJ mesh", 0);
@@ -403,59 +370,96 @@ void write_mesh(const fs::path& path,
                 const mesh::Vertices& V,
                 const mesh::Faces& F,
                 const FaceScalars& scalars) {
+    write_mesh_file(path, V, F, {}, scalars);
+}
+
+void write_mesh_vertex_scalars(const fs::path& path,
+                               const mesh::Vertices& V,
+                               const mesh::Faces& F,
+                               const VertexScalars& scalars) {
     const MeshFormat format = mesh_format_from_extension(path);
-    for (const auto& [name, values] : scalars) {
-        if (values.size() != F.rows()) {
-            throw UsageError("face scalar '" + name + "' has " + std::to_string(values.size()) +
-                             " values for " + std::to_string(F.rows()) + " faces");
-        }
-        if (name.empty() || std::any_of(name.begin(), name.end(), [](unsigned char c) {
-                return std::isspace(c) != 0;
-            })) {
-            throw UsageError("face scalar name '" + name + "' must be one word");
-        }
+    if (format != MeshFormat::kVtp && format != MeshFormat::kPly) {
+        throw UsageError(path.string() + ": per-vertex scalars need .vtp or .ply");
     }
-    const fs::path tmp = path.string() + ".partial";
-    try {
-        switch (format) {
-            case MeshFormat::kOff:
-            case MeshFormat::kPly: {
-                std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-                if (!out) throw OutputError(path.string(), std::strerror(errno));
-                if (format == MeshFormat::kOff) {
-                    write_off(out, V, F);
-                } else {
-                    write_ply(out, V, F, scalars);
-                }
-                out.close();
-                if (!out) throw OutputError(path.string(), "write failed");
-                break;
-            }
-            case MeshFormat::kObj: {
-                vtkNew<vtkOBJWriter> writer;
-                write_with_vtk(tmp, path, to_polydata(V, F, {}), writer.Get());
-                break;
-            }
-            case MeshFormat::kStl: {
-                vtkNew<vtkSTLWriter> writer;
-                writer->SetFileTypeToBinary();
-                write_with_vtk(tmp, path, to_polydata(V, F, {}), writer.Get());
-                break;
-            }
-            case MeshFormat::kVtp: {
-                vtkNew<vtkXMLPolyDataWriter> writer;
-                write_with_vtk(tmp, path, to_polydata(V, F, scalars), writer.Get());
-                break;
-            }
-        }
-        std::error_code ec;
-        fs::rename(tmp, path, ec);
-        if (ec) throw OutputError(path.string(), ec.message());
-    } catch (...) {
-        std::error_code ec;
-        fs::remove(tmp, ec);
-        throw;
+    write_mesh_file(path, V, F, scalars, {});
+}
+
+// ---------------------------------------------------------------- shared helpers (detail)
+
+namespace detail {
+
+std::string lower_extension(const fs::path& path) {
+    std::string ext = path.extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return ext;
+}
+
+void VtkErrorCatcher::Execute(vtkObject* /*caller*/, unsigned long event, void* data) {
+    if ((event == vtkCommand::ErrorEvent || event == vtkCommand::WarningEvent) &&
+        message_.empty()) {
+        message_ = data != nullptr ? static_cast<const char*>(data) : "unknown VTK error";
+        message_ = message_.substr(0, message_.find('\n'));
     }
 }
+
+vtkSmartPointer<vtkPolyData> to_polydata(const mesh::Vertices& V,
+                                         const mesh::Faces& F,
+                                         const VertexScalars& vertex_scalars,
+                                         const FaceScalars& face_scalars) {
+    vtkNew<vtkPoints> points;
+    points->SetDataTypeToDouble();
+    points->SetNumberOfPoints(V.rows());
+    for (Eigen::Index i = 0; i < V.rows(); ++i) points->SetPoint(i, V(i, 0), V(i, 1), V(i, 2));
+    vtkNew<vtkCellArray> polys;
+    polys->AllocateExact(F.rows(), F.rows() * 3);
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+        const std::array<vtkIdType, 3> ids{F(f, 0), F(f, 1), F(f, 2)};
+        polys->InsertNextCell(3, ids.data());
+    }
+    auto poly = vtkSmartPointer<vtkPolyData>::New();
+    poly->SetPoints(points);
+    poly->SetPolys(polys);
+    const auto add = [](const auto& scalars, vtkDataSetAttributes* data) {
+        for (const auto& [name, values] : scalars) {
+            vtkNew<vtkDoubleArray> array;
+            array->SetName(name.c_str());
+            array->SetNumberOfValues(values.size());
+            for (Eigen::Index i = 0; i < values.size(); ++i) array->SetValue(i, values(i));
+            data->AddArray(array);
+        }
+    };
+    add(vertex_scalars, poly->GetPointData());
+    add(face_scalars, poly->GetCellData());
+    return poly;
+}
+
+void write_ply(std::ostream& out,
+               const mesh::Vertices& V,
+               const mesh::Faces& F,
+               const VertexScalars& vertex_scalars,
+               const FaceScalars& face_scalars) {
+    out << "ply\nformat binary_little_endian 1.0\ncomment written by octshape\n"
+        << "element vertex " << V.rows() << "\nproperty double x\nproperty double y\n"
+        << "property double z\n";
+    for (const auto& s : vertex_scalars) out << "property double " << s.first << '\n';
+    const bool faces = F.rows() > 0 || !face_scalars.empty();
+    if (faces) {
+        out << "element face " << F.rows() << "\nproperty list uchar int vertex_indices\n";
+        for (const auto& s : face_scalars) out << "property double " << s.first << '\n';
+    }
+    out << "end_header\n";
+    for (Eigen::Index i = 0; i < V.rows(); ++i) {
+        for (int k = 0; k < 3; ++k) put_le<double>(out, V(i, k));
+        for (const auto& s : vertex_scalars) put_le<double>(out, s.second(i));
+    }
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+        put_le<std::uint8_t>(out, 3);
+        for (int k = 0; k < 3; ++k) put_le<std::int32_t>(out, F(f, k));
+        for (const auto& s : face_scalars) put_le<double>(out, s.second(f));
+    }
+}
+
+}  // namespace detail
 
 }  // namespace octshape::io

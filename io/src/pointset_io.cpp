@@ -20,35 +20,14 @@
 #include <vtkPLYReader.h>
 #include <vtkPolyData.h>
 
+#include "mesh_io_detail.h"
+#include "octshape/io/atomic_file.h"
 #include "octshape/io/error.h"
 
 namespace octshape::io {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string lower_extension(const fs::path& path) {
-    std::string ext = path.extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return ext;
-}
-
-// Collects the first error a VTK reader reports.
-class ErrorCatcher : public vtkCommand {
-public:
-    static ErrorCatcher* New() { return new ErrorCatcher; }
-    void Execute(vtkObject* /*caller*/, unsigned long event, void* data) override {
-        if (event == vtkCommand::ErrorEvent && message_.empty()) {
-            message_ = data != nullptr ? static_cast<const char*>(data) : "unknown VTK error";
-            message_ = message_.substr(0, message_.find('\n'));
-        }
-    }
-    [[nodiscard]] const std::string& message() const { return message_; }
-
-private:
-    std::string message_;
-};
 
 mesh::Vertices to_vertices(const std::vector<std::array<double, 3>>& pts, const std::string& name) {
     if (pts.empty()) throw InputError::corrupt(name, "no point in the file");
@@ -138,16 +117,7 @@ mesh::Vertices parse_obj(const std::string& text, const std::string& name) {
 }
 
 mesh::Vertices read_ply_points(const fs::path& path) {
-    vtkNew<vtkPLYReader> reader;
-    vtkNew<ErrorCatcher> catcher;
-    reader->AddObserver(vtkCommand::ErrorEvent, catcher);
-    reader->AddObserver(vtkCommand::WarningEvent, catcher);
-    reader->SetFileName(path.string().c_str());
-    reader->Update();
-    if (!catcher->message().empty()) {
-        throw InputError::corrupt(path.string(), "VTK reader: " + catcher->message());
-    }
-    vtkPolyData* poly = reader->GetOutput();
+    const vtkSmartPointer<vtkPolyData> poly = detail::read_polydata<vtkPLYReader>(path);
     const vtkIdType n = poly != nullptr ? poly->GetNumberOfPoints() : 0;
     std::vector<std::array<double, 3>> pts(static_cast<std::size_t>(n));
     for (vtkIdType i = 0; i < n; ++i) {
@@ -161,18 +131,10 @@ mesh::Vertices read_ply_points(const fs::path& path) {
     return to_vertices(pts, path.string());
 }
 
-template <class T>
-void put_le(std::ostream& out, T value) {
-    std::array<char, sizeof(T)> bytes{};
-    std::memcpy(bytes.data(), &value, sizeof(T));
-    if constexpr (std::endian::native == std::endian::big) std::reverse(bytes.begin(), bytes.end());
-    out.write(bytes.data(), sizeof(T));
-}
-
 }  // namespace
 
 PointSetFormat point_set_format_from_extension(const fs::path& path) {
-    const std::string ext = lower_extension(path);
+    const std::string ext = detail::lower_extension(path);
     if (ext == ".xyz" || ext == ".txt") return PointSetFormat::kXyz;
     if (ext == ".ply") return PointSetFormat::kPly;
     if (ext == ".obj") return PointSetFormat::kObj;
@@ -194,7 +156,7 @@ mesh::Vertices read_point_set(const fs::path& path) {
         text.clear();
         return read_ply_points(path);
     }
-    if (lower_extension(path) == ".obj") return parse_obj(text, name);
+    if (detail::lower_extension(path) == ".obj") return parse_obj(text, name);
     return parse_xyz(text, name);
 }
 
@@ -215,48 +177,28 @@ void write_point_set(const fs::path& path, const mesh::Vertices& V, const mesh::
         throw UsageError("normals have " + std::to_string(normals->rows()) + " rows for " +
                          std::to_string(V.rows()) + " points");
     }
-    const fs::path tmp = path.string() + ".partial";
-    try {
-        {
-            std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-            if (!out) throw OutputError(path.string(), std::strerror(errno));
-            if (format == PointSetFormat::kXyz) {
-                write_xyz(out, V, normals);
-            } else if (format == PointSetFormat::kObj) {
-                out << "# written by octshape\n" << std::setprecision(17);
-                for (Eigen::Index i = 0; i < V.rows(); ++i) {
-                    out << "v " << V(i, 0) << ' ' << V(i, 1) << ' ' << V(i, 2) << '\n';
-                }
-                for (Eigen::Index i = 0; normals != nullptr && i < V.rows(); ++i) {
-                    out << "vn " << (*normals)(i, 0) << ' ' << (*normals)(i, 1) << ' '
-                        << (*normals)(i, 2) << '\n';
-                }
-            } else {
-                out << "ply\nformat binary_little_endian 1.0\ncomment written by octshape\n"
-                    << "element vertex " << V.rows()
-                    << "\nproperty double x\nproperty double y\nproperty double z\n";
-                if (normals != nullptr) {
-                    out << "property double nx\nproperty double ny\nproperty double nz\n";
-                }
-                out << "end_header\n";
-                for (Eigen::Index i = 0; i < V.rows(); ++i) {
-                    for (int k = 0; k < 3; ++k) put_le<double>(out, V(i, k));
-                    for (int k = 0; normals != nullptr && k < 3; ++k) {
-                        put_le<double>(out, (*normals)(i, k));
-                    }
+    write_file_atomically(path.string(), [&](std::ostream& out) {
+        if (format == PointSetFormat::kXyz) {
+            write_xyz(out, V, normals);
+        } else if (format == PointSetFormat::kObj) {
+            out << "# written by octshape\n" << std::setprecision(17);
+            for (Eigen::Index i = 0; i < V.rows(); ++i) {
+                out << "v " << V(i, 0) << ' ' << V(i, 1) << ' ' << V(i, 2) << '\n';
+            }
+            for (Eigen::Index i = 0; normals != nullptr && i < V.rows(); ++i) {
+                out << "vn " << (*normals)(i, 0) << ' ' << (*normals)(i, 1) << ' '
+                    << (*normals)(i, 2) << '\n';
+            }
+        } else {
+            VertexScalars normal_scalars;
+            if (normals != nullptr) {
+                for (int k = 0; k < 3; ++k) {
+                    normal_scalars.emplace_back(std::string("n") + "xyz"[k], normals->col(k));
                 }
             }
-            out.close();
-            if (!out) throw OutputError(path.string(), "write failed");
+            detail::write_ply(out, V, mesh::Faces(0, 3), normal_scalars, {});
         }
-        std::error_code ec;
-        fs::rename(tmp, path, ec);
-        if (ec) throw OutputError(path.string(), ec.message());
-    } catch (...) {
-        std::error_code ec;
-        fs::remove(tmp, ec);
-        throw;
-    }
+    });
 }
 
 }  // namespace octshape::io

@@ -4,6 +4,9 @@
 #include <array>
 #include <cmath>
 #include <stdexcept>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
 
 #include <vtkCellArray.h>
 #include <vtkIterativeClosestPointTransform.h>
@@ -14,28 +17,82 @@
 #include <vtkPolyData.h>
 #include <vtkSmartPointer.h>
 
+#include "mesh_io_detail.h"
 #include "octshape/mesh/closest_point.h"
 
 namespace octshape::io {
 namespace {
 
-vtkSmartPointer<vtkPolyData> polydata(const mesh::Vertices& V, const mesh::Faces* F) {
-    vtkNew<vtkPoints> points;
-    points->SetDataTypeToDouble();
-    points->SetNumberOfPoints(V.rows());
-    for (Eigen::Index i = 0; i < V.rows(); ++i) points->SetPoint(i, V(i, 0), V(i, 1), V(i, 2));
-    auto poly = vtkSmartPointer<vtkPolyData>::New();
-    poly->SetPoints(points);
-    if (F != nullptr) {
-        vtkNew<vtkCellArray> polys;
-        polys->AllocateExact(F->rows(), F->rows() * 3);
-        for (Eigen::Index f = 0; f < F->rows(); ++f) {
-            const std::array<vtkIdType, 3> ids{(*F)(f, 0), (*F)(f, 1), (*F)(f, 2)};
-            polys->InsertNextCell(3, ids.data());
+// Point-to-plane refinement of `T` (source → target), see registration.h. Returns the steps
+// run.
+int refine_point_to_plane(const mesh::Vertices& source_V,
+                          const mesh::Vertices& target_V,
+                          const mesh::Faces& target_F,
+                          const mesh::TriangleTree& tree,
+                          double diagonal,
+                          int max_steps,
+                          Eigen::Isometry3d& T) {
+    const mesh::FaceGeometry geometry = mesh::face_geometry(target_V, target_F);
+    const Eigen::Index n = source_V.rows();
+    std::vector<Eigen::Vector3d> p(static_cast<std::size_t>(n));
+    std::vector<mesh::SurfaceHit> hit(static_cast<std::size_t>(n));
+    std::vector<double> dist(static_cast<std::size_t>(n));
+    for (int step = 0; step < max_steps; ++step) {
+        Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+        for (Eigen::Index i = 0; i < n; ++i) {
+            const auto k = static_cast<std::size_t>(i);
+            p[k] = T * Eigen::Vector3d(source_V.row(i).transpose());
+            hit[k] = tree.closest(p[k]);
+            dist[k] = hit[k].distance;
+            centre += p[k];
         }
-        poly->SetPolys(polys);
+        centre /= static_cast<double>(n);
+        std::vector<double> sorted = dist;
+        std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
+        const double cut = 3.0 * sorted[static_cast<std::size_t>(n / 2)] + 1e-12 * diagonal;
+        // Normal equations of r_i + [(p_i − c) × n_i, n_i] · (ω, τ), rotation about the centre c.
+        Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+        Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+        int used = 0;
+        for (std::size_t k = 0; k < p.size(); ++k) {
+            if (dist[k] > cut) continue;
+            const Eigen::Vector3d nrm = geometry.normals.row(hit[k].face).transpose();
+            Eigen::Matrix<double, 6, 1> J;
+            J << (p[k] - centre).cross(nrm), nrm;
+            const double r = nrm.dot(p[k] - hit[k].point);
+            A.selfadjointView<Eigen::Lower>().rankUpdate(J);
+            b -= r * J;
+            ++used;
+        }
+        if (used < 6) break;
+        A.triangularView<Eigen::Upper>() = A.transpose();
+        // A surface with a symmetry (a plane, a sphere) leaves directions undetermined: solve
+        // in the well-determined eigen-directions only.
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(A);
+        const double top = eig.eigenvalues().maxCoeff();
+        if (!(top > 0.0)) break;
+        Eigen::Matrix<double, 6, 1> x = Eigen::Matrix<double, 6, 1>::Zero();
+        for (int e = 0; e < 6; ++e) {
+            const double lambda = eig.eigenvalues()(e);
+            if (lambda > 1e-12 * top) {
+                const auto v = eig.eigenvectors().col(e);
+                x += (v.dot(b) / lambda) * v;
+            }
+        }
+        const Eigen::Vector3d omega = x.head<3>();
+        const Eigen::Vector3d tau = x.tail<3>();
+        Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
+        if (omega.norm() > 0.0) {
+            D.linear() = Eigen::AngleAxisd(omega.norm(), omega.normalized()).toRotationMatrix();
+        }
+        D.translation() = centre - D.linear() * centre + tau;
+        T = D * T;
+        // Largest movement of a source point: |ω| × lever arm + |τ| bounds it.
+        double arm = 0.0;
+        for (const auto& q : p) arm = std::max(arm, (q - centre).norm());
+        if (omega.norm() * arm + tau.norm() < 1e-12 * diagonal) return step + 1;
     }
-    return poly;
+    return max_steps;
 }
 
 }  // namespace
@@ -43,6 +100,7 @@ vtkSmartPointer<vtkPolyData> polydata(const mesh::Vertices& V, const mesh::Faces
 void IcpParams::validate() const {
     if (max_iterations < 1) throw std::invalid_argument("max_iterations must be >= 1");
     if (max_landmarks < 0) throw std::invalid_argument("max_landmarks must be >= 0");
+    if (refine_iterations < 0) throw std::invalid_argument("refine_iterations must be >= 0");
     if (!(tolerance > 0.0) || !std::isfinite(tolerance)) {
         throw std::invalid_argument("tolerance must be > 0");
     }
@@ -63,8 +121,8 @@ IcpResult icp_rigid(const mesh::Vertices& source_V,
         throw std::invalid_argument("source: no vertex or a non-finite vertex");
     }
     const mesh::TriangleTree tree(target_V, target_F);  // validates the target
-    const auto source = polydata(source_V, nullptr);
-    const auto target = polydata(target_V, &target_F);
+    const auto source = detail::to_polydata(source_V, mesh::Faces(0, 3), {}, {});
+    const auto target = detail::to_polydata(target_V, target_F, {}, {});
     const double diagonal =
         (target_V.colwise().maxCoeff() - target_V.colwise().minCoeff()).norm();
 
@@ -92,6 +150,11 @@ IcpResult icp_rigid(const mesh::Vertices& source_V,
     }
     out.transform.matrix() = m;
     out.iterations = icp->GetNumberOfIterations();
+    if (params.refine_iterations > 0) {
+        out.refine_iterations = refine_point_to_plane(source_V, target_V, target_F, tree,
+                                                      std::max(diagonal, 1e-300),
+                                                      params.refine_iterations, out.transform);
+    }
     out.rotation_deg =
         Eigen::AngleAxisd(out.transform.linear()).angle() * 180.0 / 3.14159265358979323846;
     out.translation = out.transform.translation().norm();

@@ -207,12 +207,14 @@ Csr disk_neighbourhoods(const Faces& F,
             row = queue;
         }
     });
+    return Csr::from_rows(rows);
+}
+
+Csr Csr::from_rows(const std::vector<std::vector<int>>& rows) {
     Csr out;
-    out.offsets.assign(static_cast<std::size_t>(m) + 1, 0);
-    for (int i = 0; i < m; ++i) {
-        out.offsets[static_cast<std::size_t>(i) + 1] =
-            out.offsets[static_cast<std::size_t>(i)] +
-            static_cast<int>(rows[static_cast<std::size_t>(i)].size());
+    out.offsets.assign(rows.size() + 1, 0);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        out.offsets[i + 1] = out.offsets[i] + static_cast<int>(rows[i].size());
     }
     out.items.reserve(static_cast<std::size_t>(out.offsets.back()));
     for (const auto& row : rows) out.items.insert(out.items.end(), row.begin(), row.end());

@@ -211,16 +211,7 @@ Csr point_neighbourhoods(const Vertices& points,
             }
         }
     });
-    Csr out;
-    out.offsets.assign(static_cast<std::size_t>(n) + 1, 0);
-    for (int i = 0; i < n; ++i) {
-        out.offsets[static_cast<std::size_t>(i) + 1] =
-            out.offsets[static_cast<std::size_t>(i)] +
-            static_cast<int>(rows[static_cast<std::size_t>(i)].size());
-    }
-    out.items.reserve(static_cast<std::size_t>(out.offsets.back()));
-    for (const auto& row : rows) out.items.insert(out.items.end(), row.begin(), row.end());
-    return out;
+    return Csr::from_rows(rows);
 }
 
 Vertices pca_normals(const Vertices& points, const Csr& nb) {

@@ -49,7 +49,11 @@ TEST(MeshIo, RoundTripInEveryFormatKeepsVerticesAndFaces) {
             EXPECT_EQ(back.F, m.F) << ext;
             EXPECT_LE((back.V - m.V).cwiseAbs().maxCoeff(), tol) << ext;
         }
-        EXPECT_FALSE(std::filesystem::exists(path.string() + ".partial"));
+        // Written under a temporary name and renamed: no temporary file is left behind.
+        for (const auto& entry : std::filesystem::directory_iterator(path.parent_path())) {
+            EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos)
+                << entry.path();
+        }
     }
 }
 

@@ -19,6 +19,11 @@ namespace octshape::io {
 void write_file_atomically(const std::string& path,
                            const std::function<void(std::ostream&)>& write);
 
+// The same for writers that need a file name rather than a stream (VTK's writers): `write(tmp)`
+// must create the file `tmp`, which is then fsync'ed and renamed to `path`.
+void write_path_atomically(const std::string& path,
+                           const std::function<void(const std::string& tmp)>& write);
+
 // Convenience for text already in memory.
 void write_text_atomically(const std::string& path, std::string_view text);
 

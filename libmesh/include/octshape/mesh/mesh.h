@@ -58,6 +58,9 @@ struct Csr {
     [[nodiscard]] int end(int i) const { return offsets[static_cast<std::size_t>(i) + 1]; }
     [[nodiscard]] int size(int i) const { return end(i) - begin(i); }
     [[nodiscard]] int item(int k) const { return items[static_cast<std::size_t>(k)]; }
+
+    // Packs per-row lists (row i = rows[i], order kept).
+    [[nodiscard]] static Csr from_rows(const std::vector<std::vector<int>>& rows);
 };
 
 // Adjacency of a fixed triangulation; built once.

@@ -1,0 +1,89 @@
+#pragma once
+// Private to octshape_io: the pieces the mesh and point-set readers and writers share (VTK
+// reading with its errors caught, the polydata and binary-PLY writers, extension handling).
+
+#include <vtkCommand.h>
+#include <vtkNew.h>
+#include <vtkPolyData.h>
+#include <vtkSmartPointer.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cstring>
+#include <filesystem>
+#include <ostream>
+#include <string>
+
+#include "octshape/io/error.h"
+#include "octshape/io/mesh_io.h"
+
+namespace octshape::io::detail {
+
+// The extension of `path`, lower case, with its dot (".ply").
+[[nodiscard]] std::string lower_extension(const std::filesystem::path& path);
+
+// Collects the first error a VTK algorithm reports (instead of printing it), first line only
+// (VTK messages span lines and name source files).
+class VtkErrorCatcher : public vtkCommand {
+public:
+    static VtkErrorCatcher* New() { return new VtkErrorCatcher; }
+    void Execute(vtkObject* caller, unsigned long event, void* data) override;
+    [[nodiscard]] const std::string& message() const { return message_; }
+
+private:
+    std::string message_;
+};
+
+// Runs a VTK polydata reader on `path`; any error or warning it reports is an InputError
+// (corrupt) naming the file. The output may still be empty: callers check what they need.
+template <class Reader>
+vtkSmartPointer<vtkPolyData> read_polydata(const std::filesystem::path& path) {
+    vtkNew<Reader> reader;
+    vtkNew<VtkErrorCatcher> catcher;
+    reader->AddObserver(vtkCommand::ErrorEvent, catcher);
+    reader->AddObserver(vtkCommand::WarningEvent, catcher);
+    reader->SetFileName(path.string().c_str());
+    reader->Update();
+    if (!catcher->message().empty()) {
+        throw InputError::corrupt(path.string(), "VTK reader: " + catcher->message());
+    }
+    return reader->GetOutput();
+}
+
+// Runs a VTK writer on `poly`, writing the file `tmp`; errors are OutputErrors naming `path`.
+template <class Writer>
+void write_polydata(Writer* writer, vtkPolyData* poly, const std::string& tmp,
+                    const std::string& path) {
+    vtkNew<VtkErrorCatcher> catcher;
+    writer->AddObserver(vtkCommand::ErrorEvent, catcher);
+    writer->SetFileName(tmp.c_str());
+    writer->SetInputData(poly);
+    if (writer->Write() != 1 || !catcher->message().empty()) {
+        throw OutputError(path, "VTK writer: " + catcher->message());
+    }
+}
+
+// (V, F) as VTK polydata in double precision, with point and cell data arrays.
+[[nodiscard]] vtkSmartPointer<vtkPolyData> to_polydata(const mesh::Vertices& V,
+                                                       const mesh::Faces& F,
+                                                       const VertexScalars& vertex_scalars,
+                                                       const FaceScalars& face_scalars);
+
+template <class T>
+void put_le(std::ostream& out, T value) {
+    std::array<char, sizeof(T)> bytes{};
+    std::memcpy(bytes.data(), &value, sizeof(T));
+    if constexpr (std::endian::native == std::endian::big) std::reverse(bytes.begin(), bytes.end());
+    out.write(bytes.data(), sizeof(T));
+}
+
+// Binary little-endian PLY with double coordinates; vertex scalars as vertex properties, face
+// scalars as face properties. Empty F writes a point set.
+void write_ply(std::ostream& out,
+               const mesh::Vertices& V,
+               const mesh::Faces& F,
+               const VertexScalars& vertex_scalars,
+               const FaceScalars& face_scalars);
+
+}  // namespace octshape::io::detail
