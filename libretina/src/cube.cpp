@@ -1012,7 +1012,8 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
             }
         }
         res.num_tied_minima = static_cast<int>(xs.size());
-        res.centre_mm = V2(median(xs), median(ys));  // Eq. 7.13, component-wise median
+        const V2 node_centre(median(xs), median(ys));  // Eq. 7.13, component-wise median
+        res.centre_mm = node_centre;
         if (params.centre_fit_radius_mm > 0.0) {
             // Between the nodes: the vertex of a quadratic fitted to M around the minimum (the
             // window spans at least the neighbouring B-scans).
@@ -1020,8 +1021,33 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
             const double ry = std::max(params.centre_fit_radius_mm, 1.01 * m.dy_mm);
             if (const auto v = quadratic_vertex(m, res.centre_mm, rx, ry)) res.centre_mm = *v;
         }
-        const double cv = m.sample(res.centre_mm.x(), res.centre_mm.y());
-        if (std::isnan(cv)) throw AnalysisError("no valid thickness at the centre found");
+        double cv = m.sample(res.centre_mm.x(), res.centre_mm.y());
+        if (std::isnan(cv) && res.centre_mm != node_centre) {
+            // Missing values next to the refined centre: keep the minimum's node centre.
+            res.centre_mm = node_centre;
+            cv = m.sample(node_centre.x(), node_centre.y());
+            res.notes.push_back("missing thickness next to the refined centre: the centre is the "
+                                "minimum's node position");
+        }
+        if (std::isnan(cv)) {
+            // Still missing around it (bilinear needs four valid nodes): the valid minimum node
+            // nearest the median, with its own value.
+            double best_d = std::numeric_limits<double>::infinity();
+            for (std::size_t k = 0; k < xs.size(); ++k) {
+                const int a = static_cast<int>(std::lround(xs[k] / m.dx_mm));
+                const int b = m.rows > 1 ? static_cast<int>(std::lround(ys[k] / m.dy_mm)) : 0;
+                const double raw = m.at(b, a);
+                const double d = (V2(xs[k], ys[k]) - node_centre).norm();
+                if (!std::isnan(raw) && d < best_d) {
+                    best_d = d;
+                    res.centre_mm = V2(xs[k], ys[k]);
+                    cv = raw;
+                }
+            }
+            if (std::isnan(cv)) throw AnalysisError("no valid thickness at the centre found");
+            res.notes.push_back("missing thickness around the minimum: CFT is the value of the "
+                                "nearest valid minimum node");
+        }
         res.cft_mm = cv;
         const double step = std::max(m.dx_mm, m.dy_mm);
         if ((res.centre_mm - res.search_centre_mm).norm() > rs - step) {
