@@ -193,7 +193,8 @@ std::string signal_name(int sig) {
     std::string message;
     try {
         const FileFacts facts = file_facts(item.path);
-        const io::Scan scan = io::read_scan(item.path);
+        const io::HashedScan input = io::read_scan_hashed(item.path);
+        const io::Scan& scan = input.scan;
         retina::ScanType type = retina::ScanType::kMacula;
         std::string why = "--type macula";
         if (o.type == "onh") {
@@ -212,7 +213,7 @@ std::string signal_name(int sig) {
                 eo.qc_dir = (out / "qc").string();
                 eo.qc_stem = item.key;
             }
-            // Reads the file again, with the pixels the level set needs.
+            // Reads (and hashes) the file again, with the pixels the level set needs.
             r = analyse_onh_eye(item.path, facts, eo, subjects);
         } else {
             MaculaEyeOptions eo = o.eye;
@@ -221,7 +222,7 @@ std::string signal_name(int sig) {
                 eo.qc_dir = (out / "qc").string();
                 eo.qc_stem = item.key;
             }
-            r = analyse_macula_eye(item.path, facts, scan, eo, subjects);
+            r = analyse_macula_eye(item.path, facts, input, eo, subjects);
         }
         // Atomic, not fsync'ed: the parent syncs the file system once before the tables.
         io::write_text_atomically((out / "eyes" / (item.key + ".json")).string(),

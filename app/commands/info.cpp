@@ -9,7 +9,6 @@
 
 #include "commands/command.h"
 #include "octshape/io/scan_reader.h"
-#include "octshape/io/sha256.h"
 #include "octshape/retina/scan_summary.h"
 #include "octshape/version.h"
 
@@ -121,9 +120,9 @@ void add_info_command(CLI::App& app, RunContext& /*ctx*/) {
                   "Also print patient/visit identifiers, date of birth and exam dates "
                   "(private: off by default)");
     cmd->callback([opts] {
-        const io::Scan scan = io::read_scan(opts->file);
-        json j = retina::scan_summary(scan, {.identifiers = opts->identifiers});
-        j["sha256"] = io::sha256_file(opts->file);
+        const io::HashedScan input = io::read_scan_hashed(opts->file);
+        json j = retina::scan_summary(input.scan, {.identifiers = opts->identifiers});
+        j["sha256"] = input.sha256;
         j["octshape_version"] = kVersion;
         if (opts->json) {
             std::cout << j.dump(2) << '\n';

@@ -9,7 +9,6 @@
 #include "commands/macula_qc.h"
 #include "octshape/io/error.h"
 #include "octshape/io/scan_reader.h"
-#include "octshape/io/sha256.h"
 #include "octshape/retina/cube_report.h"
 #include "octshape/retina/scan_summary.h"
 #include "octshape/retina/scan_type.h"
@@ -54,15 +53,17 @@ MaculaEye analyse_macula_eye(const std::string& file,
                              MaculaEyeOptions options,
                              const SubjectSource& subjects) {
     const FileFacts facts = file_facts(file);  // before reading: a missing file says so
-    const io::Scan scan = io::read_scan(file);
-    return analyse_macula_eye(file, facts, scan, std::move(options), subjects);
+    return analyse_macula_eye(file, facts, io::read_scan_hashed(file), std::move(options),
+                              subjects);
 }
 
 MaculaEye analyse_macula_eye(const std::string& file,
                              const FileFacts& facts,
-                             const io::Scan& scan,
+                             const io::HashedScan& input,
                              MaculaEyeOptions o,
                              const SubjectSource& subjects) {
+    const io::Scan& scan = input.scan;
+    const std::string& sha = input.sha256;
     o.params.tau_mm = o.tau_um * 1e-3;
     o.params.validate();
     if (o.check_scan_type) {
@@ -72,7 +73,6 @@ MaculaEye analyse_macula_eye(const std::string& file,
                                 type.reason + "); --no-type-check analyses it anyway");
         }
     }
-    const std::string sha = io::sha256_file(file);
     const retina::CubeResult r = retina::analyse_macula(scan, o.params);
     for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", file, f);
     for (const auto& n : r.notes) spdlog::info("{}: {}", file, n);

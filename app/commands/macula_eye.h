@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "commands/eye_record.h"
+#include "octshape/io/scan_reader.h"
 #include "octshape/retina/cube.h"
 
 namespace octshape::app {
@@ -31,12 +32,12 @@ using MaculaEye = EyeResult;
 [[nodiscard]] MaculaEye analyse_macula_eye(const std::string& file,
                                            MaculaEyeOptions options,
                                            const SubjectSource& subjects);
-// The same on a scan already read from `file` (headers and segmentation; pixels not needed),
-// `facts` being the file's state taken *before* it was read (a file changed meanwhile is then
-// redone by the next cohort run).
+// The same on a scan already read from `file` with its hash (io::read_scan_hashed; headers and
+// segmentation, pixels not needed), `facts` being the file's state taken *before* it was read
+// (a file changed meanwhile is then redone by the next cohort run).
 [[nodiscard]] MaculaEye analyse_macula_eye(const std::string& file,
                                            const FileFacts& facts,
-                                           const io::Scan& scan,
+                                           const io::HashedScan& input,
                                            MaculaEyeOptions options,
                                            const SubjectSource& subjects);
 

@@ -12,7 +12,6 @@
 #include "octshape/io/error.h"
 #include "octshape/io/mesh_io.h"
 #include "octshape/io/scan_reader.h"
-#include "octshape/io/sha256.h"
 #include "octshape/retina/bmo.h"
 #include "octshape/retina/onh_report.h"
 
@@ -96,13 +95,14 @@ EyeResult analyse_onh_eye(const std::string& file,
     io::ReadOptions read;
     // Pixels: for an ILM source that segments them, and for the B-scans of the QC pictures.
     read.pixels = retina::ilm_needs_pixels(source) || !o.qc_dir.empty();
-    const io::Scan scan = io::read_scan(file, read);
+    const io::HashedScan input = io::read_scan_hashed(file, read);
+    const io::Scan& scan = input.scan;
+    const std::string& sha = input.sha256;
     try {
         retina::require_onh_volume(scan);
     } catch (const AnalysisError& e) {
         throw AnalysisError(file + ": " + e.what());  // one line naming the file
     }
-    const std::string sha = io::sha256_file(file);
     std::optional<std::vector<retina::BmoPoint>> bmo;
     if (!o.bmo_file.empty()) bmo = retina::read_bmo_csv(o.bmo_file, scan.meta, scan.num_bscans());
     const retina::IlmSurface ilm = retina::build_ilm_surface(scan, source);

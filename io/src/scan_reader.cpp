@@ -1,11 +1,24 @@
 #include "octshape/io/scan_reader.h"
 
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <array>
+#include <atomic>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
+#include <streambuf>
 
 #include "octshape/io/error.h"
 #include "octshape/io/heyex_xml.h"
+#include "octshape/io/sha256.h"
 #include "octshape/io/vol.h"
 
 namespace octshape::io {
@@ -32,6 +45,107 @@ std::string describe_head(const char* head, std::size_t n) {
     }
     return out;
 }
+
+// ---- one reading of a mapped file (read_scan_hashed) -------------------------------------------
+
+// The path of the file being read from a mapping, for the SIGBUS message (set before the
+// mapping is touched; a fixed buffer because the handler may only use async-signal-safe calls).
+char g_mapped_path[4096] = {};
+std::atomic<bool> g_mapped_active{false};
+
+extern "C" void on_sigbus(int sig) {
+    if (!g_mapped_active.load()) {  // not ours: the default action (a core dump as before)
+        ::signal(sig, SIG_DFL);
+        ::raise(sig);
+        return;
+    }
+    static constexpr char kHead[] = "octshape: error: ";
+    static constexpr char kTail[] = ": the file shrank while it was being read\n";
+    (void)!::write(STDERR_FILENO, kHead, sizeof kHead - 1);
+    (void)!::write(STDERR_FILENO, g_mapped_path, ::strnlen(g_mapped_path, sizeof g_mapped_path));
+    (void)!::write(STDERR_FILENO, kTail, sizeof kTail - 1);
+    ::_exit(static_cast<int>(ExitCode::kDataError));
+}
+
+void install_sigbus_handler() {
+    static std::once_flag once;
+    std::call_once(once, [] {
+        struct sigaction sa {};
+        sa.sa_handler = on_sigbus;
+        sigemptyset(&sa.sa_mask);
+        ::sigaction(SIGBUS, &sa, nullptr);
+    });
+}
+
+// A read-only private mapping of a whole file; empty when the file cannot be mapped (the caller
+// then reads it the ordinary way).
+class MappedFile {
+  public:
+    explicit MappedFile(const std::string& path) {
+        const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+        if (fd < 0) throw InputError::unreadable(path, std::strerror(errno));
+        struct stat st {};
+        if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
+            size_ = static_cast<std::size_t>(st.st_size);
+            void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
+            if (p != MAP_FAILED) {
+                data_ = static_cast<const char*>(p);
+                ::madvise(p, size_, MADV_SEQUENTIAL);
+            }
+        }
+        ::close(fd);  // the mapping keeps the file
+    }
+    ~MappedFile() {
+        if (data_ != nullptr) ::munmap(const_cast<char*>(data_), size_);
+    }
+    MappedFile(const MappedFile&) = delete;
+    MappedFile& operator=(const MappedFile&) = delete;
+
+    [[nodiscard]] bool mapped() const { return data_ != nullptr; }
+    [[nodiscard]] std::string_view bytes() const { return {data_, size_}; }
+
+  private:
+    const char* data_ = nullptr;
+    std::size_t size_ = 0;
+};
+
+// An input stream over bytes in memory (no copy), seekable as read_vol needs.
+class MemoryBuf : public std::streambuf {
+  public:
+    explicit MemoryBuf(std::string_view b) {
+        char* p = const_cast<char*>(b.data());  // never written: a get area only
+        setg(p, p, p + b.size());
+    }
+
+  protected:
+    pos_type seekoff(off_type off, std::ios_base::seekdir dir, std::ios_base::openmode) override {
+        const off_type base = dir == std::ios_base::beg   ? 0
+                              : dir == std::ios_base::cur ? gptr() - eback()
+                                                          : egptr() - eback();
+        return seekpos(pos_type(base + off), std::ios_base::in);
+    }
+    pos_type seekpos(pos_type pos, std::ios_base::openmode) override {
+        const off_type p = pos;
+        if (p < 0 || p > egptr() - eback()) return pos_type(off_type(-1));
+        setg(eback(), eback() + p, egptr());
+        return pos;
+    }
+};
+
+// Marks the mapped file as the one a SIGBUS would come from, for as long as it is read.
+class SigbusScope {
+  public:
+    explicit SigbusScope(const std::string& path) {
+        install_sigbus_handler();
+        const std::size_t n = std::min(path.size(), sizeof g_mapped_path - 1);
+        std::memcpy(g_mapped_path, path.data(), n);
+        g_mapped_path[n] = '\0';
+        g_mapped_active.store(true);
+    }
+    ~SigbusScope() { g_mapped_active.store(false); }
+    SigbusScope(const SigbusScope&) = delete;
+    SigbusScope& operator=(const SigbusScope&) = delete;
+};
 
 }  // namespace
 
@@ -75,6 +189,27 @@ Scan read_scan(const std::string& path, const ReadOptions& options) {
         path, "not a Spectralis .vol or Heidelberg XML export (starts with \"" +
                   describe_head(head.data(), static_cast<std::size_t>(in.gcount())) + "\")",
         0);
+}
+
+HashedScan read_scan_hashed(const std::string& path, const ReadOptions& options) {
+    if (detect_format(path) == FileFormat::kVol) {
+        const MappedFile m(path);
+        if (m.mapped()) {
+            const SigbusScope guard(path);
+            HashedScan out;
+            out.sha256 = sha256_hex(m.bytes());
+            MemoryBuf buf(m.bytes());
+            std::istream in(&buf);
+            out.scan = read_vol(in, m.bytes().size(), path, options);
+            out.scan.source_path = path;
+            return out;
+        }
+    }
+    // Not a .vol, or the file system cannot map it: read and hash it the ordinary way.
+    HashedScan out;
+    out.scan = read_scan(path, options);
+    out.sha256 = sha256_file(path);
+    return out;
 }
 
 }  // namespace octshape::io

@@ -162,6 +162,23 @@ BezierFit alternate(std::span<const V2> d, const FitSettings& s, Solve solve) {
         std::vector<double> t = fit.t;
         update_foot_points(d, c, t, 1, d.size() - 1);
         double e = energy(d, c, t);
+        // The tangent model's step is a Gauss-Newton step with the foot points eliminated;
+        // where the full step overshoots, shorter steps along it usually still descend (the
+        // graph constraints are linear in the control points, so the segment stays feasible).
+        for (double f = 0.5; have_curve && e > prev && f >= 1.0 / 64.0; f *= 0.5) {
+            Ctrl cf;
+            for (std::size_t i = 0; i < cf.size(); ++i) {
+                cf[i] = fit.control[i] + f * (c[i] - fit.control[i]);
+            }
+            std::vector<double> tf = fit.t;
+            update_foot_points(d, cf, tf, 1, d.size() - 1);
+            const double ef = energy(d, cf, tf);
+            if (ef <= prev) {
+                c = cf;
+                t = std::move(tf);
+                e = ef;
+            }
+        }
         if (e > prev) {  // the tangent model overshot: take the plain point-distance step
             c = solve(fit.t, distance_weights(d, nullptr, fit.t, 1.0));
             t = fit.t;
@@ -170,11 +187,20 @@ BezierFit alternate(std::span<const V2> d, const FitSettings& s, Solve solve) {
         }
         fit.rounds = round;
         if (e > prev) break;  // no step lowers the energy: at the minimum to rounding
+        double step = std::numeric_limits<double>::infinity();
+        if (have_curve) {
+            step = 0.0;
+            for (std::size_t i = 0; i < c.size(); ++i) {
+                step = std::max(step, (c[i] - fit.control[i]).cwiseAbs().maxCoeff());
+            }
+        }
         fit.control = c;
         fit.t = std::move(t);
         fit.sse_mm2 = e;
         have_curve = true;
-        if (e <= 1e-30 || (round > 1 && std::fabs(prev - e) <= s.energy_tolerance * prev)) {
+        // Converged: the energy (SPEC §4.5), or no control point moves by 1e-7 mm (0.1 nm).
+        if (e <= 1e-30 || (round > 1 && std::fabs(prev - e) <= s.energy_tolerance * prev) ||
+            step < 1e-7) {
             fit.converged = true;
             break;
         }
@@ -312,6 +338,19 @@ double joint_energy(std::span<const V2> d, std::size_t split, const JointGeometr
     return e;
 }
 
+// Step (b) for the control points next.q: foot points started from cur.t (Eq. 7.10), then the
+// Eq. 7.8 energy.
+void project_joint(std::span<const V2> d, std::size_t split, const JointGeometry& geo,
+                   const JointState& cur, JointState& next) {
+    const std::size_t n = d.size();
+    next.t = cur.t;
+    const std::span<double> t(next.t);
+    update_foot_points(d, joint_interior(next.q, geo), t.subspan(0, split), 1, split);
+    update_foot_points(d.subspan(split), joint_exterior(next.q, geo), t.subspan(split), 0,
+                       n - split - 1);
+    next.energy = joint_energy(d, split, geo, next);
+}
+
 // One round from `cur`: step (a) (Eq. 7.9 for both segments at once, with the tangent weight of
 // distance_weights), then step (b) (Eq. 7.10) on both segments.
 JointState joint_round(std::span<const V2> d, std::size_t split, const JointGeometry& geo,
@@ -357,12 +396,7 @@ JointState joint_round(std::span<const V2> d, std::size_t split, const JointGeom
     JointState next;
     next.active = cur.active;
     next.q = minimise_joint_qp(H, g, C, b, cur.q, next.active);
-    next.t = cur.t;
-    const std::span<double> t(next.t);
-    update_foot_points(d, joint_interior(next.q, geo), t.subspan(0, split), 1, split);
-    update_foot_points(d.subspan(split), joint_exterior(next.q, geo), t.subspan(split), 0,
-                       n - split - 1);
-    next.energy = joint_energy(d, split, geo, next);
+    project_joint(d, split, geo, cur, next);
     return next;
 }
 
@@ -855,6 +889,16 @@ RimProfileFit fit_rim_profile(std::span<const V2> d, int rim_index, const FitSet
             break;
         }
         JointState next = joint_round(d, split, geo, cur, kTangentWeight);
+        // The tangent-distance step is a Gauss-Newton step on the energy with the foot points
+        // eliminated; where the full step overshoots, shorter steps along it (the segment
+        // from a feasible q to a feasible q stays feasible) usually still descend.
+        for (double f = 0.5; next.energy > cur.energy && f >= 1.0 / 64.0; f *= 0.5) {
+            JointState shorter;
+            shorter.active = next.active;
+            shorter.q = cur.q + f * (next.q - cur.q);
+            project_joint(d, split, geo, cur, shorter);
+            if (shorter.energy <= cur.energy) next = std::move(shorter);
+        }
         if (next.energy > cur.energy) next = joint_round(d, split, geo, cur, 1.0);
         if (next.energy > cur.energy) {  // no step lowers the energy: at the minimum
             out.converged = true;
