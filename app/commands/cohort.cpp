@@ -3,6 +3,7 @@
 // Layout, resume rule and the crash-safety argument: docs/cohort.md.
 
 #include <fcntl.h>
+#include <poll.h>
 #include <signal.h>
 #include <sys/file.h>
 #include <sys/prctl.h>
@@ -15,6 +16,7 @@
 #include <cctype>
 #include <chrono>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <map>
@@ -48,6 +50,7 @@ struct CohortOptions {
     std::string type = "auto";
     bool qc = false;
     bool retry_failed = false;
+    double eye_timeout_s = 600.0;  // an eye still running after this is stopped; 0: no limit
     MaculaEyeOptions eye;
     OnhEyeOptions onh;
     SubjectOptions subjects;
@@ -308,7 +311,37 @@ struct Running {
     std::size_t index = 0;
     int msg_fd = -1;
     Clock::time_point start;
+    bool timed_out = false;  // stopped by the parent (SIGKILL) after --eye-timeout-s
 };
+
+// Waits until a child ends and returns its pid (its status in `status`). A child running longer
+// than `timeout_s` (> 0) is killed and marked timed out; it is then reaped like any other. The
+// wait sleeps in poll() on the children's message pipes, which close when a child ends.
+pid_t wait_for_child(std::map<pid_t, Running>& running, double timeout_s, int& status) {
+    for (;;) {
+        const pid_t pid = ::waitpid(-1, &status, WNOHANG);
+        if (pid > 0) return pid;
+        if (pid < 0 && errno != EINTR) {
+            throw std::runtime_error(std::string("waitpid: ") + std::strerror(errno));
+        }
+        int wait_ms = 1000;  // a bound, should an end go unnoticed by poll
+        const auto now = Clock::now();
+        for (auto& [p, r] : running) {
+            if (timeout_s <= 0.0 || r.timed_out) continue;
+            const double left =
+                timeout_s - std::chrono::duration<double>(now - r.start).count();
+            if (left <= 0.0) {
+                ::kill(p, SIGKILL);
+                r.timed_out = true;
+            } else {
+                wait_ms = std::min(wait_ms, static_cast<int>(std::ceil(left * 1000.0)));
+            }
+        }
+        std::vector<pollfd> fds;
+        for (const auto& [p, r] : running) fds.push_back({r.msg_fd, POLLIN, 0});
+        (void)::poll(fds.data(), fds.size(), wait_ms);
+    }
+}
 
 std::string read_all(int fd) {
     std::string s;
@@ -357,6 +390,7 @@ void run(CohortOptions& o, RunContext& ctx) {
         throw UsageError("--type must be auto, macula or onh");
     }
     if (o.jobs < 0) throw UsageError("--jobs must be >= 1");
+    if (!(o.eye_timeout_s >= 0.0)) throw UsageError("--eye-timeout-s must be >= 0");
     const int cores = static_cast<int>(std::thread::hardware_concurrency());
     const int jobs = o.jobs > 0 ? o.jobs : std::max(1, cores);
     o.eye.params.tau_mm = o.eye.tau_um * 1e-3;
@@ -389,7 +423,8 @@ void run(CohortOptions& o, RunContext& ctx) {
         return type == "onh" ? onh_options : macula_options;
     };
     const std::string fail_options = macula_options + " " + onh_options + " type=" + o.type +
-                                     (o.qc ? " qc" : "");
+                                     (o.qc ? " qc" : "") +
+                                     fmt::format(" eye_timeout_s={:g}", o.eye_timeout_s);
 
     std::vector<Skipped> skipped;
     const auto files = discover(o.inputs, out, skipped);
@@ -479,21 +514,24 @@ void run(CohortOptions& o, RunContext& ctx) {
             running[pid] = Running{idx, fds[0], Clock::now()};
         }
         int status = 0;
-        const pid_t pid = ::waitpid(-1, &status, 0);
-        if (pid < 0) {
-            if (errno == EINTR) continue;
-            throw std::runtime_error(std::string("waitpid: ") + std::strerror(errno));
-        }
+        const pid_t pid = wait_for_child(running, o.eye_timeout_s, status);
         const auto r = running.find(pid);
         if (r == running.end()) continue;
         Item& item = items[r->second.index];
         const std::string msg = read_all(r->second.msg_fd);
         ::close(r->second.msg_fd);
         const double secs = std::chrono::duration<double>(Clock::now() - r->second.start).count();
+        const bool timed_out = r->second.timed_out;
         running.erase(r);
 
         const fs::path eye_json = out / "eyes" / (item.key + ".json");
-        if (WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+        if (timed_out) {
+            record_failure(item, out, fail_options,
+                           fmt::format("the analysis did not finish within --eye-timeout-s {:g} s "
+                                       "and was stopped",
+                                       o.eye_timeout_s),
+                           static_cast<int>(ExitCode::kAnalysisFailed));
+        } else if (WIFEXITED(status) && WEXITSTATUS(status) == 0) {
             try {
                 item.slim = slim(read_json_file(eye_json.string()));
                 item.done = true;
@@ -579,6 +617,10 @@ void add_cohort_command(CLI::App& app, RunContext& ctx) {
     cmd->add_flag("--retry-failed", opts->retry_failed,
                   "Redo inputs whose failure is recorded (by default a recorded failure of an "
                   "unchanged file with the same options is kept)");
+    cmd->add_option("--eye-timeout-s", opts->eye_timeout_s,
+                    "Stop an eye still running after this many seconds and record it in "
+                    "failures.csv (exit code 69); 0: no limit")
+        ->capture_default_str();
     add_macula_analysis_options(cmd, opts->eye);
     add_onh_analysis_options(cmd, opts->onh, /*per_eye_files=*/false);
     add_subject_options(cmd, opts->subjects);

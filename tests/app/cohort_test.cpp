@@ -500,3 +500,122 @@ TEST(CohortKill, SigkillAtRandomMomentsThenRerunGivesTheUninterruptedTables) {
 
 }  // namespace
 }  // namespace octshape
+
+namespace octshape {
+namespace {
+
+// The children (eyes in progress) of process `pid`.
+std::vector<pid_t> children_of(pid_t pid) {
+    std::ifstream in("/proc/" + std::to_string(pid) + "/task/" + std::to_string(pid) +
+                     "/children");
+    std::vector<pid_t> out;
+    pid_t c = 0;
+    while (in >> c) out.push_back(c);
+    return out;
+}
+
+// The state letter of /proc/PID/stat ('T' stopped, 'Z' zombie; 0 when the process is gone).
+char process_state(pid_t pid) {
+    std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+    std::string all;
+    std::getline(in, all);
+    const auto p = all.rfind(')');
+    return p == std::string::npos || p + 2 >= all.size() ? '\0' : all[p + 2];
+}
+
+// Stops the next eye that starts under `cohort` (SIGSTOP, confirmed by its state) and returns
+// its pid; skips children that end before they are stopped. -1 if the cohort ends first.
+pid_t stop_next_eye(pid_t cohort, const std::set<pid_t>& seen) {
+    for (;;) {
+        const char cs = process_state(cohort);
+        if (cs == '\0' || cs == 'Z') return -1;
+        for (const pid_t c : children_of(cohort)) {
+            if (seen.count(c) != 0 || ::kill(c, SIGSTOP) != 0) continue;
+            for (int i = 0; i < 1000; ++i) {
+                const char s = process_state(c);
+                if (s == 'T' || s == 't') return c;
+                if (s == '\0' || s == 'Z') break;  // it ended first: take the next one
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            }
+        }
+        std::this_thread::sleep_for(std::chrono::microseconds(100));
+    }
+}
+
+TEST(CohortChildren, AHungEyeTimesOutACrashedEyeIsRecordedAndTheRestFinish) {
+    test::TempDir dir;
+    const fs::path in = dir / "in";
+    fs::create_directories(in);
+    write_macula(dir / "m0.vol", retina::MaculaFamily::kBezier, io::Laterality::kOD, 1);
+    constexpr int kEyes = 10;
+    for (int i = 0; i < kEyes; ++i) {
+        fs::create_hard_link(dir / "m0.vol", in / ("eye" + std::to_string(10 + i) + ".vol"));
+    }
+    spit(dir / "key", "timeout-test\n");
+    const fs::path out = dir / "out";
+    const auto t0 = std::chrono::steady_clock::now();
+    const pid_t cohort =
+        spawn_octshape({"cohort", in.string(), "-o", out.string(), "--jobs", "1",
+                        "--eye-timeout-s", "2", "--subject-key-file", (dir / "key").string()});
+    // One eye is stopped for good (a hang), the next is stopped, sent SIGSEGV and let go (a
+    // crash at a known moment: a stopped process cannot finish before the signal lands).
+    std::set<pid_t> seen;
+    const pid_t hung = stop_next_eye(cohort, seen);
+    ASSERT_GT(hung, 0) << "the cohort ended before an eye could be stopped";
+    seen.insert(hung);
+    const pid_t crashed = stop_next_eye(cohort, seen);
+    ASSERT_GT(crashed, 0) << "the cohort ended before a second eye could be stopped";
+    ::kill(crashed, SIGSEGV);
+    ::kill(crashed, SIGCONT);
+    // Were the limit not enforced the batch would wait for ever: after 120 s the test lets the
+    // hung eye go itself (and fails).
+    int status = 0;
+    pid_t done = 0;
+    while ((done = ::waitpid(cohort, &status, WNOHANG)) == 0 &&
+           std::chrono::steady_clock::now() - t0 < std::chrono::seconds(120)) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    if (done == 0) {
+        ::kill(hung, SIGKILL);
+        ADD_FAILURE() << "the hung eye was not stopped by --eye-timeout-s";
+        status = 0;
+        (void)wait_exit(cohort);
+    }
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1);  // some failed, batch finished
+    const double secs =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_GE(secs, 2.0);  // the hung eye was given its 2 s
+
+    const auto fails = read_csv(out / "failures.csv");
+    ASSERT_EQ(fails.size(), 3U) << slurp(out / "failures.csv");
+    int timeouts = 0;
+    int crashes = 0;
+    for (std::size_t i = 1; i < fails.size(); ++i) {
+        const std::string& reason = fails[i][1];
+        if (reason.find("did not finish within --eye-timeout-s 2 s") != std::string::npos) {
+            EXPECT_EQ(fails[i][2], "69");
+            ++timeouts;
+        }
+        if (reason.find("crashed") != std::string::npos &&
+            reason.find("signal 11") != std::string::npos) {
+            EXPECT_EQ(fails[i][2], "70");
+            ++crashes;
+        }
+    }
+    EXPECT_EQ(timeouts, 1) << slurp(out / "failures.csv");
+    EXPECT_EQ(crashes, 1) << slurp(out / "failures.csv");
+    EXPECT_EQ(read_csv(out / "eyes.csv").size(), static_cast<std::size_t>(kEyes - 2 + 1));
+    EXPECT_NE(process_state(hung), 'T');  // killed, not left behind stopped
+
+    // A re-run with a longer limit redoes the timed-out and crashed eyes (its failure records
+    // carry the limit) and finishes the cohort.
+    EXPECT_EQ(wait_exit(spawn_octshape({"cohort", in.string(), "-o", out.string(), "--jobs", "1",
+                                        "--eye-timeout-s", "60", "--subject-key-file",
+                                        (dir / "key").string()})),
+              0);
+    EXPECT_EQ(read_csv(out / "eyes.csv").size(), static_cast<std::size_t>(kEyes + 1));
+    EXPECT_EQ(read_csv(out / "failures.csv").size(), 1U);
+}
+
+}  // namespace
+}  // namespace octshape
