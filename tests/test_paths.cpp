@@ -10,7 +10,6 @@
 #include <stdexcept>
 
 namespace octshape::test {
-namespace {
 
 std::string slurp(const std::filesystem::path& p) {
     std::ifstream in(p, std::ios::binary);
@@ -19,7 +18,36 @@ std::string slurp(const std::filesystem::path& p) {
     return ss.str();
 }
 
-}  // namespace
+void spit(const std::filesystem::path& p, const std::string& text) {
+    std::ofstream out(p, std::ios::binary);
+    out << text;
+}
+
+std::vector<std::string> split_csv_line(const std::string& line) {
+    std::vector<std::string> out;
+    std::string cur;
+    bool quoted = false;
+    for (const char c : line) {
+        if (c == '"') {
+            quoted = !quoted;
+        } else if (c == ',' && !quoted) {
+            out.push_back(cur);
+            cur.clear();
+        } else {
+            cur += c;
+        }
+    }
+    out.push_back(cur);
+    return out;
+}
+
+std::vector<std::vector<std::string>> read_csv(const std::filesystem::path& p) {
+    std::istringstream in(slurp(p));
+    std::vector<std::vector<std::string>> rows;
+    std::string line;
+    while (std::getline(in, line)) rows.push_back(split_csv_line(line));
+    return rows;
+}
 
 TempDir::TempDir() {
     static std::atomic<int> counter{0};

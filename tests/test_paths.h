@@ -3,6 +3,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace octshape::test {
 
@@ -30,6 +31,16 @@ public:
 private:
     std::filesystem::path path_;
 };
+
+// The whole content of a file ("" when it cannot be read: the caller's assertions then fail).
+[[nodiscard]] std::string slurp(const std::filesystem::path& p);
+// Writes `text` to a file (replacing it).
+void spit(const std::filesystem::path& p, const std::string& text);
+// The fields of one CSV line (RFC 4180 quoting: quoted commas stay inside a field; the quotes
+// themselves are dropped, which is all the tests need of the tables they read).
+[[nodiscard]] std::vector<std::string> split_csv_line(const std::string& line);
+// Every line of a CSV file, split into fields.
+[[nodiscard]] std::vector<std::vector<std::string>> read_csv(const std::filesystem::path& p);
 
 // Result of running a command line through the shell.
 struct RunResult {

@@ -32,46 +32,17 @@ extern char** environ;
 namespace octshape {
 namespace {
 
+using test::read_csv;
+using test::slurp;
+using test::spit;
+using test::split_csv_line;
+
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
 
-void spit(const fs::path& p, const std::string& s) {
-    std::ofstream out(p, std::ios::binary);
-    out << s;
-}
 
-std::vector<std::string> split_line(const std::string& line) {
-    std::vector<std::string> out;
-    std::string cur;
-    bool quoted = false;
-    for (const char c : line) {
-        if (c == '"') {
-            quoted = !quoted;
-        } else if (c == ',' && !quoted) {
-            out.push_back(cur);
-            cur.clear();
-        } else {
-            cur += c;
-        }
-    }
-    out.push_back(cur);
-    return out;
-}
 
-std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
-    std::istringstream in(slurp(p));
-    std::vector<std::vector<std::string>> rows;
-    std::string line;
-    while (std::getline(in, line)) rows.push_back(split_line(line));
-    return rows;
-}
 
 // A small macula volume (25 B-scans x 192 A-scans, no pixels: fast to write and analyse).
 io::Scan macula_scan(retina::MaculaFamily family, io::Laterality eye, std::uint64_t seed) {

@@ -33,17 +33,7 @@ std::vector<std::size_t> occurrences(const std::string& text, const std::string&
     return at;
 }
 
-void write(const fs::path& p, const std::string& s) {
-    std::ofstream out(p, std::ios::binary);
-    out << s;
-}
 
-std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
 
 struct Browser {
     int exit_code = -1;
@@ -98,16 +88,16 @@ void make_outdir(const fs::path& d) {
             (d / "eyes" / (std::string(k) + ".json")).string() + " --qc " + (d / "qc").string());
         ASSERT_EQ(r.exit_code, 0) << r.err;
     }
-    write(d / "eyes" / "c_line.json",
+    spit(d / "eyes" / "c_line.json",
           R"({"command":"macula","input":{"path":"/x/c.vol","sha256":"cc"},)"
           R"("cohort":{"subject_id":"S9","visit_date":"2024-01-09","group":"case"},)"
           R"("parameters":{"cft_mm":0.1,"rim_height_mm":null},"qc_flags":["fit RMSE high"]})");
     const std::string a_path = (d / "in" / "a.vol").string();
-    write(d / "eyes.csv",
+    spit(d / "eyes.csv",
           "subject_id,eye,visit_date,scan_type,file,sha256,group,cft_mm\n"
           "S1,OD,2024-01-01,macula," +
               a_path + ",zz,control,0.2\n");
-    write(d / "failures.csv",
+    spit(d / "failures.csv",
           "file,reason,exit_code\n"
           "/x/broken.vol,\"truncated at offset 2048, <script>alert(1)</script>\",65\n"
           "/x/missing.vol,no such file,66\n");
@@ -115,7 +105,7 @@ void make_outdir(const fs::path& d) {
 
 TEST(GalleryBrowser, DetectsConsoleErrorsOnABrokenPage) {
     TempDir dir;
-    write(dir / "bad.html",
+    spit(dir / "bad.html",
           "<!DOCTYPE html><html><head><link rel=\"icon\" href=\"data:,\">"
           "</head><body><script>no_such_function();</script></body></html>");
     const Browser b = chromium(dir.path(), "file://" + (dir / "bad.html").string(), "--dump-dom");

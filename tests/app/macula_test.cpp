@@ -17,32 +17,14 @@
 namespace octshape {
 namespace {
 
+using test::read_csv;
+using test::slurp;
+using test::spit;
+using test::split_csv_line;
+
 using nlohmann::json;
 
-std::string slurp(const std::filesystem::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
 
-std::vector<std::string> split_line(const std::string& line) {
-    std::vector<std::string> out;
-    std::string cur;
-    bool quoted = false;
-    for (const char c : line) {
-        if (c == '"') {
-            quoted = !quoted;
-        } else if (c == ',' && !quoted) {
-            out.push_back(cur);
-            cur.clear();
-        } else {
-            cur += c;
-        }
-    }
-    out.push_back(cur);
-    return out;
-}
 
 TEST(MaculaCli, BezierSampleMatchesItsTruth) {
     const auto vol = test::source_dir() / "sample_scans/macula_bezier_od.vol";
@@ -95,8 +77,8 @@ TEST(MaculaCli, BezierSampleMatchesItsTruth) {
     ASSERT_TRUE(std::getline(csv, h));
     ASSERT_TRUE(std::getline(csv, row));
     EXPECT_FALSE(std::getline(csv, extra));
-    const auto hv = split_line(h);
-    const auto rv = split_line(row);
+    const auto hv = split_csv_line(h);
+    const auto rv = split_csv_line(row);
     ASSERT_EQ(hv.size(), rv.size());
     for (std::size_t i = 0; i < hv.size(); ++i) {
         if (hv[i] == "cft_mm") {

@@ -16,32 +16,14 @@
 namespace octshape {
 namespace {
 
+using test::read_csv;
+using test::slurp;
+using test::spit;
+using test::split_csv_line;
+
 using nlohmann::json;
 
-std::string slurp(const std::filesystem::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
 
-std::vector<std::string> split_csv(const std::string& line) {
-    std::vector<std::string> out;
-    std::string cur;
-    bool quoted = false;
-    for (const char c : line) {
-        if (c == '"') {
-            quoted = !quoted;
-        } else if (c == ',' && !quoted) {
-            out.push_back(cur);
-            cur.clear();
-        } else {
-            cur += c;
-        }
-    }
-    out.push_back(cur);
-    return out;
-}
 
 // A reduced cupped phantom (49 B-scans x 192 A-scans) written with its truth file.
 std::filesystem::path make_phantom(const test::TempDir& dir) {
@@ -90,8 +72,8 @@ TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
     ASSERT_TRUE(std::getline(csv, header));
     ASSERT_TRUE(std::getline(csv, row));
     EXPECT_FALSE(std::getline(csv, extra));
-    const auto hv = split_csv(header);
-    const auto rv = split_csv(row);
+    const auto hv = split_csv_line(header);
+    const auto rv = split_csv_line(row);
     ASSERT_EQ(hv.size(), rv.size());
     EXPECT_EQ(hv.front(), "file");
     int checked = 0;

@@ -15,17 +15,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-void write(const fs::path& p, const std::string& s) {
-    std::ofstream out(p, std::ios::binary);
-    out << s;
-}
 
-std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
 
 // Group "a": eyes 1.0 and 3.0 (S1 OD scanned twice: 1.0 then 1.5); group "b": 4.0, 6.0, 8.0.
 // Retest: S1 OD [1.0, 1.5], S3 OD [6.0, 6.25].
@@ -41,7 +31,7 @@ const char* kEyes =
 
 TEST(StatsCli, JsonGroupTableAndRetest) {
     TempDir dir;
-    write(dir / "eyes.csv", kEyes);
+    spit(dir / "eyes.csv", kEyes);
     const RunResult r = run_octshape("stats " + (dir / "eyes.csv").string() +
                                      " --retest --json -o " + (dir / "table.csv").string() +
                                      " --retest-output " + (dir / "icc.csv").string());
@@ -77,7 +67,7 @@ TEST(StatsCli, JsonGroupTableAndRetest) {
 
 TEST(StatsCli, TextTableHasTheThesisLayout) {
     TempDir dir;
-    write(dir / "eyes.csv", kEyes);
+    spit(dir / "eyes.csv", kEyes);
     const RunResult r = run_octshape("stats " + (dir / "eyes.csv").string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.out.find("a mean (SD)"), std::string::npos) << r.out;
@@ -88,13 +78,13 @@ TEST(StatsCli, TextTableHasTheThesisLayout) {
 TEST(StatsCli, ExitCodes) {
     TempDir dir;
     EXPECT_EQ(run_octshape("stats " + (dir / "none.csv").string()).exit_code, 66);
-    write(dir / "bad.csv", "subject_id,eye\nS1\n");
+    spit(dir / "bad.csv", "subject_id,eye\nS1\n");
     EXPECT_EQ(run_octshape("stats " + (dir / "bad.csv").string()).exit_code, 65);
-    write(dir / "one.csv",
+    spit(dir / "one.csv",
           "subject_id,eye,visit_date,file,x\nS1,OD,2024-01-01,/a,1\nS2,OD,2024-01-01,/b,2\n");
     EXPECT_EQ(run_octshape("stats " + (dir / "one.csv").string()).exit_code, 0);
     EXPECT_EQ(run_octshape("stats --retest " + (dir / "one.csv").string()).exit_code, 69);
-    write(dir / "eyes.csv", kEyes);
+    spit(dir / "eyes.csv", kEyes);
     EXPECT_EQ(run_octshape("stats --retest --sessions 1 " + (dir / "eyes.csv").string()).exit_code,
               64);
 }
