@@ -9,7 +9,7 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
-#include "octshape/io/atomic_file.h"
+#include "commands/qc_draw.h"
 #include "octshape/io/error.h"
 
 namespace octshape::app {
@@ -20,24 +20,6 @@ const cv::Scalar kSlope(0, 200, 255);      // yellow
 const cv::Scalar kFlat(255, 255, 255);     // white
 const cv::Scalar kInterior(60, 180, 60);   // green
 const cv::Scalar kExterior(220, 120, 30);  // blue
-
-void save_png(const cv::Mat& img, const std::string& path) {
-    std::vector<uchar> buf;
-    if (!cv::imencode(".png", img, buf)) throw OutputError(path, "PNG encoding failed");
-    io::write_text_atomically(
-        path, std::string_view(reinterpret_cast<const char*>(buf.data()), buf.size()));
-}
-
-std::string fmt(const char* f, double v) {
-    char b[64];
-    std::snprintf(b, sizeof b, f, v);
-    return b;
-}
-
-void text(cv::Mat& img, const std::string& s, cv::Point p, double scale, cv::Scalar c) {
-    cv::putText(img, s, p, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(0, 0, 0), 3, cv::LINE_AA);
-    cv::putText(img, s, p, cv::FONT_HERSHEY_SIMPLEX, scale, c, 1, cv::LINE_AA);
-}
 
 cv::Mat thickness_picture(const retina::CubeResult& r) {
     const retina::ThicknessMap& m = r.map;
@@ -98,25 +80,28 @@ cv::Mat thickness_picture(const retina::CubeResult& r) {
         const char* label = h.angle_deg == 0.0 ? "N" : (h.angle_deg == 90.0 ? "S" : nullptr);
         if (label == nullptr) continue;
         const Eigen::Vector2d e = r.centre_mm + (h.r_mm.back() + 0.15) * h.direction;
-        text(img, label, to_px(e.x(), e.y()) + cv::Point(-7, 7), 0.7, cv::Scalar(255, 255, 255));
+        outlined_text(img, label, to_px(e.x(), e.y()) + cv::Point(-7, 7), 0.7,
+                      cv::Scalar(255, 255, 255));
     }
     const cv::Point c = to_px(r.centre_mm.x(), r.centre_mm.y());
     cv::drawMarker(img, c, cv::Scalar(255, 0, 255), cv::MARKER_CROSS, 18, 2);
     // Legend strip.
     cv::Mat out(H + 70, W, CV_8UC3, cv::Scalar(30, 30, 30));
     img.copyTo(out(cv::Rect(0, 0, W, H)));
-    text(out,
-         "thickness " + fmt("%.2f", lo) + " (dark) - " + fmt("%.2f", hi) +
-             " mm (yellow); grey = missing; + centre (" + r.centre_source + ")",
-         {8, H + 22}, 0.5, cv::Scalar(230, 230, 230));
-    text(out, "rim", {8, H + 52}, 0.6, kRim);
-    text(out, "slope", {60, H + 52}, 0.6, kSlope);
-    text(out, "pit flat", {135, H + 52}, 0.6, kFlat);
-    text(out,
-         "CFT " + fmt("%.3f", r.cft_mm) + " mm  rim " + fmt("%.3f", r.rim_height_mm) +
-             " mm  slope " + fmt("%.1f", r.max_pit_slope_deg) + " deg  RMSE " +
-             fmt("%.2f", r.rmse_um) + " um",
-         {250, H + 52}, 0.5, cv::Scalar(230, 230, 230));
+    outlined_text(out,
+                  "thickness " + printf_number("%.2f", lo) + " (dark) - " +
+                      printf_number("%.2f", hi) + " mm (yellow); grey = missing; + centre (" +
+                      r.centre_source + ")",
+                  {8, H + 22}, 0.5, cv::Scalar(230, 230, 230));
+    outlined_text(out, "rim", {8, H + 52}, 0.6, kRim);
+    outlined_text(out, "slope", {60, H + 52}, 0.6, kSlope);
+    outlined_text(out, "pit flat", {135, H + 52}, 0.6, kFlat);
+    outlined_text(out,
+                  "CFT " + printf_number("%.3f", r.cft_mm) + " mm  rim " +
+                      printf_number("%.3f", r.rim_height_mm) + " mm  slope " +
+                      printf_number("%.1f", r.max_pit_slope_deg) + " deg  RMSE " +
+                      printf_number("%.2f", r.rmse_um) + " um",
+                  {250, H + 52}, 0.5, cv::Scalar(230, 230, 230));
     return out;
 }
 
@@ -172,15 +157,16 @@ cv::Mat profiles_picture(const retina::CubeResult& r) {
             cv::circle(img, to_px(h.slope_point.x(), h.slope_point.y()), 3, cv::Scalar(0, 160, 220),
                        -1);
         }
-        const std::string title = fmt("%.0f deg", h.angle_deg) +
-                                  (h.valid ? "  RMSE " + fmt("%.2f um", h.rmse_um) : "  FAILED");
+        const std::string title =
+            printf_number("%.0f deg", h.angle_deg) +
+            (h.valid ? "  RMSE " + printf_number("%.2f um", h.rmse_um) : "  FAILED");
         cv::putText(img, title, {ox + 30, oy + 17}, cv::FONT_HERSHEY_SIMPLEX, 0.45,
                     h.valid ? cv::Scalar(0, 0, 0) : cv::Scalar(0, 0, 200), 1, cv::LINE_AA);
-        cv::putText(img, fmt("%.2f", hmax), {ox + 2, plot.y + 8}, cv::FONT_HERSHEY_SIMPLEX, 0.3,
-                    cv::Scalar(90, 90, 90), 1, cv::LINE_AA);
-        cv::putText(img, fmt("%.2f", hmin), {ox + 2, plot.y + plot.height},
+        cv::putText(img, printf_number("%.2f", hmax), {ox + 2, plot.y + 8},
                     cv::FONT_HERSHEY_SIMPLEX, 0.3, cv::Scalar(90, 90, 90), 1, cv::LINE_AA);
-        cv::putText(img, fmt("r %.1f mm", rmax),
+        cv::putText(img, printf_number("%.2f", hmin), {ox + 2, plot.y + plot.height},
+                    cv::FONT_HERSHEY_SIMPLEX, 0.3, cv::Scalar(90, 90, 90), 1, cv::LINE_AA);
+        cv::putText(img, printf_number("r %.1f mm", rmax),
                     {plot.x + plot.width - 52, plot.y + plot.height + 14}, cv::FONT_HERSHEY_SIMPLEX,
                     0.3, cv::Scalar(90, 90, 90), 1, cv::LINE_AA);
     }

@@ -11,7 +11,7 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
-#include "octshape/io/atomic_file.h"
+#include "commands/qc_draw.h"
 #include "octshape/io/error.h"
 
 namespace octshape::app {
@@ -25,24 +25,6 @@ const cv::Scalar kUsedIlm(40, 40, 240);    // red
 const cv::Scalar kBm(230, 150, 40);        // blue
 const cv::Scalar kFilled(230, 230, 0);     // cyan
 const cv::Scalar kMrw(230, 60, 230);       // magenta
-
-void save_png(const cv::Mat& img, const std::string& path) {
-    std::vector<uchar> buf;
-    if (!cv::imencode(".png", img, buf)) throw OutputError(path, "PNG encoding failed");
-    io::write_text_atomically(
-        path, std::string_view(reinterpret_cast<const char*>(buf.data()), buf.size()));
-}
-
-std::string fmt(const char* f, double v) {
-    char b[96];
-    std::snprintf(b, sizeof b, f, v);
-    return b;
-}
-
-void text(cv::Mat& img, const std::string& s, cv::Point p, double scale, cv::Scalar c) {
-    cv::putText(img, s, p, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(0, 0, 0), 3, cv::LINE_AA);
-    cv::putText(img, s, p, cv::FONT_HERSHEY_SIMPLEX, scale, c, 1, cv::LINE_AA);
-}
 
 // Height above the RPE of the topmost ILM face over each grid cell.
 cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p) {
@@ -121,23 +103,25 @@ cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p) {
     const Eigen::Vector2d nasal = inv.col(0).normalized();
     const Eigen::Vector2d sup = inv.col(1).normalized();
     const double lr = p.disc_radius_mm + 0.12;
-    text(img, "N", px(c.x() + lr * nasal.x(), c.y() + lr * nasal.y()) + cv::Point(-7, 7), 0.7,
-         cv::Scalar(255, 255, 255));
-    text(img, "S", px(c.x() + lr * sup.x(), c.y() + lr * sup.y()) + cv::Point(-7, 7), 0.7,
-         cv::Scalar(255, 255, 255));
+    outlined_text(img, "N", px(c.x() + lr * nasal.x(), c.y() + lr * nasal.y()) + cv::Point(-7, 7),
+                  0.7, cv::Scalar(255, 255, 255));
+    outlined_text(img, "S", px(c.x() + lr * sup.x(), c.y() + lr * sup.y()) + cv::Point(-7, 7), 0.7,
+                  cv::Scalar(255, 255, 255));
     cv::Mat out(H + 70, W, CV_8UC3, cv::Scalar(30, 30, 30));
     img.copyTo(out(cv::Rect(0, 0, W, H)));
-    text(out,
-         "ILM height above RPE " + fmt("%.2f", lo) + " (dark) - " + fmt("%.2f", hi) +
-             " mm (yellow); black line: cup edge (h = 0); ILM: " + r.ilm_source,
-         {8, H + 22}, 0.5, cv::Scalar(230, 230, 230));
-    text(out, "BMO points", {8, H + 52}, 0.5, kBmo);
-    text(out, "ellipse", {110, H + 52}, 0.5, kEllipse);
-    text(out, fmt("%.1f mm disc", p.disc_radius_mm), {185, H + 52}, 0.5, kDisc);
-    text(out,
-         "A_bmo " + fmt("%.3f mm2", r.ellipse.area_mm2) + "  V_cup " +
-             fmt("%.3f mm3", r.cup_volume_mm3) + "  CONHT " + fmt("%.3f mm", r.conht_mm),
-         {300, H + 52}, 0.5, cv::Scalar(230, 230, 230));
+    outlined_text(out,
+                  "ILM height above RPE " + printf_number("%.2f", lo) + " (dark) - " +
+                      printf_number("%.2f", hi) +
+                      " mm (yellow); black line: cup edge (h = 0); ILM: " + r.ilm_source,
+                  {8, H + 22}, 0.5, cv::Scalar(230, 230, 230));
+    outlined_text(out, "BMO points", {8, H + 52}, 0.5, kBmo);
+    outlined_text(out, "ellipse", {110, H + 52}, 0.5, kEllipse);
+    outlined_text(out, printf_number("%.1f mm disc", p.disc_radius_mm), {185, H + 52}, 0.5, kDisc);
+    outlined_text(out,
+                  "A_bmo " + printf_number("%.3f mm2", r.ellipse.area_mm2) + "  V_cup " +
+                      printf_number("%.3f mm3", r.cup_volume_mm3) + "  CONHT " +
+                      printf_number("%.3f mm", r.conht_mm),
+                  {300, H + 52}, 0.5, cv::Scalar(230, 230, 230));
     return out;
 }
 
@@ -220,7 +204,7 @@ cv::Mat bscan_panel(const io::Scan& scan, const retina::OnhResult& r, int b) {
         const Eigen::Vector3d& q = r.mrw_points_mm[i];
         cv::line(img, px(p.x(), p.z()), px(q.x(), q.z()), kMrw, 1, cv::LINE_AA);
     }
-    text(img, "B-scan " + std::to_string(b), {6, 18}, 0.5, cv::Scalar(255, 255, 255));
+    outlined_text(img, "B-scan " + std::to_string(b), {6, 18}, 0.5, cv::Scalar(255, 255, 255));
     return img;
 }
 
@@ -243,12 +227,12 @@ cv::Mat bscans_picture(const io::Scan& scan, const retina::OnhResult& r) {
     cv::hconcat(panels, row);
     cv::Mat out(row.rows + 40, row.cols, CV_8UC3, cv::Scalar(30, 30, 30));
     row.copyTo(out(cv::Rect(0, 0, row.cols, row.rows)));
-    text(out, "device ILM", {8, row.rows + 26}, 0.5, kDeviceIlm);
-    text(out, "ILM used (" + r.ilm_source + ")", {110, row.rows + 26}, 0.5, kUsedIlm);
-    text(out, "device BM", {290, row.rows + 26}, 0.5, kBm);
-    text(out, "filled RPE", {390, row.rows + 26}, 0.5, kFilled);
-    text(out, "BMO points", {490, row.rows + 26}, 0.5, kDisc);
-    text(out, "MRW vectors", {600, row.rows + 26}, 0.5, kMrw);
+    outlined_text(out, "device ILM", {8, row.rows + 26}, 0.5, kDeviceIlm);
+    outlined_text(out, "ILM used (" + r.ilm_source + ")", {110, row.rows + 26}, 0.5, kUsedIlm);
+    outlined_text(out, "device BM", {290, row.rows + 26}, 0.5, kBm);
+    outlined_text(out, "filled RPE", {390, row.rows + 26}, 0.5, kFilled);
+    outlined_text(out, "BMO points", {490, row.rows + 26}, 0.5, kDisc);
+    outlined_text(out, "MRW vectors", {600, row.rows + 26}, 0.5, kMrw);
     return out;
 }
 
@@ -280,12 +264,12 @@ cv::Mat mrw_picture(const retina::OnhResult& r) {
     for (std::size_t i = 0; i < r.mrw_mm.size(); ++i) {
         cv::circle(img, px(r.bmo_anatomical_deg[i], r.mrw_mm[i]), 2, kMrw, -1);
     }
-    cv::putText(img, fmt("%.2f mm", hi), {4, plot.y + 10}, cv::FONT_HERSHEY_SIMPLEX, 0.4,
+    cv::putText(img, printf_number("%.2f mm", hi), {4, plot.y + 10}, cv::FONT_HERSHEY_SIMPLEX, 0.4,
                 cv::Scalar(80, 80, 80), 1, cv::LINE_AA);
     cv::putText(img,
                 "MRW per BMO point (magenta), sector means (red) vs anatomical angle "
                 "(0 nasal, 90 sup.); mean " +
-                    fmt("%.3f mm", r.mrw_mean_mm),
+                    printf_number("%.3f mm", r.mrw_mean_mm),
                 {10, H - 14}, cv::FONT_HERSHEY_SIMPLEX, 0.42, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
     return img;
 }
