@@ -11,17 +11,33 @@
 namespace octshape::mesh {
 namespace {
 
-Csr csr_from_pairs(std::vector<std::pair<int, int>>& pairs, int rows) {
-    std::sort(pairs.begin(), pairs.end());
-    pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+// Rows of (row, item) pairs, each row sorted ascending without repeats (the same result as
+// sorting the pairs and dropping duplicates). A counting sort by row and a sort of each short
+// row: O(#pairs) instead of O(#pairs log #pairs), no pair array.
+Csr csr_from_pairs(const std::vector<std::pair<int, int>>& pairs, int rows) {
     Csr out;
     out.offsets.assign(static_cast<std::size_t>(rows) + 1, 0);
-    out.items.reserve(pairs.size());
-    for (const auto& [row, item] : pairs) {
-        ++out.offsets[static_cast<std::size_t>(row) + 1];
-        out.items.push_back(item);
-    }
+    for (const auto& pr : pairs) ++out.offsets[static_cast<std::size_t>(pr.first) + 1];
     for (std::size_t i = 1; i < out.offsets.size(); ++i) out.offsets[i] += out.offsets[i - 1];
+    out.items.resize(pairs.size());
+    std::vector<int> fill(out.offsets.begin(), out.offsets.end() - 1);
+    for (const auto& [row, item] : pairs) {
+        out.items[static_cast<std::size_t>(fill[static_cast<std::size_t>(row)]++)] = item;
+    }
+    // Sort each row, drop repeats and close the gaps in place.
+    int write = 0;
+    for (int r = 0; r < rows; ++r) {
+        const auto b = out.items.begin() + out.offsets[static_cast<std::size_t>(r)];
+        const auto e = out.items.begin() + out.offsets[static_cast<std::size_t>(r) + 1];
+        std::sort(b, e);
+        const auto last = std::unique(b, e);
+        out.offsets[static_cast<std::size_t>(r)] = write;
+        write = static_cast<int>(std::copy(b, last, out.items.begin() + write) -
+                                 out.items.begin());
+    }
+    out.offsets[static_cast<std::size_t>(rows)] = write;
+    out.items.resize(static_cast<std::size_t>(write));
+    out.items.shrink_to_fit();
     return out;
 }
 
@@ -90,17 +106,33 @@ Adjacency build_adjacency(const Faces& F, int num_vertices) {
     }
     adj.vertex_faces = csr_from_pairs(pairs, num_vertices);
 
-    // Undirected edges (lo, hi, face), sorted so that the faces of one edge are consecutive.
-    std::vector<std::array<int, 3>> edges;
-    edges.reserve(static_cast<std::size_t>(m) * 3);
+    // Undirected edges (lo, hi, face), ordered by (lo, hi, face) so that the faces of one edge
+    // are consecutive: bucketed by lo (counting sort), then each short bucket sorted.
+    std::vector<int> edge_offsets(static_cast<std::size_t>(num_vertices) + 1, 0);
     for (int f = 0; f < m; ++f) {
         for (int k = 0; k < 3; ++k) {
-            const int a = F(f, k);
-            const int b = F(f, (k + 1) % 3);
-            edges.push_back({std::min(a, b), std::max(a, b), f});
+            const int lo = std::min(F(f, k), F(f, (k + 1) % 3));
+            ++edge_offsets[static_cast<std::size_t>(lo) + 1];
         }
     }
-    std::sort(edges.begin(), edges.end());
+    for (std::size_t i = 1; i < edge_offsets.size(); ++i) edge_offsets[i] += edge_offsets[i - 1];
+    std::vector<std::array<int, 3>> edges(static_cast<std::size_t>(m) * 3);
+    {
+        std::vector<int> fill(edge_offsets.begin(), edge_offsets.end() - 1);
+        for (int f = 0; f < m; ++f) {
+            for (int k = 0; k < 3; ++k) {
+                const int a = F(f, k);
+                const int b = F(f, (k + 1) % 3);
+                const int lo = std::min(a, b);
+                edges[static_cast<std::size_t>(fill[static_cast<std::size_t>(lo)]++)] = {
+                    lo, std::max(a, b), f};
+            }
+        }
+    }
+    for (int v = 0; v < num_vertices; ++v) {
+        std::sort(edges.begin() + edge_offsets[static_cast<std::size_t>(v)],
+                  edges.begin() + edge_offsets[static_cast<std::size_t>(v) + 1]);
+    }
     adj.boundary_vertex.assign(static_cast<std::size_t>(num_vertices), 0);
     std::vector<std::pair<int, int>> vv;
     std::vector<std::pair<int, int>> ff;
@@ -178,36 +210,73 @@ Csr disk_neighbourhoods(const Faces& F,
                                     std::to_string(radius));
     }
     const auto m = static_cast<int>(F.rows());
-    std::vector<std::vector<int>> rows(static_cast<std::size_t>(m));
+    const int n = adjacency.vertex_faces.rows();
     const double r2 = radius * radius;
+    const int* vf_off = adjacency.vertex_faces.offsets.data();
+    const int* vf = adjacency.vertex_faces.items.data();
+    const double* cen = geometry.centroids.data();  // row-major: face f at cen[3f .. 3f+2]
+    const int* tri = F.data();
+    // Each worker grows the rows of its contiguous range of faces into its own flat buffer
+    // (no allocation per face); the buffers are joined in order, so the result does not depend
+    // on the number of workers. Stamps: a face is tested once per row, and the faces around a
+    // vertex are scanned once per row (scanning them again from another face of the disk finds
+    // only stamped faces), which gives the same set as the plain growth.
+    const int workers = std::clamp(threads, 1, std::max(1, m / 256));
+    std::vector<std::vector<int>> counts(static_cast<std::size_t>(workers));
+    std::vector<std::vector<int>> buffers(static_cast<std::size_t>(workers));
     detail::parallel_for(m, threads, [&](int begin, int end) {
-        std::vector<int> stamp(static_cast<std::size_t>(m), -1);
-        std::vector<int> queue;
+        // parallel_for splits [0, m) into `workers` chunks starting at m·w/workers.
+        int w = 0;
+        while (w + 1 < workers && static_cast<long long>(m) * (w + 1) / workers <= begin) ++w;
+        std::vector<int> face_stamp(static_cast<std::size_t>(m), -1);
+        std::vector<int> vertex_stamp(static_cast<std::size_t>(n), -1);
+        std::vector<int>& count = counts[static_cast<std::size_t>(w)];
+        std::vector<int>& out = buffers[static_cast<std::size_t>(w)];
+        count.resize(static_cast<std::size_t>(end - begin));
         for (int i = begin; i < end; ++i) {
-            const Eigen::Vector3d ci = geometry.centroids.row(i);
-            std::vector<int>& row = rows[static_cast<std::size_t>(i)];
-            queue.assign(1, i);
-            stamp[static_cast<std::size_t>(i)] = i;
-            for (std::size_t q = 0; q < queue.size(); ++q) {
-                const int f = queue[q];
+            const double cx = cen[3 * i];
+            const double cy = cen[3 * i + 1];
+            const double cz = cen[3 * i + 2];
+            const std::size_t start = out.size();
+            out.push_back(i);
+            face_stamp[static_cast<std::size_t>(i)] = i;
+            for (std::size_t q = start; q < out.size(); ++q) {
+                const int f = out[q];
                 for (int k = 0; k < 3; ++k) {
-                    const int v = F(f, k);
-                    const Csr& vf = adjacency.vertex_faces;
-                    for (int p = vf.begin(v); p < vf.end(v); ++p) {
-                        const int g = vf.item(p);
-                        if (stamp[static_cast<std::size_t>(g)] == i) continue;
-                        stamp[static_cast<std::size_t>(g)] = i;
-                        if ((geometry.centroids.row(g) - ci.transpose()).squaredNorm() <= r2) {
-                            queue.push_back(g);
-                        }
+                    const int v = tri[3 * f + k];
+                    if (vertex_stamp[static_cast<std::size_t>(v)] == i) continue;
+                    vertex_stamp[static_cast<std::size_t>(v)] = i;
+                    for (int p = vf_off[v]; p < vf_off[v + 1]; ++p) {
+                        const int g = vf[p];
+                        if (face_stamp[static_cast<std::size_t>(g)] == i) continue;
+                        face_stamp[static_cast<std::size_t>(g)] = i;
+                        const double dx = cen[3 * g] - cx;
+                        const double dy = cen[3 * g + 1] - cy;
+                        const double dz = cen[3 * g + 2] - cz;
+                        if (dx * dx + dy * dy + dz * dz <= r2) out.push_back(g);
                     }
                 }
             }
-            std::sort(queue.begin() + 1, queue.end());
-            row = queue;
+            std::sort(out.begin() + static_cast<std::ptrdiff_t>(start) + 1, out.end());
+            count[static_cast<std::size_t>(i - begin)] = static_cast<int>(out.size() - start);
         }
     });
-    return Csr::from_rows(rows);
+    Csr omega;
+    omega.offsets.assign(static_cast<std::size_t>(m) + 1, 0);
+    std::size_t total = 0;
+    for (const auto& b : buffers) total += b.size();
+    omega.items.reserve(total);
+    std::size_t row = 0;
+    for (int w = 0; w < workers; ++w) {
+        for (const int c : counts[static_cast<std::size_t>(w)]) {
+            omega.offsets[row + 1] = omega.offsets[row] + c;
+            ++row;
+        }
+        auto& b = buffers[static_cast<std::size_t>(w)];
+        omega.items.insert(omega.items.end(), b.begin(), b.end());
+        std::vector<int>().swap(b);
+    }
+    return omega;
 }
 
 Csr Csr::from_rows(const std::vector<std::vector<int>>& rows) {

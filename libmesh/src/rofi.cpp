@@ -18,15 +18,6 @@ double seconds_since(Clock::time_point t0) {
     return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-// Current normal, area and centroid of a face, packed in one cache line: the filter reads them
-// for ~10–20 neighbours per face.
-struct alignas(64) FaceRecord {
-    double n[3];
-    double area;
-    double c[3];
-    double unused;
-};
-
 // For each slot p of Ω (row i, item j): the slot of i in row j if j < i and i ∈ Ω_j (this row
 // computes the pair and also writes there), −2 if j > i and j's row will write slot p, −1
 // otherwise (this row computes the pair for itself alone; also the centre face j = i).
@@ -54,6 +45,85 @@ std::vector<int> mirror_slots(const Csr& omega) {
     return out;
 }
 
+// The per-row work of Eq. 5.1 on flat arrays (Ω in CSR, the slot weights, the face records).
+struct PairKernel {
+    const int* off;                   // Ω offsets
+    const int* items;                 // Ω items: f_i, then ascending indices
+    const int* mir;                   // mirror_slots(Ω)
+    double* weight;                   // f g per slot (the centre slot unused: its weight is 1)
+    const detail::FaceState* rec;     // current normal, area, centroid
+    detail::FaceState* out;           // filtered normal ñ_i, area, centroid
+    double inv_s2;                    // 1 / σ_s²
+    double inv_two_sc2;               // 1 / (2 σ_c²)
+    double inv_two_s2;                // 1 / (2 σ_s²)
+
+    // f(|c_i − c_j|; σ_c) g(|n_i − n_j|; σ_s) of the pair in slot p of row i, written to slot
+    // p and to the mirror slot in row j.
+    template <bool kTukey>
+    void pair(const detail::FaceState& fi, int p) const {
+        const detail::FaceState& fj = rec[items[p]];
+        const double dx = fi.normal[0] - fj.normal[0];
+        const double dy = fi.normal[1] - fj.normal[1];
+        const double dz = fi.normal[2] - fj.normal[2];
+        const double x2 = dx * dx + dy * dy + dz * dz;  // |n_i − n_j|²
+        const double cx = fi.centroid[0] - fj.centroid[0];
+        const double cy = fi.centroid[1] - fj.centroid[1];
+        const double cz = fi.centroid[2] - fj.centroid[2];
+        const double d2 = cx * cx + cy * cy + cz * cz;  // |c_i − c_j|²
+        double w = 0.0;
+        if constexpr (kTukey) {
+            // Eq. 5.3 without its constant ½ (it cancels in K_i): (1 − x²/σ_s²)² for x ≤ σ_s,
+            // else 0 — no diffusion across the cut-off, and no exp() for such a pair.
+            const double t = 1.0 - x2 * inv_s2;
+            if (t > 0.0) w = t * t * std::exp(-d2 * inv_two_sc2);
+        } else {
+            w = std::exp(-d2 * inv_two_sc2 - x2 * inv_two_s2);
+        }
+        weight[p] = w;
+        const int q = mir[p];
+        if (q >= 0) weight[q] = w;
+    }
+
+    // The pairs row i computes: the neighbours j < i (a row lists ascending indices after
+    // f_i), then the rare j > i with i ∉ Ω_j.
+    template <bool kTukey>
+    void row_pairs(int i) const {
+        const detail::FaceState& fi = rec[i];
+        int p = off[i] + 1;
+        const int e = off[i + 1];
+        for (; p < e && items[p] < i; ++p) pair<kTukey>(fi, p);
+        for (; p < e; ++p) {
+            if (mir[p] == -1) pair<kTukey>(fi, p);
+        }
+    }
+
+    // Eq. 5.1: ñ_i = normalise(Σ_j a_j w_ij n_j) over Ω_i in row order (K_i cancels in the
+    // normalisation); the centre face has w = 1. Writes out[i].
+    void row_sum(int i) const {
+        const detail::FaceState& fi = rec[i];
+        // 0.0 + keeps the bits of a sum that starts from zero (−0 becomes +0).
+        double sx = 0.0 + fi.area * fi.normal[0];
+        double sy = 0.0 + fi.area * fi.normal[1];
+        double sz = 0.0 + fi.area * fi.normal[2];
+        const int e = off[i + 1];
+        for (int p = off[i] + 1; p < e; ++p) {
+            const detail::FaceState& fj = rec[items[p]];
+            const double w = fj.area * weight[p];
+            sx += w * fj.normal[0];
+            sy += w * fj.normal[1];
+            sz += w * fj.normal[2];
+        }
+        const double len = std::sqrt(sx * sx + sy * sy + sz * sz);
+        detail::FaceState& o = out[i];
+        o = fi;
+        if (len > 0.0) {  // else keep n_i
+            o.normal[0] = sx / len;
+            o.normal[1] = sy / len;
+            o.normal[2] = sz / len;
+        }
+    }
+};
+
 void require(bool ok, const std::string& field, const std::string& rule, double value) {
     if (!ok) {
         throw std::invalid_argument("RofiParams." + field + " must be " + rule + ", got " +
@@ -80,10 +150,14 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
     params.validate();
     validate_mesh(V, F);
     DenoiseResult result;
-    const detail::DenoiseSetup setup =
+    detail::DenoiseSetup setup =
         detail::prepare_denoise(V, F, std::nullopt, params.radius_factor, params.fix_boundary,
                                 params.iterations, params.threads, result);
     if (!setup.run) return result;
+    // Not read by the iterations: the input's face geometry (56 bytes a face) and the
+    // face-face adjacency (~16 bytes a face) are released before the iteration arrays exist.
+    setup.geometry = FaceGeometry{};
+    setup.adjacency.face_faces = Csr{};
 
     const auto t1 = Clock::now();
     const auto n = static_cast<int>(V.rows());
@@ -95,87 +169,41 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
     const double inv_s2 = 1.0 / s2;
     const double inv_two_s2 = 1.0 / (2.0 * s2);
     const bool tukey = params.similarity == Similarity::kTukey;
+    // current[f]: normal, area and centroid of the current mesh; faces[f]: the same with the
+    // filtered normal ñ_f (what the vertex step reads).
+    std::vector<detail::FaceState> current(static_cast<std::size_t>(m));
     std::vector<detail::FaceState> faces(static_cast<std::size_t>(m));
-    std::vector<FaceRecord> current(static_cast<std::size_t>(m));
     Vertices next(n, 3);
     // The weight f g of a pair (Eq. 5.1 without a_j) is symmetric in i and j, and bit for bit
     // so (|c_i − c_j|² and |n_i − n_j|² square the same differences up to sign). Where j ∈ Ω_i
     // and i ∈ Ω_j (nearly always), the row of the larger index computes it once and writes
     // both slots; `mirror[p]` is the slot of the pair in row j (−1 if i ∉ Ω_j, −2 if the other
     // row computes it). Each slot has one writer, so any thread count gives the same bits.
+    // The centre face's own weight is exactly 1 (x = 0, d = 0: (1 − 0)² exp(−0) = 1) and is not
+    // stored: the slot holds the weight from the first neighbour on.
     const std::vector<int> mirror = mirror_slots(omega);
     std::vector<double> pair_weight(omega.items.size());
+    PairKernel kernel{omega.offsets.data(), omega.items.data(), mirror.data(),
+                      pair_weight.data(), current.data(), faces.data(), inv_s2,
+                      inv_two_sc2, inv_two_s2};
     double lambda = params.lambda_i;
     for (int it = 0; it < params.iterations; ++it) {
         detail::parallel_for(m, params.threads, [&](int begin, int end) {
-            detail::update_faces(result.V, F, begin, end, faces.data());
-            for (int f = begin; f < end; ++f) {
-                const detail::FaceState& s = faces[static_cast<std::size_t>(f)];
-                current[static_cast<std::size_t>(f)] = {
-                    {s.normal[0], s.normal[1], s.normal[2]}, s.area,
-                    {s.centroid[0], s.centroid[1], s.centroid[2]}, 0.0};
-            }
+            detail::update_faces(result.V, F, begin, end, current.data());
         });
-        // f(|c_i − c_j|; σ_c) g(|n_i − n_j|; σ_s) for every pair of Ω.
+        // The pair weights (each row writes its own pairs and their mirror slots), then the
+        // sums: two passes, so that every slot is written before any row reads it.
         detail::parallel_for(m, params.threads, [&](int begin, int end) {
-            const int* off = omega.offsets.data();
-            const int* items = omega.items.data();
-            const int* mir = mirror.data();
-            const FaceRecord* rec = current.data();
-            double* weight = pair_weight.data();
             for (int i = begin; i < end; ++i) {
-                const FaceRecord& fi = rec[i];
-                for (int p = off[i]; p < off[i + 1]; ++p) {
-                    const int q = mir[p];
-                    if (q == -2) continue;  // written by row items[p]
-                    const FaceRecord& fj = rec[items[p]];
-                    const double dx = fi.n[0] - fj.n[0];
-                    const double dy = fi.n[1] - fj.n[1];
-                    const double dz = fi.n[2] - fj.n[2];
-                    const double x2 = dx * dx + dy * dy + dz * dz;  // |n_i − n_j|²
-                    const double cx = fi.c[0] - fj.c[0];
-                    const double cy = fi.c[1] - fj.c[1];
-                    const double cz = fi.c[2] - fj.c[2];
-                    const double d2 = cx * cx + cy * cy + cz * cz;  // |c_i − c_j|²
-                    double w = 0.0;
-                    if (tukey) {
-                        // Eq. 5.3 without its constant ½ (it cancels in K_i): (1 − x²/σ_s²)²
-                        // for x ≤ σ_s, else 0 — no diffusion across the cut-off.
-                        const double t = 1.0 - x2 * inv_s2;
-                        if (t > 0.0) w = t * t * std::exp(-d2 * inv_two_sc2);
-                    } else {
-                        w = std::exp(-d2 * inv_two_sc2 - x2 * inv_two_s2);
-                    }
-                    weight[p] = w;
-                    if (q >= 0) weight[q] = w;
+                if (tukey) {
+                    kernel.row_pairs<true>(i);
+                } else {
+                    kernel.row_pairs<false>(i);
                 }
             }
         });
-        // Eq. 5.1: bilateral average of the normals of Ω_i (K_i cancels in the normalisation).
         detail::parallel_for(m, params.threads, [&](int begin, int end) {
-            const int* off = omega.offsets.data();
-            const int* items = omega.items.data();
-            const FaceRecord* rec = current.data();
-            const double* weight = pair_weight.data();
-            for (int i = begin; i < end; ++i) {
-                double sx = 0.0;
-                double sy = 0.0;
-                double sz = 0.0;
-                for (int p = off[i]; p < off[i + 1]; ++p) {
-                    const FaceRecord& fj = rec[items[p]];
-                    const double w = fj.area * weight[p];
-                    sx += w * fj.n[0];
-                    sy += w * fj.n[1];
-                    sz += w * fj.n[2];
-                }
-                const double len = std::sqrt(sx * sx + sy * sy + sz * sz);
-                double* out = faces[static_cast<std::size_t>(i)].normal;
-                if (len > 0.0) {
-                    out[0] = sx / len;
-                    out[1] = sy / len;
-                    out[2] = sz / len;
-                }  // else: keep n_i (already in faces[i].normal)
-            }
+            for (int i = begin; i < end; ++i) kernel.row_sum(i);
         });
         // Eq. 5.9.
         detail::parallel_for(n, params.threads, [&](int begin, int end) {

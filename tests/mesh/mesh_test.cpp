@@ -5,9 +5,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 #include <set>
 #include <stdexcept>
+#include <vector>
 
 #include "mesh/mesh_fixtures.h"
 
@@ -86,6 +88,70 @@ TEST(MeshAdjacency, NonManifoldEdgeIsCountedAndItsVerticesAreBoundary) {
     EXPECT_EQ(a.nonmanifold_edges, 1);
     EXPECT_EQ(a.boundary_vertex[0], 1);
     EXPECT_EQ(a.boundary_vertex[1], 1);
+}
+
+// Every CSR of build_adjacency equals its definition evaluated by brute force over all pairs
+// (rows ascending, no repeats), on the family and on a mesh with a non-manifold edge and a
+// face pair sharing two edges' worth of vertices through different faces.
+TEST(MeshAdjacency, EveryListEqualsItsBruteForceDefinition) {
+    auto meshes = noisy_family();
+    TestMesh fan;
+    fan.name = "non-manifold fan";
+    fan.V.resize(6, 3);
+    fan.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1, 1, 1, 1;
+    fan.F.resize(4, 3);
+    fan.F << 0, 1, 2, 1, 0, 3, 0, 1, 4, 1, 5, 2;
+    meshes.push_back(fan);
+    const auto rows_of = [](const mesh::Csr& c) {
+        std::vector<std::vector<int>> out(static_cast<std::size_t>(c.rows()));
+        for (int i = 0; i < c.rows(); ++i) {
+            for (int p = c.begin(i); p < c.end(i); ++p) {
+                out[static_cast<std::size_t>(i)].push_back(c.item(p));
+            }
+        }
+        return out;
+    };
+    for (const auto& m : meshes) {
+        const int nv = static_cast<int>(m.V.rows());
+        const int nf = static_cast<int>(m.F.rows());
+        const Adjacency a = build_adjacency(m.F, nv);
+        const auto has = [&](int f, int v) {
+            return m.F(f, 0) == v || m.F(f, 1) == v || m.F(f, 2) == v;
+        };
+        // u and v are 1-ring neighbours iff some face contains both.
+        std::vector<std::uint8_t> joined(static_cast<std::size_t>(nv) * nv, 0);
+        for (int f = 0; f < nf; ++f) {
+            for (int k = 0; k < 3; ++k) {
+                for (int l = 0; l < 3; ++l) {
+                    if (k != l) joined[static_cast<std::size_t>(m.F(f, k)) * nv + m.F(f, l)] = 1;
+                }
+            }
+        }
+        std::vector<std::vector<int>> vf(static_cast<std::size_t>(nv));
+        std::vector<std::vector<int>> vv(static_cast<std::size_t>(nv));
+        std::vector<std::vector<int>> ff(static_cast<std::size_t>(nf));
+        for (int v = 0; v < nv; ++v) {
+            for (int f = 0; f < nf; ++f) {
+                if (has(f, v)) vf[static_cast<std::size_t>(v)].push_back(f);
+            }
+            for (int u = 0; u < nv; ++u) {
+                if (joined[static_cast<std::size_t>(v) * nv + u] != 0) {
+                    vv[static_cast<std::size_t>(v)].push_back(u);
+                }
+            }
+        }
+        for (int f = 0; f < nf; ++f) {
+            for (int g = 0; g < nf; ++g) {
+                if (g == f) continue;
+                int shared = 0;
+                for (int k = 0; k < 3; ++k) shared += has(g, m.F(f, k)) ? 1 : 0;
+                if (shared >= 2) ff[static_cast<std::size_t>(f)].push_back(g);
+            }
+        }
+        EXPECT_EQ(rows_of(a.vertex_faces), vf) << m.name;
+        EXPECT_EQ(rows_of(a.vertex_vertices), vv) << m.name;
+        EXPECT_EQ(rows_of(a.face_faces), ff) << m.name;
+    }
 }
 
 TEST(MeshCentroidDistance, RegularGridMatchesClosedForm) {
