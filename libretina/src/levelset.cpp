@@ -252,6 +252,7 @@ public:
             }
             layer_begin = layer_end;
         }
+        if (p_.region_means == LevelSetParams::RegionMeans::kBand) band_means();
     }
 
     // One explicit step (Eq. LS-3, LS-4) on the band voxels of active tiles, layers < W.
@@ -304,6 +305,30 @@ public:
     }
 
 private:
+    // Region means over the band (LevelSetParams::RegionMeans::kBand): the sums restart from
+    // the band's voxels on either side of the interface (distances exact after the rebuild);
+    // step() keeps them exact under sign changes, which happen only in the band, until the
+    // next rebuild. Kept as they were if a side is empty.
+    void band_means() {
+        double s_out = 0.0, s_in = 0.0;
+        std::int64_t c_out = 0, c_in = 0;
+        for (const Voxel& vx : band_) {
+            const auto i = static_cast<std::size_t>(vx.index);
+            if (phi_[i] > 0.0F) {
+                s_out += image_[i];
+                ++c_out;
+            } else {
+                s_in += image_[i];
+                ++c_in;
+            }
+        }
+        if (c_out == 0 || c_in == 0) return;
+        sum_out_ = s_out;
+        n_out_ = c_out;
+        sum_in_ = s_in;
+        n_in_ = c_in;
+    }
+
     // A band voxel: 12 bytes, B-scan and A-scan kept so that no division is needed.
     struct Voxel {
         std::uint32_t index;  // into the window storage (size checked < 2^32)
