@@ -3,8 +3,9 @@
 // scan grid (uniform within +-100 um in x and y around the eye's own position), a fresh rotation
 // (uniform within +-3 deg about the field centre: BMO ellipse, its offset and the BM tilt turn
 // together), fresh speckle (a new seed), a fresh small BM tilt and fresh segmentation noise of
-// 1 axial pixel (SD) on the device ILM and BM lines; each scan is analysed with
-// the default level-set ILM (levelset_ilm_surface, then analyse_onh with its defaults). Then
+// NOISE_PX axial pixels (SD, independent per A-scan; default 1) on the device ILM and BM lines;
+// each scan is analysed with the default level-set ILM (levelset_ilm_surface, then analyse_onh
+// with its defaults). Then
 // ICC(2,1) with its 95 % CI of every ONH parameter over the EYES x REPEATS matrix
 // (retina/stats.h), beside the thesis' Table 8.1 (10 subjects, both eyes, 3 scans each).
 // The eyes differ as people's do (all cupped discs, bowl cup): OD/OS alternating, BMO semi-major
@@ -15,7 +16,7 @@
 // sampling of a Spectralis ONH volume, as the reduced phantoms of the level-set tests): a
 // full-size eye (145 x 384) costs ~3.5 s to render plus ~4-6 s of level set, RoFi and
 // analysis, i.e. 8-10 min for 50 scans on the shared 2-core machine; the reduced one ~4x less.
-// Usage: onh_rescan [EYES [REPEATS [BSCANS [ASCANS]]]]   (default 10 5 73 192)
+// Usage: onh_rescan [EYES [REPEATS [BSCANS [ASCANS [NOISE_PX]]]]]   (default 10 5 73 192 1)
 
 #include <chrono>
 #include <cmath>
@@ -77,7 +78,8 @@ int main(int argc, char** argv) {
     auto uniform = [&](double lo, double hi) {
         return std::uniform_real_distribution<double>(lo, hi)(rng);
     };
-    const double seg_noise_px = 1.0;  // SD of the device lines' segmentation noise (3.9 um)
+    // SD of the device lines' segmentation noise, independent per A-scan (1 px = 3.9 um).
+    const double seg_noise_px = argc > 5 ? std::max(0.0, std::atof(argv[5])) : 1.0;
     double render_s = 0.0;
     double analysis_s = 0.0;
     int failures = 0;
