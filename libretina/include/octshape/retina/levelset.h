@@ -49,8 +49,9 @@ struct LevelSetParams {
     double lambda_vitreous = 1.0;  // λ1: weight of (I − c_vitreous)², > 0
     double lambda_tissue = 1.0;    // λ2: weight of (I − c_tissue)², > 0
     // Where the region means c_vitreous, c_tissue (Eq. LS-2) are taken: over the narrow band —
-    // the voxels within `band_layers` steps of the interface, re-taken at every band rebuild
-    // (default) — or over the whole depth windows (classic Chan–Vese). The zero level settles
+    // the voxels within `band_layers` steps of the interface, kept per tile and re-taken
+    // wherever the band is rebuilt (default) — or over the whole depth windows (classic
+    // Chan–Vese). The zero level settles
     // where the despeckled image crosses (c_v + c_t) / 2. Window means put that level below the
     // midpoint of the edge (the tissue mean includes the dimmer layers under the bright
     // surface), ~0.2 px further into the vitreous than band means, which are symmetric about
