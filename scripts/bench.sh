@@ -4,7 +4,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 cmake --preset release >/dev/null
 cmake --build --preset release -j 2 --target read_bench octshape_mesh_bench macula_bench octshape_shape_bench \
-  macula_accuracy macula_rescan cohort_bench onh_bench onh_pipeline_bench
+  macula_accuracy macula_rescan cohort_bench onh_bench onh_pipeline_bench onh_rescan
 ./build/release/bench/read_bench
 ./build/release/bench/octshape_mesh_bench
 ./build/release/bench/macula_bench
@@ -14,3 +14,4 @@ cmake --build --preset release -j 2 --target read_bench octshape_mesh_bench macu
 ./build/release/bench/cohort_bench
 ./build/release/bench/onh_bench
 ./build/release/bench/onh_pipeline_bench
+./build/release/bench/onh_rescan

@@ -252,6 +252,7 @@ public:
             }
             layer_begin = layer_end;
         }
+        if (p_.region_means == LevelSetParams::RegionMeans::kBand) band_means();
     }
 
     // One explicit step (Eq. LS-3, LS-4) on the band voxels of active tiles, layers < W.
@@ -279,16 +280,17 @@ public:
             if (before == after) continue;
             ++changes;
             const double v = image_[i];
-            if (after) {
-                sum_out_ += v;
-                ++n_out_;
-                sum_in_ -= v;
-                --n_in_;
-            } else {
-                sum_in_ += v;
-                ++n_in_;
-                sum_out_ -= v;
-                --n_out_;
+            const double sign = after ? 1.0 : -1.0;  // +1: tissue -> vitreous
+            sum_out_ += sign * v;
+            n_out_ += after ? 1 : -1;
+            sum_in_ -= sign * v;
+            n_in_ -= after ? 1 : -1;
+            if (!tile_sums_.empty()) {
+                TileSums& ts = tile_sums_[static_cast<std::size_t>(tile_of(active_[k].b, active_[k].a))];
+                ts.out += sign * v;
+                ts.n_out += after ? 1 : -1;
+                ts.in -= sign * v;
+                ts.n_in -= after ? 1 : -1;
             }
             // A voxel that already changed sign twice oscillates about its equilibrium (the
             // explicit step and the re-initialisation nudge it back and forth): its flips no
@@ -304,6 +306,45 @@ public:
     }
 
 private:
+    // Region means over the band (LevelSetParams::RegionMeans::kBand), kept per tile: each
+    // tile's sums restart from its band voxels on either side of the interface whenever the
+    // tile's band is rebuilt (distances exact after the rebuild); a frozen tile keeps the sums
+    // of its last band. So the means are always over the whole interface, and do not drift as
+    // the active part shrinks. step() keeps them exact under sign changes (band voxels only).
+    struct TileSums {
+        double out = 0.0, in = 0.0;
+        std::int64_t n_out = 0, n_in = 0;
+    };
+    void band_means() {
+        if (tile_sums_.empty()) tile_sums_.assign(region_.size(), TileSums{});
+        for (std::size_t t = 0; t < region_.size(); ++t) {
+            if (region_[t]) tile_sums_[t] = TileSums{};
+        }
+        for (const Voxel& vx : band_) {
+            const auto i = static_cast<std::size_t>(vx.index);
+            TileSums& ts = tile_sums_[static_cast<std::size_t>(tile_of(vx.b, vx.a))];
+            if (phi_[i] > 0.0F) {
+                ts.out += image_[i];
+                ++ts.n_out;
+            } else {
+                ts.in += image_[i];
+                ++ts.n_in;
+            }
+        }
+        TileSums all;
+        for (const TileSums& ts : tile_sums_) {
+            all.out += ts.out;
+            all.in += ts.in;
+            all.n_out += ts.n_out;
+            all.n_in += ts.n_in;
+        }
+        if (all.n_out == 0 || all.n_in == 0) return;
+        sum_out_ = all.out;
+        n_out_ = all.n_out;
+        sum_in_ = all.in;
+        n_in_ = all.n_in;
+    }
+
     // A band voxel: 12 bytes, B-scan and A-scan kept so that no division is needed.
     struct Voxel {
         std::uint32_t index;  // into the window storage (size checked < 2^32)
@@ -468,6 +509,7 @@ private:
     std::vector<std::uint8_t> region_;
     std::vector<std::uint8_t> region_prev_;
     std::vector<Voxel> candidates_;
+    std::vector<TileSums> tile_sums_;  // band means per tile (kBand only; empty otherwise)
     float far_ = 1.0F;
     double dt_ = 0.0;
     int patience_ = 1;

@@ -48,6 +48,16 @@ struct LevelSetParams {
     double mu_mm = 0.0025;
     double lambda_vitreous = 1.0;  // λ1: weight of (I − c_vitreous)², > 0
     double lambda_tissue = 1.0;    // λ2: weight of (I − c_tissue)², > 0
+    // Where the region means c_vitreous, c_tissue (Eq. LS-2) are taken: over the narrow band —
+    // the voxels within `band_layers` steps of the interface, kept per tile and re-taken
+    // wherever the band is rebuilt (default) — or over the whole depth windows (classic
+    // Chan–Vese). The zero level settles
+    // where the despeckled image crosses (c_v + c_t) / 2. Window means put that level below the
+    // midpoint of the edge (the tissue mean includes the dimmer layers under the bright
+    // surface), ~0.2 px further into the vitreous than band means, which are symmetric about
+    // the edge (docs/algorithms/levelset.md, "Where the zero level settles").
+    enum class RegionMeans { kBand, kWindow };
+    RegionMeans region_means = RegionMeans::kBand;
 
     // --- Narrow band evolution ---
     // W: band = voxels ≤ W 6-neighbour steps from the interface; layers < W are updated, layer
@@ -94,7 +104,7 @@ struct LevelSetResult {
     std::int64_t voxel_updates = 0;      // total over all iterations
     double time_step = 0.0;              // global dt (mm per unit speed); voxels use local steps
     int patience = 0;                    // effective patience (≥ params.patience, see there)
-    double c_vitreous = 0.0;             // final region means (display units)
+    double c_vitreous = 0.0;             // final region means (display units; see region_means)
     double c_tissue = 0.0;
     bool front_reached_window_edge = false;  // interface touched a window's top or bottom row
     int missing_ilm_columns = 0;         // device ILM missing: filled from neighbours, clipped
