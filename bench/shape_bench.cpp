@@ -1,6 +1,8 @@
-// Point-set and shape-analysis benchmark: one table (case, size, time, ratio).
+// Point-set and shape-analysis benchmark: one table (case, size, wall time, process CPU time,
+// wall time per point or vertex, ratio).
 //  - point-set NVT denoising (libmesh pointset.h, 30 iterations) of a ~50k-point noisy cube
-//    with 1 and 2 threads (ratio = time / 1-thread time);
+//    with 1 and 2 threads (ratio = time / 1-thread time); the CPU column shows the work when
+//    the machine is shared (wall > CPU for 1 thread means the process waited for a core);
 //  - VTK ICP of a 5°-rotated copy of a ~50k-vertex ILM-like surface (io/registration.h) and the
 //    mean shape of 3 aligned surfaces (mesh/meanshape.h; ratio = time / ICP time).
 //
@@ -8,6 +10,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <cstdio>
 #include <random>
 #include <vector>
@@ -25,6 +28,13 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) {
     return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+double cpu_seconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
+
+void row(const char* name, long long size, double wall, double cpu, double ratio) {
+    std::printf("%-34s %8lld %9.3f %9.3f %9.2f %7.2f", name, size, wall, cpu,
+                size > 0 ? 1e6 * wall / static_cast<double>(size) : 0.0, ratio);
 }
 
 // m×m cell-centred points on each face of the unit cube, Gaussian noise 0.3 × spacing.
@@ -52,22 +62,23 @@ Vertices noisy_cube(int m) {
 }  // namespace
 
 int main() {
-    std::printf("%-34s %10s %10s %8s\n", "case", "size", "time_s", "ratio");
+    std::printf("%-34s %8s %9s %9s %9s %7s\n", "case", "points", "time_s", "cpu_s",
+                "us/point", "ratio");
     const Vertices cube = noisy_cube(91);  // 6 × 91² = 49 686 points
     double t1 = 0.0;
     for (const int threads : {1, 2}) {
         octshape::mesh::PointSetParams p;
         p.threads = threads;
         const auto t0 = Clock::now();
+        const double c0 = cpu_seconds();
         const auto r = octshape::mesh::pointset_denoise(cube, p);
         const double t = seconds_since(t0);
+        const double c = cpu_seconds() - c0;
         if (threads == 1) t1 = t;
-        std::printf("%-34s %10lld %10.3f %8.2f\n",
-                    threads == 1 ? "pointset denoise p=30, 1 thread" :
-                                   "pointset denoise p=30, 2 threads",
-                    static_cast<long long>(cube.rows()), t, t / t1);
-        std::printf("%-34s %10s %10.3f %8.2f\n", "  of which set-up (tree, normals)", "",
-                    r.seconds_setup, r.seconds_setup / t1);
+        row(threads == 1 ? "pointset denoise p=30, 1 thread" : "pointset denoise p=30, 2 threads",
+            static_cast<long long>(cube.rows()), t, c, t / t1);
+        std::printf("\n%-34s %8s %9.3f %9s %9s %7.2f\n", "  of which set-up (tree, normals)", "",
+                    r.seconds_setup, "", "", r.seconds_setup / t1);
     }
 
     const octshape::mesh::Surface ref = octshape::test::ilm_patch(223);  // 224² = 50 176 vertices
@@ -77,19 +88,23 @@ int main() {
     T.translation() << 0.05, -0.03, 0.02;
     const Vertices moved = octshape::io::transformed(ref.V, T);
     auto t0 = Clock::now();
+    double c0 = cpu_seconds();
     const auto icp = octshape::io::icp_rigid(moved, ref.V, ref.F);
     const double t_icp = seconds_since(t0);
+    const double c_icp = cpu_seconds() - c0;
     const double err = Eigen::AngleAxisd(icp.transform.linear() * T.linear()).angle() * 180 / M_PI;
-    std::printf("%-34s %10lld %10.3f %8.2f   (%d VTK + %d point-to-plane iterations, "
-                "rotation error %.1e deg)\n",
-                "ICP (VTK, 5000 landmarks; refined)", static_cast<long long>(ref.V.rows()), t_icp,
-                1.0, icp.iterations, icp.refine_iterations, err);
+    row("ICP (VTK, 5000 landmarks; refined)", static_cast<long long>(ref.V.rows()), t_icp, c_icp,
+        1.0);
+    std::printf("   (%d VTK + %d point-to-plane iterations, rotation error %.1e deg)\n",
+                icp.iterations, icp.refine_iterations, err);
     const std::vector<octshape::mesh::Surface> others{
         {octshape::io::transformed(moved, icp.transform), ref.F}, {ref.V, ref.F}};
     t0 = Clock::now();
+    c0 = cpu_seconds();
     const auto mean = octshape::mesh::mean_shape(ref, others);
     const double t_mean = seconds_since(t0);
-    std::printf("%-34s %10lld %10.3f %8.2f   (max SD %.1e mm)\n", "mean shape of 3, 1 thread",
-                static_cast<long long>(ref.V.rows()), t_mean, t_mean / t_icp, mean.sd.maxCoeff());
+    row("mean shape of 3, 1 thread", static_cast<long long>(ref.V.rows()), t_mean,
+        cpu_seconds() - c0, t_mean / t_icp);
+    std::printf("   (max SD %.1e mm)\n", mean.sd.maxCoeff());
     return 0;
 }

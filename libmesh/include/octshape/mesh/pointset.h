@@ -51,7 +51,9 @@ private:
 // points of the mean distance to their 6 nearest other points — the mean edge length a
 // triangulation of the points would have (a regular grid of step h gives (4 + 2√2) h / 6 ≈
 // 1.14 h, as its triangulated mesh does). 0 for fewer than 7 points.
-[[nodiscard]] double mean_point_spacing(const Vertices& points, const KdTree& tree);
+// `threads`: std::threads; the result does not depend on it.
+[[nodiscard]] double mean_point_spacing(const Vertices& points, const KdTree& tree,
+                                        int threads = 1);
 
 // Neighbourhoods Ω_i in CSR form (mesh.h): every point within `radius` of point i, and at least
 // the `min_count` nearest points where the ball holds fewer (sparse regions of a non-uniform
@@ -68,7 +70,9 @@ private:
 // agree with its tree parent. Each connected component starts from its point with the largest
 // z, whose normal is made to point towards +z (the anterior direction of an OCT surface; for a
 // closed surface this is outward, since the top-most point's outward normal has n_z ≥ 0).
-[[nodiscard]] Vertices pca_normals(const Vertices& points, const Csr& neighbourhoods);
+// `threads`: std::threads for the per-point PCA; the result does not depend on it.
+[[nodiscard]] Vertices pca_normals(const Vertices& points, const Csr& neighbourhoods,
+                                   int threads = 1);
 
 // Feature class of a point (§4.1.2, Eq. 4.10).
 enum class PointClass : std::uint8_t { kFlat = 0, kEdge = 1, kCorner = 2 };
