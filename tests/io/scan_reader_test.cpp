@@ -20,7 +20,8 @@ namespace {
 
 // Same floats bit for bit (NaN = missing compares equal to NaN).
 bool same_values(const std::vector<float>& a, const std::vector<float>& b) {
-    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
+    if (a.size() != b.size()) return false;
+    return a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
 }
 
 void expect_same_scan(const io::Scan& a, const io::Scan& b) {
