@@ -253,8 +253,8 @@ std::string signal_name(int sig) {
 
 class Progress {
 public:
-    Progress(std::size_t total, std::size_t todo, bool bar)
-        : total_(total), todo_(todo), bar_(bar), start_(Clock::now()) {}
+    Progress(std::size_t total, std::size_t pending, bool bar)
+        : total_(total), pending_(pending), bar_(bar), start_(Clock::now()) {}
 
     void finished(const Item& item, bool ok, const std::string& reason, double seconds) {
         ++done_;
@@ -266,13 +266,13 @@ public:
             }
             draw();
         } else if (ok) {
-            spdlog::info("[{}/{}] {} ({:.1f} s)", done_, todo_, item.path, seconds);
+            spdlog::info("[{}/{}] {} ({:.1f} s)", done_, pending_, item.path, seconds);
         } else {
-            spdlog::warn("[{}/{}] {}: FAILED: {}", done_, todo_, item.path, reason);
+            spdlog::warn("[{}/{}] {}: FAILED: {}", done_, pending_, item.path, reason);
         }
     }
     void end() {
-        if (bar_ && todo_ > 0) {
+        if (bar_ && pending_ > 0) {
             draw();
             std::fputc('\n', stderr);
         }
@@ -282,25 +282,25 @@ public:
         const double t = std::chrono::duration<double>(Clock::now() - start_).count();
         const double rate = t > 0 ? static_cast<double>(done_) / t : 0.0;
         constexpr int kWidth = 30;
-        const int fill = todo_ == 0 ? kWidth
+        const int fill = pending_ == 0 ? kWidth
                                     : static_cast<int>(kWidth * static_cast<double>(done_) /
-                                                       static_cast<double>(todo_));
+                                                       static_cast<double>(pending_));
         std::string bar(static_cast<std::size_t>(fill), '#');
         bar.resize(kWidth, '.');
         std::string eta = "--";
         if (rate > 0) {
-            const auto s = static_cast<long>(static_cast<double>(todo_ - done_) / rate);
+            const auto s = static_cast<long>(static_cast<double>(pending_ - done_) / rate);
             eta = fmt::format("{}:{:02}:{:02}", s / 3600, (s / 60) % 60, s % 60);
         }
         std::fprintf(stderr, "\r[%s] %zu/%zu files  %.2f files/s  ETA %s  failed %zu   ",
-                     bar.c_str(), done_, todo_, rate, eta.c_str(), failed_);
+                     bar.c_str(), done_, pending_, rate, eta.c_str(), failed_);
         std::fflush(stderr);
     }
 
 private:
     void clear() const { std::fprintf(stderr, "\r%80s\r", ""); }
     std::size_t total_;
-    std::size_t todo_;
+    std::size_t pending_;
     bool bar_;
     Clock::time_point start_;
     std::size_t done_ = 0;
@@ -430,7 +430,7 @@ void run(CohortOptions& o, RunContext& ctx) {
     const auto files = discover(o.inputs, out, skipped);
     std::vector<Item> items;
     items.reserve(files.size());
-    std::vector<std::size_t> todo;
+    std::vector<std::size_t> pending;
     for (const auto& f : files) {
         Item it;
         it.path = f;
@@ -474,25 +474,25 @@ void run(CohortOptions& o, RunContext& ctx) {
                 spdlog::warn("{}: unusable failure record, redoing the eye: {}", f, e.what());
             }
         }
-        if (!it.done && !it.failed) todo.push_back(items.size());
+        if (!it.done && !it.failed) pending.push_back(items.size());
         items.push_back(std::move(it));
     }
-    const std::size_t resumed = items.size() - todo.size();
+    const std::size_t resumed = items.size() - pending.size();
     spdlog::info("{} exports found, {} already done (results or recorded failures), {} to do, "
                  "{} job(s)",
-                 items.size(), resumed, todo.size(), jobs);
+                 items.size(), resumed, pending.size(), jobs);
 
     const bool bar = ::isatty(STDERR_FILENO) != 0 && spdlog::get_level() <= spdlog::level::info;
-    Progress progress(items.size(), todo.size(), bar);
+    Progress progress(items.size(), pending.size(), bar);
     progress.draw();
     std::map<pid_t, Running> running;
     std::size_t next = 0;
     const pid_t parent = ::getpid();
     const auto child_level =
         spdlog::get_level() <= spdlog::level::debug ? spdlog::get_level() : spdlog::level::err;
-    while (next < todo.size() || !running.empty()) {
-        while (next < todo.size() && running.size() < static_cast<std::size_t>(jobs)) {
-            const std::size_t idx = todo[next++];
+    while (next < pending.size() || !running.empty()) {
+        while (next < pending.size() && running.size() < static_cast<std::size_t>(jobs)) {
+            const std::size_t idx = pending[next++];
             int fds[2];
             if (::pipe2(fds, O_CLOEXEC) != 0) throw OutputError("pipe", std::strerror(errno));
             std::fflush(stderr);
