@@ -26,7 +26,7 @@ std::string macula_options_text(const MaculaEyeOptions& o) {
       << " tie_tolerance_mm=" << p.tie_tolerance_mm
       << " centre_smoothing_mm=" << p.centre_smoothing_mm
       << " centre_fit_radius_mm=" << p.centre_fit_radius_mm << " max_rounds=" << p.max_rounds
-      << " energy_tolerance=" << p.energy_tolerance;
+      << " energy_tolerance=" << p.energy_tolerance << " rim_point=" << o.rim_point;
     return s.str();
 }
 
@@ -47,6 +47,11 @@ void add_macula_analysis_options(CLI::App* cmd, MaculaEyeOptions& o) {
     cmd->add_option("--search-radius-mm", p.search_radius_mm,
                     "Centre search radius around the device fovea centre (mm)")
         ->capture_default_str();
+    cmd->add_option("--rim", o.rim_point,
+                    "Rim point of each half-line: crest (fitted among the samples within 3 noise "
+                    "SDs of the maximum) or maximum (the maximum sample, as in the thesis)")
+        ->check(CLI::IsMember({"crest", "maximum"}))
+        ->capture_default_str();
 }
 
 MaculaEye analyse_macula_eye(const std::string& file,
@@ -65,6 +70,7 @@ MaculaEye analyse_macula_eye(const std::string& file,
     const io::Scan& scan = input.scan;
     const std::string& sha = input.sha256;
     o.params.tau_mm = o.tau_um * 1e-3;
+    o.params.rim_point = retina::parse_rim_point(o.rim_point);
     o.params.validate();
     if (o.check_scan_type) {
         const auto type = retina::classify_scan(scan);

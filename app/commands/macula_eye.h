@@ -16,6 +16,7 @@ namespace octshape::app {
 struct MaculaEyeOptions {
     retina::CubeParams params;  // tau_mm is set from tau_um by analyse_macula_eye
     double tau_um = 5.0;        // pit-flat threshold above CFT (um), the user option
+    std::string rim_point = "crest";  // params.rim_point, the user option (crest | maximum)
     std::string qc_dir;         // empty: no QC pictures
     std::string qc_stem;        // QC file names DIR/STEM_*.png; empty: the input's file stem
     // Refuse (AnalysisError) a volume that retina::classify_scan calls an ONH scan: a CuBe fit

@@ -107,6 +107,7 @@ J cube_json(const CubeResult& r, const CubeParams& p) {
     o["centre_fit_radius_mm"] = p.centre_fit_radius_mm;
     o["max_rounds"] = p.max_rounds;
     o["energy_tolerance"] = p.energy_tolerance;
+    o["rim_point"] = to_string(p.rim_point);
     j["options"] = o;
     J c;
     c["source"] = r.centre_source;
@@ -134,6 +135,11 @@ J cube_json(const CubeResult& r, const CubeParams& p) {
     v["beta_mean_mm"] = num(r.beta_mean_mm);
     v["rmse_um"] = num(r.rmse_um);
     j["parameters"] = v;
+    J noise;  // what sets the crest of RimPoint::kCrest (docs/algorithms/cube.md "Rim point")
+    noise["thickness_noise_sd_um"] = num(r.thickness_noise_sd_um);
+    noise["crest_tolerance_um"] =
+        p.rim_point == RimPoint::kCrest ? num(3.0 * r.thickness_noise_sd_um) : J(nullptr);
+    j["noise"] = noise;
     J hl = J::array();
     for (const auto& h : r.half_lines) {
         J e;

@@ -17,6 +17,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "octshape/io/scan.h"
@@ -47,6 +48,26 @@ struct ThicknessMap {
 // Throws AnalysisError when the scan has no ILM/BM lines or no valid thickness at all.
 [[nodiscard]] ThicknessMap thickness_map(const io::Scan& scan);
 
+// Noise SD of the map's nodes (mm), from the second differences along the A-scans (x): for
+// white noise of SD s, M[a-1] - 2 M[a] + M[a+1] has SD s sqrt(6); the retina's own curvature adds
+// |M''| dx^2 (< 0.1 um at 11.7 um spacing). Robust: 1.4826 x the median absolute second
+// difference / sqrt(6). 0 when fewer than 16 valid triples.
+[[nodiscard]] double thickness_noise_sd(const ThicknessMap& m);
+
+// Where the interior and exterior segments of a half-line meet (docs/algorithms/cube.md "Rim
+// point"). kMaximum: at the maximum sample (SPEC §4.4; the thesis's split), only the rim height
+// fitted. kCrest: the rim is still the profile's maximum, but among the samples that could be
+// it: the rim radius is an unknown of the joint fit, bounded to the crest, i.e. the span of the
+// samples within 3 noise SDs (thickness_noise_sd) of the maximum sample, widened by half a
+// sample step. Under segmentation noise the maximum sample wanders over the flat crest and is
+// biased outward (rim diameter 3-6 %, rim volume 8-15 % at 1 axial pixel); without noise the
+// crest is the maximum sample's neighbourhood, so a profile that is not a CuBe curve keeps its
+// rim at its maximum.
+enum class RimPoint { kCrest, kMaximum };
+[[nodiscard]] std::string_view to_string(RimPoint r);
+// "crest" | "maximum"; throws UsageError otherwise.
+[[nodiscard]] RimPoint parse_rim_point(std::string_view s);
+
 struct CubeParams {
     int num_half_lines = 24;           // n, even (opposite half-lines pair up, Eq. 7.18); 15 deg
     double radius_mm = 2.0;            // R, length of each half-line (§7.2.1: 2 mm)
@@ -66,6 +87,7 @@ struct CubeParams {
     int max_rounds = 100;              // alternating LS / foot-point rounds (SPEC §4.5)
     double energy_tolerance = 1e-10;   // stop on relative energy change below this
     double rmse_warning_um = 10.0;     // QC "fit RMSE high" above this (thesis: 1.0-7.1 um)
+    RimPoint rim_point = RimPoint::kCrest;
     // Forces the centre (grid mm) instead of searching: validation from a known centre.
     std::optional<Eigen::Vector2d> centre_mm;
     // Throws UsageError naming the bad field.
@@ -85,9 +107,13 @@ struct BezierFit {
 struct FitSettings {
     int max_rounds = 100;
     double energy_tolerance = 1e-10;
-    // Interior only: P0.y (the centre height) is a fitted unknown instead of the first sample's
-    // height (the first sample stays at t = 0); used to estimate CFT from the model.
+    // P0.y (the centre height) is a fitted unknown instead of the first sample's height (the
+    // first sample stays at t = 0); used to estimate CFT from the model.
     bool free_start_height = false;
+    // fit_rim_profile only: kCrest bounds the rim radius to the samples within
+    // crest_tolerance_mm of the maximum sample (analyse_macula: 3 x thickness_noise_sd).
+    RimPoint rim_point = RimPoint::kCrest;
+    double crest_tolerance_mm = 0.0;
 };
 
 // Interior fit (Eq. 7.5, 7.7-7.10): P0 = first sample, P3 = last sample, P1 = P0 + alpha (1,0),
@@ -115,9 +141,12 @@ struct RimProfileFit {
 // the joint Eq. 7.8 energy of both segments (started from fit_interior / fit_exterior through
 // the rim sample; alternating a linear least-squares step under the graph constraints with
 // the foot points). Throws AnalysisError when a segment has too few samples.
+// `start`, when given, is a fit of the same samples (e.g. the CFT pass, with P0.y free) that the
+// rounds continue from instead of the two start fits; its P0.y is replaced by the first sample's.
 [[nodiscard]] RimProfileFit fit_rim_profile(std::span<const Eigen::Vector2d> samples,
                                             int rim_index,
-                                            const FitSettings& s = {});
+                                            const FitSettings& s = {},
+                                            const RimProfileFit* start = nullptr);
 
 [[nodiscard]] Eigen::Vector2d bezier_point(const std::array<Eigen::Vector2d, 4>& p, double t);
 [[nodiscard]] Eigen::Vector2d bezier_derivative(const std::array<Eigen::Vector2d, 4>& p, double t);
@@ -189,6 +218,7 @@ struct CubeResult {
     double alpha_mean_mm = kMissing;
     double beta_mean_mm = kMissing;
     double rmse_um = kMissing;  // over every sample of every valid half-line
+    double thickness_noise_sd_um = kMissing;  // thickness_noise_sd of the map (sets the crest)
     std::vector<CubeHalfLine> half_lines;
     std::vector<std::string> qc_flags;  // short, stable phrases
     std::vector<std::string> notes;
