@@ -47,6 +47,7 @@ private:
 };
 
 constexpr std::int8_t kNotInBand = 127;
+constexpr std::int8_t kCandidate = 126;  // rebuild(): listed as a candidate for layer 0
 
 // The depth windows: column c = b * na + a holds rows [lo[c], lo[c] + len[c]) stored
 // contiguously from offset[c].
@@ -155,16 +156,43 @@ public:
                 }
             }
         }
-        // Candidates for the interface: in tiles that were in the previous region, the old
-        // band (the front moves less than one voxel between rebuilds, well inside it); in
-        // tiles new to the region, every window voxel.
+        // Candidates for the interface. In tiles that were in the previous region: the old
+        // layer 0, and the voxels that changed sign since (step() lists them) with their
+        // 6-neighbours — a voxel none of whose 6-neighbourhood changed sign keeps the neighbours'
+        // signs it had, so it is on the interface now only if it was then. In tiles new to the
+        // region: every window voxel. Each candidate once (marked kCandidate in layer_).
         candidates_.clear();
+        auto add = [&](const Voxel& vx) {
+            auto& l = layer_[static_cast<std::size_t>(vx.index)];
+            if (l == kCandidate) return;
+            l = kCandidate;
+            candidates_.push_back(vx);
+        };
         for (const Voxel& vx : band_) {
+            auto& l = layer_[static_cast<std::size_t>(vx.index)];
+            const bool old_interface = l == 0;
+            l = kNotInBand;
+            if (old_interface && in_region(vx.b, vx.a)) add(vx);
+        }
+        for (const Voxel& vx : flipped_) {
             const int b = vx.b;
             const int a = vx.a;
-            if (region_[static_cast<std::size_t>(tile_of(b, a))]) candidates_.push_back(vx);
-            layer_[static_cast<std::size_t>(vx.index)] = kNotInBand;
+            if (in_region(b, a)) add(vx);
+            for (int axis = 0; axis < 3; ++axis) {
+                for (int dir = -1; dir <= 1; dir += 2) {
+                    int nb = b, na = a, nd = vx.depth;
+                    if (axis == 0) na += dir;
+                    if (axis == 1) nb += dir;
+                    if (axis == 2) nd += dir;
+                    if (na < 0 || na >= w_.na || nb < 0 || nb >= w_.nb) continue;
+                    if (!in_region(nb, na)) continue;
+                    const Column& col = cols_[static_cast<std::size_t>(w_.column(nb, na))];
+                    if (nd < col.lo || nd >= col.hi) continue;
+                    add(make_voxel(col.base + nd, nb, na, nd));
+                }
+            }
         }
+        flipped_.clear();
         band_.clear();
         for (int b = 0; b < w_.nb; ++b) {
             for (int a = 0; a < w_.na; ++a) {
@@ -172,7 +200,7 @@ public:
                 if (!region_[t] || (region_prev_.size() == region_.size() && region_prev_[t])) continue;
                 const int c = w_.column(b, a);
                 const Column& col = cols_[static_cast<std::size_t>(c)];
-                for (int d = col.lo; d < col.hi; ++d) candidates_.push_back(make_voxel(col.base + d, b, a, d));
+                for (int d = col.lo; d < col.hi; ++d) add(make_voxel(col.base + d, b, a, d));
             }
         }
         // Layer 0: voxels with a 6-neighbour of the other sign; distance by linear
@@ -216,7 +244,10 @@ public:
                             }
                         }
                     }
-                    if (!interface) continue;
+                    if (!interface) {
+                        layer_[static_cast<std::size_t>(base + d)] = kNotInBand;
+                        continue;
+                    }
                     if (d == lo || d == hi - 1) reached_edge_ = true;
                     const double dist = inv2 >= 1e300 ? 0.0 : 1.0 / std::sqrt(inv2);
                     const auto idx = base + d;
@@ -289,6 +320,7 @@ public:
             phi_[i] = next_[k];
             if (before == after) continue;
             ++changes;
+            flipped_.push_back(active_[k]);
             const double v = image_[i];
             const double sign = after ? 1.0 : -1.0;  // +1: tissue -> vitreous
             sum_out_ += sign * v;
@@ -536,6 +568,7 @@ private:
     std::vector<std::uint8_t> region_;
     std::vector<std::uint8_t> region_prev_;
     std::vector<Voxel> candidates_;
+    std::vector<Voxel> flipped_;  // voxels that changed sign since the last rebuild
     std::vector<TileSums> tile_sums_;  // band means per tile (kBand only; empty otherwise)
     float far_ = 1.0F;
     double dt_ = 0.0;
