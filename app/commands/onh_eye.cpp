@@ -105,6 +105,8 @@ EyeResult analyse_onh_eye(const std::string& file,
     }
     std::optional<std::vector<retina::BmoPoint>> bmo;
     if (!o.bmo_file.empty()) bmo = retina::read_bmo_csv(o.bmo_file, scan.meta, scan.num_bscans());
+    // The scan's record as read (pixels_loaded included), before the level set may free them.
+    nlohmann::ordered_json preamble = eye_json_preamble("onh", file, sha, scan);
     // Without QC pictures nothing reads the pixels after the level set: it frees them, and
     // the eye's peak memory stays below twice the volume's (docs/algorithms/levelset.md).
     const retina::IlmSurface ilm = o.qc_dir.empty()
@@ -116,7 +118,7 @@ EyeResult analyse_onh_eye(const std::string& file,
 
     EyeResult out;
     auto& j = out.json;
-    j = eye_json_preamble("onh", file, sha, scan);
+    j = std::move(preamble);
     const nlohmann::ordered_json body = retina::onh_json(r, o.params);
     for (const auto& [k, v] : body.items()) j[k] = v;
     if (!o.bmo_file.empty()) j["options"]["bmo_file"] = o.bmo_file;
