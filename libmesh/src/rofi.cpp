@@ -60,7 +60,8 @@ struct PairKernel {
     // f(|c_i − c_j|; σ_c) g(|n_i − n_j|; σ_s) of the pair in slot p of row i, written to slot
     // p and to the mirror slot in row j.
     template <bool kTukey>
-    [[nodiscard]] double pair_weight(const detail::FaceState& fi, const detail::FaceState& fj) const {
+    [[nodiscard]] double pair_weight(const detail::FaceState& fi,
+                                     const detail::FaceState& fj) const {
         const double dx = fi.normal[0] - fj.normal[0];
         const double dy = fi.normal[1] - fj.normal[1];
         const double dz = fi.normal[2] - fj.normal[2];

@@ -72,7 +72,8 @@ TEST(ReadScanHashed, FilesLargerThanTheReleaseChunkReadExactly) {
     // must still be exactly those of the separate readers.
     TempDir tmp;
     const std::string bytes = write_to_string(make_synthetic_scan(
-        {.num_bscans = 40, .size_x = 320, .size_z = 512, .num_lines = 3, .slo_x = 64, .slo_y = 64}));
+        {.num_bscans = 40, .size_x = 320, .size_z = 512, .num_lines = 3, .slo_x = 64,
+         .slo_y = 64}));
     ASSERT_GT(bytes.size(), std::size_t{3} * (std::size_t{8} << 20U));
     const std::string path = (tmp.path() / "large.vol").string();
     std::ofstream(path, std::ios::binary) << bytes;
