@@ -95,8 +95,8 @@ EyeResult analyse_onh_eye(const std::string& file,
     io::ReadOptions read;
     // Pixels: for an ILM source that segments them, and for the B-scans of the QC pictures.
     read.pixels = retina::ilm_needs_pixels(source) || !o.qc_dir.empty();
-    const io::HashedScan input = io::read_scan_hashed(file, read);
-    const io::Scan& scan = input.scan;
+    io::HashedScan input = io::read_scan_hashed(file, read);
+    io::Scan& scan = input.scan;
     const std::string& sha = input.sha256;
     try {
         retina::require_onh_volume(scan);
@@ -105,14 +105,20 @@ EyeResult analyse_onh_eye(const std::string& file,
     }
     std::optional<std::vector<retina::BmoPoint>> bmo;
     if (!o.bmo_file.empty()) bmo = retina::read_bmo_csv(o.bmo_file, scan.meta, scan.num_bscans());
-    const retina::IlmSurface ilm = retina::build_ilm_surface(scan, source);
+    // The scan's record as read (pixels_loaded included), before the level set may free them.
+    nlohmann::ordered_json preamble = eye_json_preamble("onh", file, sha, scan);
+    // Without QC pictures nothing reads the pixels after the level set: it frees them, and
+    // the eye's peak memory stays below twice the volume's (docs/algorithms/levelset.md).
+    const retina::IlmSurface ilm = o.qc_dir.empty()
+                                       ? retina::build_ilm_surface_releasing_pixels(scan, source)
+                                       : retina::build_ilm_surface(scan, source);
     const retina::OnhResult r = retina::analyse_onh(scan, ilm, o.params, bmo);
     for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", file, f);
     for (const auto& n : r.notes) spdlog::info("{}: {}", file, n);
 
     EyeResult out;
     auto& j = out.json;
-    j = eye_json_preamble("onh", file, sha, scan);
+    j = std::move(preamble);
     const nlohmann::ordered_json body = retina::onh_json(r, o.params);
     for (const auto& [k, v] : body.items()) j[k] = v;
     if (!o.bmo_file.empty()) j["options"]["bmo_file"] = o.bmo_file;

@@ -87,7 +87,7 @@ class MappedFile {
         struct stat st {};
         if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
             size_ = static_cast<std::size_t>(st.st_size);
-            void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
+            void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd, 0);
             if (p != MAP_FAILED) {
                 data_ = static_cast<const char*>(p);
                 ::madvise(p, size_, MADV_SEQUENTIAL);
@@ -104,20 +104,44 @@ class MappedFile {
     [[nodiscard]] bool mapped() const { return data_ != nullptr; }
     [[nodiscard]] std::string_view bytes() const { return {data_, size_}; }
 
+    // Drops the whole pages inside [begin, end) from this process's resident memory; they stay
+    // in the page cache and a later read maps them again (a clean read-only mapping of a file:
+    // nothing is lost). Keeps the file's pages from being resident beside the pixels copied
+    // out of them (the .vol is as large as its pixels).
+    void release(std::size_t begin, std::size_t end) const {
+        static const auto page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
+        const std::size_t b = (begin + page - 1) / page * page;
+        const std::size_t e = std::min(end, size_) / page * page;
+        if (data_ == nullptr || e <= b) return;
+        ::madvise(const_cast<char*>(data_) + b, e - b, MADV_DONTNEED);
+    }
+
   private:
     const char* data_ = nullptr;
     std::size_t size_ = 0;
 };
 
-// An input stream over bytes in memory (no copy), seekable as read_vol needs.
+// An input stream over the bytes of a mapped file (no copy), seekable as read_vol needs; the
+// pages behind the read position are released every kReleaseBytes.
 class MemoryBuf : public std::streambuf {
   public:
-    explicit MemoryBuf(std::string_view b) {
+    explicit MemoryBuf(const MappedFile& m) : file_(m) {
+        const std::string_view b = m.bytes();
         char* p = const_cast<char*>(b.data());  // never written: a get area only
         setg(p, p, p + b.size());
     }
 
   protected:
+    std::streamsize xsgetn(char* s, std::streamsize n) override {
+        const std::streamsize got = std::streambuf::xsgetn(s, n);
+        const auto pos = static_cast<std::size_t>(gptr() - eback());
+        if (pos >= released_ + kReleaseBytes) {
+            file_.release(released_, pos);
+            released_ = pos;
+        }
+        return got;
+    }
+
     pos_type seekoff(off_type off, std::ios_base::seekdir dir, std::ios_base::openmode) override {
         const off_type base = dir == std::ios_base::beg   ? 0
                               : dir == std::ios_base::cur ? gptr() - eback()
@@ -130,6 +154,11 @@ class MemoryBuf : public std::streambuf {
         setg(eback(), eback() + p, egptr());
         return pos;
     }
+
+  private:
+    static constexpr std::size_t kReleaseBytes = std::size_t{8} << 20U;
+    const MappedFile& file_;
+    std::size_t released_ = 0;  // pages before this offset were released (a read maps them again)
 };
 
 // Marks the mapped file as the one a SIGBUS would come from, for as long as it is read.
@@ -197,8 +226,18 @@ HashedScan read_scan_hashed(const std::string& path, const ReadOptions& options)
         if (m.mapped()) {
             const SigbusScope guard(path);
             HashedScan out;
-            out.sha256 = sha256_hex(m.bytes());
-            MemoryBuf buf(m.bytes());
+            // Hashed in chunks, each released once hashed: the file's pages are never all
+            // resident together with the pixels read from them (peak memory of an ONH eye).
+            const std::string_view bytes = m.bytes();
+            constexpr std::size_t kChunk = std::size_t{8} << 20U;
+            Sha256 hash;
+            for (std::size_t at = 0; at < bytes.size(); at += kChunk) {
+                const std::size_t n = std::min(kChunk, bytes.size() - at);
+                hash.update(bytes.data() + at, n);
+                m.release(at, at + n);
+            }
+            out.sha256 = hash.hex();
+            MemoryBuf buf(m);
             std::istream in(&buf);
             out.scan = read_vol(in, m.bytes().size(), path, options);
             out.scan.source_path = path;

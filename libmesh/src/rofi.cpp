@@ -60,8 +60,8 @@ struct PairKernel {
     // f(|c_i − c_j|; σ_c) g(|n_i − n_j|; σ_s) of the pair in slot p of row i, written to slot
     // p and to the mirror slot in row j.
     template <bool kTukey>
-    void pair(const detail::FaceState& fi, int p) const {
-        const detail::FaceState& fj = rec[items[p]];
+    [[nodiscard]] double pair_weight(const detail::FaceState& fi,
+                                     const detail::FaceState& fj) const {
         const double dx = fi.normal[0] - fj.normal[0];
         const double dy = fi.normal[1] - fj.normal[1];
         const double dz = fi.normal[2] - fj.normal[2];
@@ -79,6 +79,14 @@ struct PairKernel {
         } else {
             w = std::exp(-d2 * inv_two_sc2 - x2 * inv_two_s2);
         }
+        return w;
+    }
+
+    // f(|c_i − c_j|; σ_c) g(|n_i − n_j|; σ_s) of the pair in slot p of row i, written to slot
+    // p and to the mirror slot in row j.
+    template <bool kTukey>
+    void pair(const detail::FaceState& fi, int p) const {
+        const double w = pair_weight<kTukey>(fi, rec[items[p]]);
         weight[p] = w;
         const int q = mir[p];
         if (q >= 0) weight[q] = w;
@@ -98,7 +106,9 @@ struct PairKernel {
     }
 
     // Eq. 5.1: ñ_i = normalise(Σ_j a_j w_ij n_j) over Ω_i in row order (K_i cancels in the
-    // normalisation); the centre face has w = 1. Writes out[i].
+    // normalisation); the centre face has w = 1. Writes out[i]. kStored: the weights from
+    // `weight` (row_pairs); otherwise computed here (PairWeights::kPerRow), the same bits.
+    template <bool kStored, bool kTukey>
     void row_sum(int i) const {
         const detail::FaceState& fi = rec[i];
         // 0.0 + keeps the bits of a sum that starts from zero (−0 becomes +0).
@@ -108,7 +118,13 @@ struct PairKernel {
         const int e = off[i + 1];
         for (int p = off[i] + 1; p < e; ++p) {
             const detail::FaceState& fj = rec[items[p]];
-            const double w = fj.area * weight[p];
+            double wp = 0.0;
+            if constexpr (kStored) {
+                wp = weight[p];
+            } else {
+                wp = pair_weight<kTukey>(fi, fj);
+            }
+            const double w = fj.area * wp;
             sx += w * fj.normal[0];
             sy += w * fj.normal[1];
             sz += w * fj.normal[2];
@@ -181,8 +197,9 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
     // row computes it). Each slot has one writer, so any thread count gives the same bits.
     // The centre face's own weight is exactly 1 (x = 0, d = 0: (1 − 0)² exp(−0) = 1) and is not
     // stored: the slot holds the weight from the first neighbour on.
-    const std::vector<int> mirror = mirror_slots(omega);
-    std::vector<double> pair_weight(omega.items.size());
+    const bool shared = params.pair_weights == PairWeights::kShared;
+    const std::vector<int> mirror = shared ? mirror_slots(omega) : std::vector<int>();
+    std::vector<double> pair_weight(shared ? omega.items.size() : 0);
     PairKernel kernel{omega.offsets.data(), omega.items.data(), mirror.data(),
                       pair_weight.data(), current.data(), faces.data(), inv_s2,
                       inv_two_sc2, inv_two_s2};
@@ -191,20 +208,32 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
         detail::parallel_for(m, params.threads, [&](int begin, int end) {
             detail::update_faces(result.V, F, begin, end, current.data());
         });
-        // The pair weights (each row writes its own pairs and their mirror slots), then the
-        // sums: two passes, so that every slot is written before any row reads it.
-        detail::parallel_for(m, params.threads, [&](int begin, int end) {
-            for (int i = begin; i < end; ++i) {
-                if (tukey) {
-                    kernel.row_pairs<true>(i);
-                } else {
-                    kernel.row_pairs<false>(i);
+        if (shared) {
+            // The pair weights (each row writes its own pairs and their mirror slots), then
+            // the sums: two passes, so that every slot is written before any row reads it.
+            detail::parallel_for(m, params.threads, [&](int begin, int end) {
+                for (int i = begin; i < end; ++i) {
+                    if (tukey) {
+                        kernel.row_pairs<true>(i);
+                    } else {
+                        kernel.row_pairs<false>(i);
+                    }
                 }
-            }
-        });
-        detail::parallel_for(m, params.threads, [&](int begin, int end) {
-            for (int i = begin; i < end; ++i) kernel.row_sum(i);
-        });
+            });
+            detail::parallel_for(m, params.threads, [&](int begin, int end) {
+                for (int i = begin; i < end; ++i) kernel.row_sum<true, true>(i);
+            });
+        } else {
+            detail::parallel_for(m, params.threads, [&](int begin, int end) {
+                for (int i = begin; i < end; ++i) {
+                    if (tukey) {
+                        kernel.row_sum<false, true>(i);
+                    } else {
+                        kernel.row_sum<false, false>(i);
+                    }
+                }
+            });
+        }
         // Eq. 5.9.
         detail::parallel_for(n, params.threads, [&](int begin, int end) {
             detail::vertex_step(result.V, faces.data(), setup.adjacency, setup.fixed, lambda,

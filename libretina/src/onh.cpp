@@ -89,9 +89,9 @@ IlmSource ilm_source_from_string(const std::string& name) {
     throw UsageError("--ilm: unknown ILM source '" + name + "' (valid: levelset, device)");
 }
 
-IlmSurface levelset_ilm_surface(const io::Scan& scan) {
-    require_onh_volume(scan);
-    const LevelSetResult ls = levelset_ilm(scan);
+namespace {
+
+IlmSurface surface_from_levelset(const LevelSetResult& ls) {
     IlmSurface out;
     out.V = ls.V;
     out.F = ls.F;
@@ -113,6 +113,13 @@ IlmSurface levelset_ilm_surface(const io::Scan& scan) {
                             "level set's start");
     }
     return out;
+}
+
+}  // namespace
+
+IlmSurface levelset_ilm_surface(const io::Scan& scan) {
+    require_onh_volume(scan);
+    return surface_from_levelset(levelset_ilm(scan));
 }
 
 IlmSurface device_ilm_surface(const io::Scan& scan) {
@@ -144,6 +151,12 @@ IlmSurface build_ilm_surface(const io::Scan& scan, IlmSource source) {
             return device_ilm_surface(scan);
     }
     throw UsageError("unknown ILM source");
+}
+
+IlmSurface build_ilm_surface_releasing_pixels(io::Scan& scan, IlmSource source) {
+    if (source != IlmSource::kLevelSet) return build_ilm_surface(scan, source);
+    require_onh_volume(scan);
+    return surface_from_levelset(levelset_ilm_releasing_pixels(scan));
 }
 
 bool ilm_needs_pixels(IlmSource source) {

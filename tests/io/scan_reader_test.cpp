@@ -65,6 +65,23 @@ TEST(ReadScanHashed, XmlExportHashesItsXmlFile) {
     expect_same_scan(h.scan, io::read_scan(xml));
 }
 
+TEST(ReadScanHashed, FilesLargerThanTheReleaseChunkReadExactly) {
+    // read_scan_hashed hashes the mapping in 8 MiB chunks and releases the pages behind the
+    // hash and behind the parser; released pages are mapped again from the page cache when
+    // read. A ~26 MiB volume crosses several chunk boundaries in both passes: hash and scan
+    // must still be exactly those of the separate readers.
+    TempDir tmp;
+    const std::string bytes = write_to_string(make_synthetic_scan(
+        {.num_bscans = 40, .size_x = 320, .size_z = 512, .num_lines = 3, .slo_x = 64,
+         .slo_y = 64}));
+    ASSERT_GT(bytes.size(), std::size_t{3} * (std::size_t{8} << 20U));
+    const std::string path = (tmp.path() / "large.vol").string();
+    std::ofstream(path, std::ios::binary) << bytes;
+    const io::HashedScan h = io::read_scan_hashed(path, {.pixels = true});
+    EXPECT_EQ(h.sha256, io::sha256_hex(bytes));
+    expect_same_scan(h.scan, io::read_scan(path, {.pixels = true}));
+}
+
 TEST(ReadScanHashed, TruncatedAndMissingFilesFailAsReadScanDoes) {
     TempDir tmp;
     const std::string bytes = write_to_string(make_synthetic_scan(

@@ -51,6 +51,26 @@ TEST(Rofi, DeterministicAndBitIdenticalForAnyThreadCount) {
     }
 }
 
+TEST(Rofi, PerRowPairWeightsGiveTheSameBitsAsSharedOnes) {
+    // kPerRow computes w_ij in row i and w_ji in row j instead of once for both: the weight is
+    // symmetric bit for bit (the differences only change sign before they are squared), and
+    // each row sums in the same order, so the results must be identical, not merely close.
+    for (const auto& m : noisy_family()) {
+        for (const auto sim : {mesh::Similarity::kTukey, mesh::Similarity::kGaussian}) {
+            auto p = params();
+            p.similarity = sim;
+            const auto shared = mesh::rofi_denoise(m.V, m.F, p);
+            p.pair_weights = mesh::PairWeights::kPerRow;
+            const auto per_row = mesh::rofi_denoise(m.V, m.F, p);
+            p.threads = 3;
+            const auto per_row3 = mesh::rofi_denoise(m.V, m.F, p);
+            EXPECT_EQ(shared.V, per_row.V) << m.name;
+            EXPECT_EQ(shared.V, per_row3.V) << m.name;
+            EXPECT_NE(shared.V, m.V) << m.name;
+        }
+    }
+}
+
 TEST(Rofi, RigidMotionOfTheInputMovesTheOutputTheSameWay) {
     const Eigen::Matrix3d R =
         Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.3, -1.0, 0.5).normalized()).toRotationMatrix();

@@ -216,6 +216,28 @@ TEST(OnhAnalysis, LeftEyeSectorsAreMirroredAsTheTruthDefinesThem) {
     }
 }
 
+TEST(OnhAnalysis, IlmReleasingThePixelsIsTheSameSurface) {
+    // The command's path without QC pictures: the level set frees the pixels, the surface is
+    // the one the keeping path gives; the device source neither needs nor frees them.
+    OnhPhantomParams p = reduced(OnhShape::kCupped);
+    p.num_bscans = 25;
+    p.num_ascans = 96;
+    io::Scan scan = render_onh_scan(p);
+    const IlmSurface kept = build_ilm_surface(scan, IlmSource::kLevelSet);
+    const IlmSurface device = build_ilm_surface_releasing_pixels(scan, IlmSource::kDevice);
+    EXPECT_TRUE(scan.pixels_loaded);
+    EXPECT_FALSE(scan.bscans[0].pixels.empty());
+    EXPECT_EQ(device.source, "device");
+    const IlmSurface freed = build_ilm_surface_releasing_pixels(scan, IlmSource::kLevelSet);
+    EXPECT_FALSE(scan.pixels_loaded);
+    EXPECT_TRUE(scan.bscans[0].pixels.empty());
+    EXPECT_EQ(freed.source, "levelset");
+    ASSERT_EQ(kept.F.rows(), freed.F.rows());
+    EXPECT_TRUE(kept.F == freed.F);
+    EXPECT_TRUE(kept.V == freed.V);
+    EXPECT_EQ(kept.notes, freed.notes);
+}
+
 TEST(OnhAnalysis, RefusesWhatIsNotAVolume) {
     io::Scan scan = render_onh_scan(reduced(OnhShape::kCupped));
     const IlmSurface ilm = device_ilm_surface(scan);

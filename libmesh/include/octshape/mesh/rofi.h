@@ -22,6 +22,13 @@ enum class Similarity {
     kGaussian,  // g = exp(−x² / (2 σ_s²)) (classic bilateral normal filtering, Zheng et al.)
 };
 
+// How the pair weights f·g of Eq. 5.1 are computed; both give bit-identical results (the
+// weight is symmetric in i and j bit for bit). docs/algorithms/rofi.md, "Memory".
+enum class PairWeights {
+    kShared,  // once per pair, stored for both rows: 16 bytes per slot of Ω, fastest
+    kPerRow,  // in each row, nothing stored: 4 bytes per slot, ~15–20 % more time per iteration
+};
+
 struct RofiParams {
     double sigma_s = 0.5;       // similarity width σ_s on x = |n_i − n_j| ∈ [0, 2], Eq. 5.3
     double lambda_i = 0.2;      // initial isotropic (fidelity) factor λ_I, Eq. 5.9; ≥ 0
@@ -30,6 +37,7 @@ struct RofiParams {
     double radius_factor = 2.0;   // disk radius r = radius_factor · c_a (§5.2); > 0
     double sigma_c_factor = 1.0;  // closeness width σ_c = sigma_c_factor · c_a (§5.2); > 0
     Similarity similarity = Similarity::kTukey;
+    PairWeights pair_weights = PairWeights::kShared;
     bool fix_boundary = true;   // keep boundary / non-manifold vertices in place
     int threads = 1;            // std::threads; results do not depend on it; ≥ 1
 

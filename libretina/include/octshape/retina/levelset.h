@@ -76,7 +76,7 @@ struct LevelSetParams {
     // tile must be wide enough that a front moving sideways (into an overhang) flips some
     // voxel of it every few iterations (measured in docs/algorithms/levelset.md). Both > 0.
     double tile_mm = 0.1;
-    int patience = 4;
+    int patience = 3;
 
     // --- Mesh ---
     int slab_bscans = 16;  // marching cubes runs on slabs of this many B-scans (memory); ≥ 2

@@ -51,6 +51,11 @@ struct IlmSurface {
 
 // Builds the ILM of `source` (the one place a new source is added).
 [[nodiscard]] IlmSurface build_ilm_surface(const io::Scan& scan, IlmSource source);
+// The same, but the level set frees the B-scan pixels (and clears scan.pixels_loaded) as soon as
+// it has copied the intensities it needs (levelset_ilm_releasing_pixels): for callers that need
+// no pixels afterwards (no QC pictures), so that the volume and the mesh stages never occupy
+// memory together (docs/algorithms/levelset.md, "Speed and memory").
+[[nodiscard]] IlmSurface build_ilm_surface_releasing_pixels(io::Scan& scan, IlmSource source);
 // True when `source` needs the B-scan pixels (read_scan with ReadOptions::pixels).
 [[nodiscard]] bool ilm_needs_pixels(IlmSource source);
 
