@@ -11,6 +11,8 @@
 #include <numeric>
 #include <random>
 #include <stdexcept>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Eigenvalues>
@@ -163,6 +165,16 @@ TEST(PointSet, ParamsValidateNamesTheField) {
     p = {};
     p.epsilon = -1.0;
     EXPECT_THROW(p.validate(), std::invalid_argument);
+    for (const auto& [field, bad] : std::vector<std::pair<std::string, mesh::PointSetParams>>{
+             {"inlier_sigmas", [] { mesh::PointSetParams q; q.inlier_sigmas = 0.0; return q; }()},
+             {"support", [] { mesh::PointSetParams q; q.support = 0.5; return q; }()}}) {
+        try {
+            bad.validate();
+            FAIL() << field << " accepted";
+        } catch (const std::invalid_argument& e) {
+            EXPECT_NE(std::string(e.what()).find(field), std::string::npos);
+        }
+    }
     EXPECT_THROW((void)mesh::pointset_denoise(mesh::Vertices(3, 3)), std::invalid_argument);
 }
 
@@ -196,8 +208,8 @@ TEST(PointSet, ZeroIterationsIsTheIdentityAndRigidMotionCommutes) {
     EXPECT_EQ(shifted3.V, shifted1.V);
     EXPECT_EQ(shifted3.normals, shifted1.normals);
     const auto shifted_moved = mesh::pointset_denoise(moved, p);
-    EXPECT_LT((shifted_moved.V - ((shifted1.V * R.transpose()).rowwise() + t)).cwiseAbs().maxCoeff(),
-              1e-8);
+    const mesh::Vertices shifted_expected = (shifted1.V * R.transpose()).rowwise() + t;
+    EXPECT_LT((shifted_moved.V - shifted_expected).cwiseAbs().maxCoeff(), 1e-8);
 }
 
 // Everything the cube tests measure on one noisy sample, denoised with `params`.
@@ -417,8 +429,8 @@ TEST(PointSet, ShiftedNormalsOfACleanCubeAreTheFaceNormals) {
             band_exact_pca += Np.row(i).dot(truth) > 1.0 - 1e-9 ? 1 : 0;
         }
     }
-    std::printf("[ clean    ] face normal to 1e-9 at >= r/2 from an edge (no corner): %d of %d shifted; "
-                "r/2 to r: %d of %d PCA\n",
+    std::printf("[ clean    ] face normal to 1e-9 at >= r/2 from an edge (no corner): %d of %d "
+                "shifted; r/2 to r: %d of %d PCA\n",
                 exact, tested, band_exact_pca, band);
     EXPECT_EQ(exact, tested);
     EXPECT_LT(band_exact_pca, band / 2);
