@@ -1,7 +1,8 @@
 // Point-set and shape-analysis benchmark: one table (case, size, wall time, process CPU time,
 // wall time per point or vertex, ratio).
 //  - point-set NVT denoising (libmesh pointset.h, 30 iterations) of a ~50k-point noisy cube
-//    with 1 and 2 threads (ratio = time / 1-thread time); the CPU column shows the work when
+//    with 1 and 2 threads, PCA (default) and shifted initial normals (ratio = time / PCA
+//    1-thread time); the CPU column shows the work when
 //    the machine is shared (wall > CPU for 1 thread means the process waited for a core);
 //  - VTK ICP of a 5°-rotated copy of a ~50k-vertex ILM-like surface (io/registration.h) and the
 //    mean shape of 3 aligned surfaces (mesh/meanshape.h; ratio = time / ICP time).
@@ -10,8 +11,8 @@
 
 #include <chrono>
 #include <cmath>
-#include <ctime>
 #include <cstdio>
+#include <ctime>
 #include <random>
 #include <vector>
 
@@ -62,21 +63,31 @@ Vertices noisy_cube(int m) {
 }  // namespace
 
 int main() {
-    std::printf("%-34s %8s %9s %9s %9s %7s\n", "case", "points", "time_s", "cpu_s",
-                "us/point", "ratio");
+    std::printf("%-34s %8s %9s %9s %9s %7s\n", "case", "points", "time_s", "cpu_s", "us/point",
+                "ratio");
     const Vertices cube = noisy_cube(91);  // 6 × 91² = 49 686 points
     double t1 = 0.0;
-    for (const int threads : {1, 2}) {
+    struct Case {
+        const char* name;
+        octshape::mesh::NormalEstimator normals;
+        int threads;
+    };
+    for (const Case& k :
+         {Case{"pointset denoise p=30, 1 thread", octshape::mesh::NormalEstimator::kPca, 1},
+          Case{"pointset denoise p=30, 2 threads", octshape::mesh::NormalEstimator::kPca, 2},
+          Case{"  shifted normals, 1 thread", octshape::mesh::NormalEstimator::kShifted, 1},
+          Case{"  shifted normals, 2 threads", octshape::mesh::NormalEstimator::kShifted, 2}}) {
+        const int threads = k.threads;
         octshape::mesh::PointSetParams p;
         p.threads = threads;
+        p.normals = k.normals;
         const auto t0 = Clock::now();
         const double c0 = cpu_seconds();
         const auto r = octshape::mesh::pointset_denoise(cube, p);
         const double t = seconds_since(t0);
         const double c = cpu_seconds() - c0;
-        if (threads == 1) t1 = t;
-        row(threads == 1 ? "pointset denoise p=30, 1 thread" : "pointset denoise p=30, 2 threads",
-            static_cast<long long>(cube.rows()), t, c, t / t1);
+        if (t1 == 0.0) t1 = t;
+        row(k.name, static_cast<long long>(cube.rows()), t, c, t / t1);
         std::printf("\n%-34s %8s %9.3f %9s %9s %7.2f\n", "  of which set-up (tree, normals)", "",
                     r.seconds_setup, "", "", r.seconds_setup / t1);
     }

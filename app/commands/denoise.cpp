@@ -35,6 +35,7 @@ struct DenoiseOptions {
     bool json = false;
     std::optional<double> rho;
     std::optional<double> epsilon_mm;
+    std::optional<std::string> normals;  // pointset: pca | shifted
 };
 
 // --method pointset: point-set NVT denoising (thesis §4, docs/algorithms/pointset.md).
@@ -45,6 +46,10 @@ void run_pointset_denoise(const DenoiseOptions& o) {
     if (o.rho) p.rho = *o.rho;
     if (o.radius_mm) p.radius = *o.radius_mm;
     if (o.epsilon_mm) p.epsilon = *o.epsilon_mm;
+    if (o.normals) {
+        p.normals = *o.normals == "shifted" ? mesh::NormalEstimator::kShifted
+                                            : mesh::NormalEstimator::kPca;
+    }
     if (o.iterations) p.iterations = *o.iterations;
     p.threads = o.threads;
     validate_options(p);
@@ -67,7 +72,9 @@ void run_pointset_denoise(const DenoiseOptions& o) {
         {"method", o.method},
         {"parameters", {{"tau", p.tau}, {"rho_rad", p.rho}, {"iterations", p.iterations},
                         {"damping", p.damping}, {"lambda", p.lambda}, {"radius_mm", r.radius},
-                        {"epsilon_mm", r.epsilon}}},
+                        {"epsilon_mm", r.epsilon},
+                        {"normals", p.normals == mesh::NormalEstimator::kShifted ? "shifted"
+                                                                                 : "pca"}}},
         {"points", points.rows()},
         {"mean_spacing_mm", r.mean_spacing},
         {"mean_neighbourhood_points", r.mean_neighbourhood},
@@ -90,7 +97,9 @@ void run_denoise(const DenoiseOptions& o) {
         run_pointset_denoise(o);
         return;
     }
-    if (o.rho || o.epsilon_mm) throw UsageError("--rho and --epsilon apply to pointset");
+    if (o.rho || o.epsilon_mm || o.normals) {
+        throw UsageError("--rho, --epsilon and --normals apply to pointset");
+    }
     const bool rofi_like = o.method == "rofi" || o.method == "bilateral";
     if (!rofi_like && (o.sigma_s || o.lambda_i || !o.similarity.empty())) {
         throw UsageError("--sigma-s, --lambda-i and --similarity apply to rofi and bilateral");
@@ -214,6 +223,11 @@ void add_denoise_command(CLI::App& app, RunContext& /*ctx*/) {
                     "pointset: normal-similarity angle rho in radians (default 0.3)");
     cmd->add_option("--epsilon", opts->epsilon_mm,
                     "pointset: largest distance a point may move, mesh units (default: radius)");
+    cmd->add_option("--normals", opts->normals,
+                    "pointset: initial normals, pca (default, thesis 4.1) or shifted (flattest "
+                    "neighbourhood containing the point: sharper edges, docs/algorithms/"
+                    "pointset.md)")
+        ->check(CLI::IsMember({"pca", "shifted"}));
     cmd->add_flag("--json", opts->json, "Print the parameters and timings as JSON on stdout");
     cmd->callback([opts] { run_denoise(*opts); });
 }

@@ -22,6 +22,9 @@ namespace {
 constexpr int kLeafSize = 8;
 // Neighbours averaged for the point spacing: the 1-ring of a regular triangulation.
 constexpr int kSpacingNeighbours = 6;
+// shifted_normals: a candidate plane must pass within this many σ̂ of the point (2.5σ keeps
+// 99 % of Gaussian offsets).
+constexpr double kCandidateSigmas = 2.5;
 
 double box_distance2(const Eigen::Vector3d& p, const Eigen::Vector3d& lo,
                      const Eigen::Vector3d& hi) {
@@ -284,9 +287,21 @@ Csr point_neighbourhoods(const Vertices& points,
     return Csr::from_rows(rows);
 }
 
-Vertices pca_normals(const Vertices& points, const Csr& nb, int threads) {
+namespace {
+
+// Least-squares planes of the neighbourhoods: centroid, unit normal (smallest eigenvector of
+// the covariance, unoriented) and the smallest eigenvalue (mean squared distance to the plane).
+struct PlaneFits {
+    Vertices centroid;             // #P×3
+    Vertices normal;               // #P×3
+    std::vector<double> residual2; // #P, length²
+    std::vector<double> flatness;  // #P, λ3 / (λ1 + λ2 + λ3): 0 for points on a plane
+};
+
+PlaneFits fit_planes(const Vertices& points, const Csr& nb, int threads) {
     const int n = static_cast<int>(points.rows());
-    Vertices N(n, 3);
+    PlaneFits f{Vertices(n, 3), Vertices(n, 3), std::vector<double>(static_cast<std::size_t>(n)),
+                std::vector<double>(static_cast<std::size_t>(n))};
     detail::parallel_for(n, threads, [&](int begin, int end) {
         for (int i = begin; i < end; ++i) {
             Eigen::Vector3d mean = Eigen::Vector3d::Zero();
@@ -298,9 +313,21 @@ Vertices pca_normals(const Vertices& points, const Csr& nb, int threads) {
             for (int k = nb.begin(i); k < nb.end(i); ++k) {
                 C.add(Eigen::Vector3d(points.row(nb.item(k)).transpose() - mean));
             }
-            N.row(i) = eigen_decreasing(C.matrix()).vectors.col(2).transpose();
+            const Eigen3 e = eigen_decreasing(C.matrix());
+            f.centroid.row(i) = mean.transpose();
+            f.normal.row(i) = e.vectors.col(2).transpose();
+            f.residual2[static_cast<std::size_t>(i)] = std::max(0.0, e.values(2)) / nb.size(i);
+            const double trace = e.values.sum();
+            f.flatness[static_cast<std::size_t>(i)] =
+                trace > 0.0 ? std::max(0.0, e.values(2)) / trace : 0.0;
         }
     });
+    return f;
+}
+
+// Consistent orientation of N in place: Prim's minimum spanning tree (pca_normals).
+void orient_normals(const Vertices& points, const Csr& nb, Vertices& N) {
+    const int n = static_cast<int>(points.rows());
     // Symmetric neighbour graph (Ω_i may be asymmetric where min_count added points).
     std::vector<int> degree(static_cast<std::size_t>(n), 0);
     for (int i = 0; i < n; ++i) {
@@ -358,6 +385,95 @@ Vertices pca_normals(const Vertices& points, const Csr& nb, int threads) {
             }
         }
     }
+}
+
+}  // namespace
+
+Vertices pca_normals(const Vertices& points, const Csr& nb, int threads) {
+    PlaneFits f = fit_planes(points, nb, threads);
+    orient_normals(points, nb, f.normal);
+    return f.normal;
+}
+
+Vertices shifted_normals(const Vertices& points,
+                           const Csr& nb,
+                           const Csr& support,
+                           double inlier_sigmas,
+                           int threads) {
+    if (!(inlier_sigmas > 0.0 && std::isfinite(inlier_sigmas))) {
+        throw std::invalid_argument("inlier_sigmas must be finite and > 0");
+    }
+    const int n = static_cast<int>(points.rows());
+    Vertices N(n, 3);
+    if (n == 0) return N;
+    const PlaneFits f = fit_planes(points, nb, threads);
+    Vertices pca = f.normal;
+    orient_normals(points, nb, pca);
+    // σ̂: the median RMS distance of a neighbourhood to its plane. Most neighbourhoods of a
+    // surface with sharp features are flat, so this is the noise along the normal (plus the
+    // curvature's sagitta on a curved surface). The small floor keeps noise-free input working.
+    std::vector<double> rms(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) {
+        rms[static_cast<std::size_t>(i)] = std::sqrt(f.residual2[static_cast<std::size_t>(i)]);
+    }
+    const auto mid = rms.begin() + n / 2;
+    std::nth_element(rms.begin(), mid, rms.end());
+    const double extent = (points.colwise().maxCoeff() - points.colwise().minCoeff()).norm();
+    const double t = kCandidateSigmas * *mid + 1e-9 * extent;
+    const double t_fit = inlier_sigmas * *mid + 1e-9 * extent;
+
+    using Vec3 = Eigen::Vector3d;
+    using CMap = Eigen::Map<const Vec3>;
+    const double* const v = points.data();
+    const double* const cn = f.normal.data();
+    const double* const cc = f.centroid.data();
+    const int* const items = nb.items.data();
+    const int* const offsets = nb.offsets.data();
+    const int* const sitems = support.items.data();
+    const int* const soffsets = support.offsets.data();
+    detail::parallel_for(n, threads, [&](int begin, int end) {
+        for (int i = begin; i < end; ++i) {
+            const CMap vi(v + 3 * i);
+            // Candidates: the planes of the neighbourhoods Ω_j, j ∈ Ω_i, that pass within t of
+            // v_i; the flattest wins (ties: the first in Ω_i's order).
+            int best = -1;
+            double best_flatness = std::numeric_limits<double>::infinity();
+            for (int k = offsets[i]; k < offsets[i + 1]; ++k) {
+                const int j = items[k];
+                if (std::abs(CMap(cn + 3 * j).dot(vi - CMap(cc + 3 * j))) > t) continue;
+                if (f.flatness[static_cast<std::size_t>(j)] < best_flatness) {
+                    best = j;
+                    best_flatness = f.flatness[static_cast<std::size_t>(j)];
+                }
+            }
+            const int from = best < 0 ? i : best;
+            Vec3 normal = CMap(cn + 3 * from);
+            Vec3 centre = CMap(cc + 3 * from);
+            // Refit twice: the plane of the inliers of Ω_i only (the points of v_i's own face
+            // near an edge), so the normal no longer blends in the other face.
+            for (int round = 0; round < 2; ++round) {
+                Vec3 sum = Vec3::Zero();
+                Sym3 S;
+                int m = 0;
+                for (int q = soffsets[i]; q < soffsets[i + 1]; ++q) {
+                    const Vec3 d = CMap(v + 3 * sitems[q]) - vi;
+                    if (std::abs(normal.dot(CMap(v + 3 * sitems[q]) - centre)) > t_fit) continue;
+                    sum += d;
+                    S.add(d);
+                    ++m;
+                }
+                if (m < 3) break;
+                const Vec3 mean = sum / m;
+                const Eigen::Matrix3d C = S.matrix() / m - mean * mean.transpose();
+                normal = eigen_decreasing(C).vectors.col(2);
+                centre = vi + mean;
+            }
+            // Orientation: that of the (consistently oriented) PCA normal of the same point,
+            // which blends the faces near an edge and so lies within 90° of each of them.
+            if (normal.dot(pca.row(i).transpose()) < 0.0) normal = -normal;
+            N.row(i) = normal.transpose();
+        }
+    });
     return N;
 }
 
@@ -374,6 +490,13 @@ void PointSetParams::validate() const {
     if (epsilon && !(*epsilon >= 0.0 && std::isfinite(*epsilon))) bad("epsilon must be >= 0");
     if (min_neighbours < 4) bad("min_neighbours must be >= 4");
     if (threads < 1) bad("threads must be >= 1");
+    if (normals != NormalEstimator::kPca && normals != NormalEstimator::kShifted) {
+        bad("normals must be kPca or kShifted");
+    }
+    if (!(inlier_sigmas > 0.0 && std::isfinite(inlier_sigmas))) {
+        bad("inlier_sigmas must be finite and > 0");
+    }
+    if (!(support >= 1.0 && std::isfinite(support))) bad("support must be finite and >= 1");
 }
 
 PointSetResult pointset_denoise(const Vertices& points, const PointSetParams& params) {
@@ -392,7 +515,14 @@ PointSetResult pointset_denoise(const Vertices& points, const PointSetParams& pa
     const Csr nb = point_neighbourhoods(points, tree, out.radius, params.min_neighbours,
                                         params.threads);
     out.mean_neighbourhood = static_cast<double>(nb.items.size()) / n;
-    Vertices N = pca_normals(points, nb, params.threads);
+    Vertices N;
+    if (params.normals == NormalEstimator::kShifted) {
+        const Csr support = point_neighbourhoods(points, tree, params.support * out.radius,
+                                                 params.min_neighbours, params.threads);
+        N = shifted_normals(points, nb, support, params.inlier_sigmas, params.threads);
+    } else {
+        N = pca_normals(points, nb, params.threads);
+    }
     out.seconds_setup = seconds_since(t_setup);
 
     out.V = points;

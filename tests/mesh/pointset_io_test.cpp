@@ -95,6 +95,22 @@ TEST(PointSetIo, DenoiseCommandRunsThePointSetMethod) {
     const mesh::Vertices Q = io::read_point_set(dir / "out.ply");
     ASSERT_EQ(Q.rows(), 900);
     EXPECT_LT(Q.col(2).cwiseAbs().mean(), P.col(2).cwiseAbs().mean());
+    EXPECT_EQ(j.at("parameters").at("normals"), "pca");
+    // The shifted normals are chosen by --normals and reported; as denoisers they must also
+    // bring the points closer to the plane.
+    const RunResult shifted = run_octshape("denoise " + (dir / "in.xyz").string() + " -o " +
+                                           (dir / "shifted.xyz").string() +
+                                           " --method pointset --normals shifted --json -p 10");
+    ASSERT_EQ(shifted.exit_code, 0) << shifted.err;
+    EXPECT_EQ(nlohmann::json::parse(shifted.out).at("parameters").at("normals"), "shifted");
+    const mesh::Vertices S = io::read_point_set(dir / "shifted.xyz");
+    ASSERT_EQ(S.rows(), 900);
+    EXPECT_LT(S.col(2).cwiseAbs().mean(), P.col(2).cwiseAbs().mean());
+    // --normals belongs to the point-set method.
+    EXPECT_EQ(run_octshape("denoise " + (dir / "in.xyz").string() + " -o " +
+                           (dir / "o.ply").string() + " --method envt --normals shifted")
+                  .exit_code,
+              64);
     // Mesh-only options are usage errors with the point-set method.
     EXPECT_EQ(run_octshape("denoise " + (dir / "in.xyz").string() + " -o " +
                            (dir / "o.xyz").string() + " --method pointset --sigma-s 0.3")
