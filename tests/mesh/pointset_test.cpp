@@ -347,10 +347,14 @@ TEST(PointSet, DenoisesANonUniformNoisyCube) {
     EXPECT_LT(m.after, 0.5 * m.before);
     // The classes carry information about the cube: a classifier without it would label by
     // prior (flat 85 %, edge 14 %, corner 0.6 % of the points). We require recalls several
-    // times the priors of the feature classes (corner: 30×) and most flat points kept flat.
+    // times the priors of the feature classes and most flat points kept flat. PCA normals keep
+    // the bounds they always had (edge 3.5x, corner 40x the prior); the shifted normals, sharper
+    // at edges, give up corner recall (the flattest neighbourhood of a corner point is a face),
+    // so theirs are edge 3x and corner 30x.
+    const bool pca = normals == mesh::NormalEstimator::kPca;
     EXPECT_GT(m.recall[0], 0.85);
-    EXPECT_GT(m.recall[1], 0.45);
-    EXPECT_GT(m.recall[2], 0.18);
+    EXPECT_GT(m.recall[1], pca ? 0.5 : 0.45);
+    EXPECT_GT(m.recall[2], pca ? 0.25 : 0.18);
     EXPECT_GT(m.accuracy, 0.85);
     }
 }
