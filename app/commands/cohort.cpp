@@ -1,5 +1,5 @@
 // `octshape cohort DIR... -o OUTDIR`: every supported export under the folders, macula or ONH
-// by scan content, N eyes at a time, each in a child process; resumable and crash safe.
+// by scan content, N eyes at a time in N worker processes; resumable and crash safe.
 // Layout, resume rule and the crash-safety argument: docs/cohort.md.
 
 #include <fcntl.h>
@@ -7,16 +7,19 @@
 #include <signal.h>
 #include <sys/file.h>
 #include <sys/prctl.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <chrono>
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <map>
@@ -188,12 +191,23 @@ std::string signal_name(int sig) {
     return "signal " + std::to_string(sig) + (d != nullptr ? std::string(" (") + d + ")" : "");
 }
 
-// ---- The child: one eye ------------------------------------------------------------------
+// ---- The workers: eye after eye ----------------------------------------------------------
 
-[[noreturn]] void child_main(const CohortOptions& o, const SubjectSource& subjects,
-                             const Item& item, const fs::path& out, int msg_fd) {
-    int code = 0;
-    std::string message;
+// A worker is a child process forked by the batch that analyses eye after eye: the parent sends
+// it an eye's index, the worker writes the eye's JSON (atomically) and answers with an EyeDone
+// record, then waits for the next index. Parent and worker talk over a SOCK_SEQPACKET socket
+// pair: every message arrives whole, a worker's death reads as end-of-file, and a send to a dead
+// peer fails with EPIPE instead of raising SIGPIPE (MSG_NOSIGNAL). Supervision: docs/cohort.md.
+struct EyeDone {
+    std::uint64_t index = 0;  // the eye's index in the batch's item list
+    std::int32_t code = 0;    // 0: the eye's JSON is written; else the exit code of the failure
+    std::uint32_t length = 0;  // bytes of the failure message that follow
+};
+constexpr std::size_t kMaxMessage = 4000;  // a failure message is cut to this many bytes
+
+// One eye: returns 0 when its JSON is written, else the failure's exit code and `message`.
+int analyse_eye(const CohortOptions& o, const SubjectSource& subjects, const Item& item,
+                const fs::path& out, std::string& message) {
     try {
         const FileFacts facts = file_facts(item.path);
         const io::HashedScan input = io::read_scan_hashed(item.path);
@@ -230,23 +244,43 @@ std::string signal_name(int sig) {
         // Atomic, not fsync'ed: the parent syncs the file system once before the tables.
         io::write_text_atomically((out / "eyes" / (item.key + ".json")).string(),
                                   r.json.dump(2) + "\n", {.durable = false});
+        return 0;
     } catch (const Error& e) {
-        code = static_cast<int>(e.exit_code());
         message = e.what();
+        return static_cast<int>(e.exit_code());
     } catch (const std::bad_alloc&) {
-        code = static_cast<int>(ExitCode::kInternal);
         message = "out of memory";
+        return static_cast<int>(ExitCode::kInternal);
     } catch (const std::exception& e) {
-        code = static_cast<int>(ExitCode::kInternal);
         message = std::string("internal error: ") + e.what();
+        return static_cast<int>(ExitCode::kInternal);
     }
-    if (!message.empty()) {
-        // A message well under PIPE_BUF-sized buffers: the write does not block.
-        if (message.size() > 4000) message.resize(4000);
-        [[maybe_unused]] const auto n = ::write(msg_fd, message.data(), message.size());
+}
+
+// The worker's life: eye after eye until the parent closes its end of the socket.
+[[noreturn]] void worker_main(const CohortOptions& o, const SubjectSource& subjects,
+                              const std::vector<Item>& items, const fs::path& out, int sock) {
+    for (;;) {
+        std::uint64_t index = 0;
+        const auto n = ::recv(sock, &index, sizeof index, 0);
+        if (n < 0 && errno == EINTR) continue;
+        if (n != static_cast<ssize_t>(sizeof index) || index >= items.size()) break;
+        std::string message;
+        const int code = analyse_eye(o, subjects, items[index], out, message);
+        if (message.size() > kMaxMessage) message.resize(kMaxMessage);
+        EyeDone done;
+        done.index = index;
+        done.code = code;
+        done.length = static_cast<std::uint32_t>(message.size());
+        std::string record(sizeof done, '\0');
+        std::memcpy(record.data(), &done, sizeof done);
+        record += message;
+        spdlog::default_logger()->flush();
+        // A failed send means the parent is gone (and this worker with it: PR_SET_PDEATHSIG).
+        if (::send(sock, record.data(), record.size(), MSG_NOSIGNAL) < 0) break;
     }
     spdlog::default_logger()->flush();
-    ::_exit(code);
+    ::_exit(0);
 }
 
 // ---- The parent: scheduling, progress, records -------------------------------------------
@@ -307,57 +341,14 @@ private:
     std::size_t failed_ = 0;
 };
 
-struct Running {
-    std::size_t index = 0;
-    int msg_fd = -1;
-    Clock::time_point start;
-    bool timed_out = false;  // stopped by the parent (SIGKILL) after --eye-timeout-s
+// The parent's view of one worker process.
+struct Worker {
+    pid_t pid = -1;  // -1: no worker in this slot
+    int sock = -1;   // the parent's end of the worker's socket pair
+    bool busy = false;
+    std::size_t index = 0;        // the eye in progress (when busy)
+    Clock::time_point start = {};  // when that eye was sent
 };
-
-// Waits until a child ends and returns its pid (its status in `status`). A child running longer
-// than `timeout_s` (> 0) is killed and marked timed out; it is then reaped like any other. The
-// wait sleeps in poll() on the children's message pipes, which close when a child ends.
-pid_t wait_for_child(std::map<pid_t, Running>& running, double timeout_s, int& status) {
-    for (;;) {
-        const pid_t pid = ::waitpid(-1, &status, WNOHANG);
-        if (pid > 0) return pid;
-        if (pid < 0 && errno != EINTR) {
-            throw std::runtime_error(std::string("waitpid: ") + std::strerror(errno));
-        }
-        int wait_ms = 1000;  // a bound, should an end go unnoticed by poll
-        const auto now = Clock::now();
-        for (auto& [p, r] : running) {
-            if (timeout_s <= 0.0 || r.timed_out) continue;
-            const double left =
-                timeout_s - std::chrono::duration<double>(now - r.start).count();
-            if (left <= 0.0) {
-                ::kill(p, SIGKILL);
-                r.timed_out = true;
-            } else {
-                wait_ms = std::min(wait_ms, static_cast<int>(std::ceil(left * 1000.0)));
-            }
-        }
-        std::vector<pollfd> fds;
-        for (const auto& [p, r] : running) fds.push_back({r.msg_fd, POLLIN, 0});
-        (void)::poll(fds.data(), fds.size(), wait_ms);
-    }
-}
-
-std::string read_all(int fd) {
-    std::string s;
-    char buf[1024];
-    for (;;) {
-        const auto n = ::read(fd, buf, sizeof buf);
-        if (n > 0) {
-            s.append(buf, static_cast<std::size_t>(n));
-        } else if (n < 0 && errno == EINTR) {
-            continue;
-        } else {
-            break;
-        }
-    }
-    return s;
-}
 
 void record_failure(Item& item, const fs::path& out, const std::string& options_text,
                     const std::string& reason, int exit_code) {
@@ -485,76 +476,180 @@ void run(CohortOptions& o, RunContext& ctx) {
     const bool bar = ::isatty(STDERR_FILENO) != 0 && spdlog::get_level() <= spdlog::level::info;
     Progress progress(items.size(), pending.size(), bar);
     progress.draw();
-    std::map<pid_t, Running> running;
+    // The eyes run in `jobs` worker processes, each forked once and given eye after eye; a
+    // worker that dies mid-eye (crash) or is killed (--eye-timeout-s) has its eye recorded as a
+    // failure and is replaced. Supervision: docs/cohort.md.
+    std::vector<Worker> workers(std::min(pending.size(), static_cast<std::size_t>(jobs)));
+    std::vector<pid_t> retired;  // workers told to stop, or killed; reaped before the tables
     std::size_t next = 0;
     const pid_t parent = ::getpid();
-    const auto child_level =
+    const auto worker_level =
         spdlog::get_level() <= spdlog::level::debug ? spdlog::get_level() : spdlog::level::err;
-    while (next < pending.size() || !running.empty()) {
-        while (next < pending.size() && running.size() < static_cast<std::size_t>(jobs)) {
-            const std::size_t idx = pending[next++];
-            int fds[2];
-            if (::pipe2(fds, O_CLOEXEC) != 0) throw OutputError("pipe", std::strerror(errno));
-            std::fflush(stderr);
-            spdlog::default_logger()->flush();
-            const pid_t pid = ::fork();
-            if (pid < 0) throw OutputError("fork", std::strerror(errno));
-            if (pid == 0) {
-                // The child dies with the parent (SIGKILL of the batch kills its eyes too).
-                ::prctl(PR_SET_PDEATHSIG, SIGKILL);
-                if (::getppid() != parent) ::_exit(static_cast<int>(ExitCode::kInternal));
-                ::close(fds[0]);
-                // The lock is the batch's: an eye outliving a killed batch must not block the
-                // re-run (its atomic write of the same result is harmless).
-                ::close(lock.fd());
-                spdlog::set_level(child_level);
-                child_main(o, subjects, items[idx], out, fds[1]);
-            }
-            ::close(fds[1]);
-            running[pid] = Running{idx, fds[0], Clock::now()};
+    const auto start_worker = [&](Worker& w) {
+        int sv[2];
+        if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, sv) != 0) {
+            throw OutputError("socketpair", std::strerror(errno));
         }
-        int status = 0;
-        const pid_t pid = wait_for_child(running, o.eye_timeout_s, status);
-        const auto r = running.find(pid);
-        if (r == running.end()) continue;
-        Item& item = items[r->second.index];
-        const std::string msg = read_all(r->second.msg_fd);
-        ::close(r->second.msg_fd);
-        const double secs = std::chrono::duration<double>(Clock::now() - r->second.start).count();
-        const bool timed_out = r->second.timed_out;
-        running.erase(r);
-
-        const fs::path eye_json = out / "eyes" / (item.key + ".json");
-        if (timed_out) {
-            record_failure(item, out, fail_options,
-                           fmt::format("the analysis did not finish within --eye-timeout-s {:g} s "
-                                       "and was stopped",
-                                       o.eye_timeout_s),
-                           static_cast<int>(ExitCode::kAnalysisFailed));
-        } else if (WIFEXITED(status) && WEXITSTATUS(status) == 0) {
-            try {
-                item.slim = slim(read_json_file(eye_json.string()));
-                item.done = true;
-                std::error_code ec;
-                fs::remove(out / "failures" / (item.key + ".json"), ec);
-                progress.finished(item, true, "", secs);
+        std::fflush(stderr);
+        spdlog::default_logger()->flush();
+        const pid_t pid = ::fork();
+        if (pid < 0) throw OutputError("fork", std::strerror(errno));
+        if (pid == 0) {
+            // The worker dies with the parent (SIGKILL of the batch kills its eyes too).
+            ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+            if (::getppid() != parent) ::_exit(static_cast<int>(ExitCode::kInternal));
+            ::close(sv[0]);
+            // The other workers' sockets: each must see end-of-file when the parent closes it.
+            for (const Worker& other : workers) {
+                if (other.sock >= 0) ::close(other.sock);
+            }
+            // The lock is the batch's: an eye outliving a killed batch must not block the
+            // re-run (its atomic write of the same result is harmless).
+            ::close(lock.fd());
+            spdlog::set_level(worker_level);
+            worker_main(o, subjects, items, out, sv[1]);
+        }
+        ::close(sv[1]);
+        w = Worker{};
+        w.pid = pid;
+        w.sock = sv[0];
+    };
+    // Gives an idle worker the next eye, or tells it to stop (closes its socket) if none is left.
+    const auto dispatch = [&](Worker& w) {
+        if (next >= pending.size()) {
+            ::close(w.sock);
+            retired.push_back(w.pid);
+            w = Worker{};
+            return;
+        }
+        const std::uint64_t index = pending[next++];
+        if (::send(w.sock, &index, sizeof index, MSG_NOSIGNAL) !=
+            static_cast<ssize_t>(sizeof index)) {
+            --next;  // the worker died while idle: the eye stays pending, poll sees the end
+            return;
+        }
+        w.busy = true;
+        w.index = index;
+        w.start = Clock::now();
+    };
+    const auto replace = [&](Worker& w) {
+        w = Worker{};
+        if (next < pending.size()) {
+            start_worker(w);
+            dispatch(w);
+        }
+    };
+    const auto eye_failed = [&](std::size_t index, const std::string& reason, int code,
+                                double secs) {
+        record_failure(items[index], out, fail_options, reason, code);
+        progress.finished(items[index], false, reason, secs);
+    };
+    const auto eye_done = [&](std::size_t index, double secs) {
+        Item& item = items[index];
+        try {
+            item.slim = slim(read_json_file((out / "eyes" / (item.key + ".json")).string()));
+            item.done = true;
+            std::error_code ec;
+            fs::remove(out / "failures" / (item.key + ".json"), ec);
+            progress.finished(item, true, "", secs);
+        } catch (const InputError& e) {
+            eye_failed(index, std::string("result unreadable: ") + e.what(),
+                       static_cast<int>(ExitCode::kInternal), secs);
+        }
+    };
+    for (Worker& w : workers) {
+        start_worker(w);
+        dispatch(w);
+    }
+    std::vector<pollfd> fds;
+    std::vector<Worker*> polled;
+    for (;;) {
+        fds.clear();
+        polled.clear();
+        int wait_ms = 1000;  // a bound, should an end go unnoticed by poll
+        const auto now = Clock::now();
+        for (Worker& w : workers) {
+            if (w.pid < 0) continue;
+            fds.push_back({w.sock, POLLIN, 0});
+            polled.push_back(&w);
+            if (w.busy && o.eye_timeout_s > 0.0) {
+                const double left =
+                    o.eye_timeout_s - std::chrono::duration<double>(now - w.start).count();
+                wait_ms = std::clamp(static_cast<int>(std::ceil(left * 1000.0)), 0, wait_ms);
+            }
+        }
+        if (fds.empty()) break;
+        if (::poll(fds.data(), fds.size(), wait_ms) < 0 && errno != EINTR) {
+            throw std::runtime_error(std::string("poll: ") + std::strerror(errno));
+        }
+        for (std::size_t k = 0; k < fds.size(); ++k) {
+            if (fds[k].revents == 0) continue;
+            Worker& w = *polled[k];
+            std::array<char, sizeof(EyeDone) + kMaxMessage> buf{};
+            const auto got = ::recv(w.sock, buf.data(), buf.size(), MSG_DONTWAIT);
+            if (got < 0 && (errno == EINTR || errno == EAGAIN)) continue;
+            const double secs =
+                w.busy ? std::chrono::duration<double>(Clock::now() - w.start).count() : 0.0;
+            if (got >= static_cast<ssize_t>(sizeof(EyeDone))) {
+                EyeDone d;
+                std::memcpy(&d, buf.data(), sizeof d);
+                if (w.busy && d.index == w.index) {
+                    w.busy = false;
+                    const auto length = std::min<std::size_t>(
+                        d.length, static_cast<std::size_t>(got) - sizeof d);
+                    std::string message(buf.data() + sizeof d, length);
+                    if (d.code == 0) {
+                        eye_done(d.index, secs);
+                    } else {
+                        eye_failed(d.index,
+                                   message.empty() ? "failed without a message" : message,
+                                   d.code, secs);
+                    }
+                }
+                dispatch(w);
                 continue;
-            } catch (const InputError& e) {
-                record_failure(item, out, fail_options,
-                               std::string("result unreadable: ") + e.what(),
-                               static_cast<int>(ExitCode::kInternal));
             }
-        } else if (WIFEXITED(status)) {
-            std::string reason = msg.empty() ? "failed without a message" : msg;
-            record_failure(item, out, fail_options, reason, WEXITSTATUS(status));
-        } else {
-            const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
-            record_failure(item, out, fail_options,
-                           "the analysis crashed: " + signal_name(sig) +
-                               (msg.empty() ? "" : ": " + msg),
-                           static_cast<int>(ExitCode::kInternal));
+            // End of file: the worker has ended (a short record cannot come from a worker; one
+            // that sent it is stopped).
+            if (got != 0) ::kill(w.pid, SIGKILL);
+            ::close(w.sock);
+            int status = 0;
+            while (::waitpid(w.pid, &status, 0) < 0 && errno == EINTR) {
+            }
+            if (w.busy) {
+                if (WIFSIGNALED(status)) {
+                    eye_failed(w.index, "the analysis crashed: " + signal_name(WTERMSIG(status)),
+                               static_cast<int>(ExitCode::kInternal), secs);
+                } else {
+                    const int code = WIFEXITED(status) ? WEXITSTATUS(status) : 0;
+                    eye_failed(w.index,
+                               fmt::format("failed without a message (the worker exited with "
+                                           "status {} during the analysis)",
+                                           code),
+                               code != 0 ? code : static_cast<int>(ExitCode::kInternal), secs);
+                }
+            }
+            replace(w);
         }
-        progress.finished(item, false, item.failure.value("reason", std::string()), secs);
+        // Eyes over the limit: the worker is killed (reaped before the tables) and replaced.
+        for (Worker& w : workers) {
+            if (w.pid < 0 || !w.busy || o.eye_timeout_s <= 0.0) continue;
+            const double secs = std::chrono::duration<double>(Clock::now() - w.start).count();
+            if (secs < o.eye_timeout_s) continue;
+            ::kill(w.pid, SIGKILL);
+            ::close(w.sock);
+            retired.push_back(w.pid);
+            eye_failed(w.index,
+                       fmt::format("the analysis did not finish within --eye-timeout-s {:g} s "
+                                   "and was stopped",
+                                   o.eye_timeout_s),
+                       static_cast<int>(ExitCode::kAnalysisFailed), secs);
+            replace(w);
+        }
+    }
+    for (const pid_t pid : retired) {
+        while (::waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {
+        }
     }
     progress.end();
 
@@ -600,10 +695,10 @@ void add_cohort_command(CLI::App& app, RunContext& ctx) {
     auto opts = std::make_shared<CohortOptions>();
     CLI::App* cmd = app.add_subcommand(
         "cohort",
-        "Analyse every supported export under the folders (recursive), N at a time, each eye in "
-        "a child process; resumable and crash safe. Writes OUTDIR/eyes/*.json, OUTDIR/eyes.csv, "
-        "OUTDIR/failures.csv (docs/cohort.md). Exit 0: all eyes done; 1: some inputs failed "
-        "(listed in failures.csv)");
+        "Analyse every supported export under the folders (recursive), N at a time in N worker "
+        "processes (a crashed or hung eye is recorded, its worker replaced); resumable and crash "
+        "safe. Writes OUTDIR/eyes/*.json, OUTDIR/eyes.csv, OUTDIR/failures.csv (docs/cohort.md). "
+        "Exit 0: all eyes done; 1: some inputs failed (listed in failures.csv)");
     cmd->add_option("inputs", opts->inputs, "Folders (searched recursively) or files")
         ->required();
     cmd->add_option("-o,--output", opts->out, "Output folder")->required();
