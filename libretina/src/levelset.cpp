@@ -175,22 +175,8 @@ public:
             if (old_interface && in_region(vx.b, vx.a)) add(vx);
         }
         for (const Voxel& vx : flipped_) {
-            const int b = vx.b;
-            const int a = vx.a;
-            if (in_region(b, a)) add(vx);
-            for (int axis = 0; axis < 3; ++axis) {
-                for (int dir = -1; dir <= 1; dir += 2) {
-                    int nb = b, na = a, nd = vx.depth;
-                    if (axis == 0) na += dir;
-                    if (axis == 1) nb += dir;
-                    if (axis == 2) nd += dir;
-                    if (na < 0 || na >= w_.na || nb < 0 || nb >= w_.nb) continue;
-                    if (!in_region(nb, na)) continue;
-                    const Column& col = cols_[static_cast<std::size_t>(w_.column(nb, na))];
-                    if (nd < col.lo || nd >= col.hi) continue;
-                    add(make_voxel(col.base + nd, nb, na, nd));
-                }
-            }
+            if (in_region(vx.b, vx.a)) add(vx);
+            for_each_neighbour(vx, add);
         }
         flipped_.clear();
         band_.clear();
@@ -266,26 +252,13 @@ public:
         for (int k = 1; k <= p_.band_layers; ++k) {
             const std::size_t layer_end = band_.size();
             for (std::size_t i = layer_begin; i < layer_end; ++i) {
-                const Voxel vx = band_[i];
-                const int b = vx.b;
-                const int a = vx.a;
-                for (int axis = 0; axis < 3; ++axis) {
-                    for (int dir = -1; dir <= 1; dir += 2) {
-                        int nb = b, na = a, nd = vx.depth;
-                        if (axis == 0) na += dir;
-                        if (axis == 1) nb += dir;
-                        if (axis == 2) nd += dir;
-                        if (na < 0 || na >= w_.na || nb < 0 || nb >= w_.nb) continue;
-                        if (!in_region(nb, na)) continue;
-                        const Column& col = cols_[static_cast<std::size_t>(w_.column(nb, na))];
-                        if (nd < col.lo || nd >= col.hi) continue;
-                        const std::int64_t idx = col.base + nd;
-                        auto& l = layer_[static_cast<std::size_t>(idx)];
-                        if (l != kNotInBand) continue;
-                        l = static_cast<std::int8_t>(k);
-                        band_.push_back(make_voxel(idx, nb, na, nd));
-                    }
-                }
+                // A copy: push_back may move band_.
+                for_each_neighbour(Voxel(band_[i]), [&](const Voxel& nv) {
+                    auto& l = layer_[nv.index];
+                    if (l != kNotInBand) return;
+                    l = static_cast<std::int8_t>(k);
+                    band_.push_back(nv);
+                });
             }
             for (std::size_t i = layer_end; i < band_.size(); ++i) {
                 const Voxel vx = band_[i];
@@ -403,6 +376,24 @@ private:
     }
     [[nodiscard]] bool in_region(int b, int a) const {
         return region_[static_cast<std::size_t>(tile_of(b, a))] != 0;
+    }
+    // Calls f(neighbour) for each of the 6 face neighbours of vx that lie in an evolving tile
+    // and inside their column's window.
+    template <class F>
+    void for_each_neighbour(const Voxel& vx, F&& f) const {
+        for (int axis = 0; axis < 3; ++axis) {
+            for (int dir = -1; dir <= 1; dir += 2) {
+                int nb = vx.b, na = vx.a, nd = vx.depth;
+                if (axis == 0) na += dir;
+                if (axis == 1) nb += dir;
+                if (axis == 2) nd += dir;
+                if (na < 0 || na >= w_.na || nb < 0 || nb >= w_.nb) continue;
+                if (!in_region(nb, na)) continue;
+                const Column& col = cols_[static_cast<std::size_t>(w_.column(nb, na))];
+                if (nd < col.lo || nd >= col.hi) continue;
+                f(make_voxel(col.base + nd, nb, na, nd));
+            }
+        }
     }
     // φ at (b, a, d) inside the volume's columns; rows outside a window are vitreous above and
     // tissue below (±far).
