@@ -71,16 +71,21 @@ int main() {
         const char* name;
         octshape::mesh::NormalEstimator normals;
         int threads;
+        bool snap;
     };
-    for (const Case& k :
-         {Case{"pointset denoise p=30, 1 thread", octshape::mesh::NormalEstimator::kPca, 1},
-          Case{"pointset denoise p=30, 2 threads", octshape::mesh::NormalEstimator::kPca, 2},
-          Case{"  shifted normals, 1 thread", octshape::mesh::NormalEstimator::kShifted, 1},
-          Case{"  shifted normals, 2 threads", octshape::mesh::NormalEstimator::kShifted, 2}}) {
+    constexpr auto kPca = octshape::mesh::NormalEstimator::kPca;
+    constexpr auto kShifted = octshape::mesh::NormalEstimator::kShifted;
+    for (const Case& k : {Case{"pointset denoise p=30, 1 thread", kPca, 1, true},
+                          Case{"pointset denoise p=30, 2 threads", kPca, 2, true},
+                          Case{"  no edge snapping, 1 thread", kPca, 1, false},
+                          Case{"  no edge snapping, 2 threads", kPca, 2, false},
+                          Case{"  shifted normals, 1 thread", kShifted, 1, true},
+                          Case{"  shifted normals, 2 threads", kShifted, 2, true}}) {
         const int threads = k.threads;
         octshape::mesh::PointSetParams p;
         p.threads = threads;
         p.normals = k.normals;
+        p.snap_edges = k.snap;
         const auto t0 = Clock::now();
         const double c0 = cpu_seconds();
         const auto r = octshape::mesh::pointset_denoise(cube, p);
@@ -90,6 +95,10 @@ int main() {
         row(k.name, static_cast<long long>(cube.rows()), t, c, t / t1);
         std::printf("\n%-34s %8s %9.3f %9s %9s %7.2f\n", "  of which set-up (tree, normals)", "",
                     r.seconds_setup, "", "", r.seconds_setup / t1);
+        std::printf("%-34s %8s %9.3f %9s %9s %7.2f\n", "  of which iterations", "",
+                    r.seconds_iterations, "", "", r.seconds_iterations / t1);
+        std::printf("%-34s %8d %9.3f %9s %9s %7.2f\n", "  of which edge snapping (points)",
+                    r.snapped_points, r.seconds_snap, "", "", r.seconds_snap / t1);
     }
 
     const octshape::mesh::Surface ref = octshape::test::ilm_patch(223);  // 224² = 50 176 vertices

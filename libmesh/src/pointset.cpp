@@ -1,6 +1,7 @@
 #include "octshape/mesh/pointset.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <functional>
@@ -217,7 +218,14 @@ std::vector<int> KdTree::nearest(const Eigen::Vector3d& p, int k) const {
 
 std::vector<int> KdTree::within(const Eigen::Vector3d& p, double radius) const {
     std::vector<int> out;
-    if (nodes_.empty() || !(radius >= 0.0)) return out;
+    within(p, radius, out);
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
+void KdTree::within(const Eigen::Vector3d& p, double radius, std::vector<int>& out) const {
+    out.clear();
+    if (nodes_.empty() || !(radius >= 0.0)) return;
     const double r2 = radius * radius;
     std::vector<int> stack{0};
     while (!stack.empty()) {
@@ -234,8 +242,6 @@ std::vector<int> KdTree::within(const Eigen::Vector3d& p, double radius) const {
             stack.push_back(node.first + 1);
         }
     }
-    std::sort(out.begin(), out.end());
-    return out;
 }
 
 // ---------------------------------------------------------------- neighbourhoods, normals
@@ -477,6 +483,80 @@ Vertices shifted_normals(const Vertices& points,
     return N;
 }
 
+
+// ---------------------------------------------------------------- edge snapping
+
+namespace {
+
+// One face plane near a feature: n·x = offset, with the centroid of the points it was fitted to.
+struct FacePlane {
+    Eigen::Vector3d normal;
+    double offset = 0;
+    Eigen::Vector3d centroid;
+};
+
+// The nearest point to v of the piecewise-planar surface bounded by up to 3 face planes: for
+// every non-empty subset S of the planes, the nearest point of their intersection (a plane, a
+// line, a corner), kept if it lies on the same side of every other plane as the faces of S do
+// (their centroids); the nearest kept one wins. False if none is kept. `on_one` receives the
+// plane index when the winner lies on one plane only, else −1.
+bool nearest_on_faces(const Eigen::Vector3d& v, const std::vector<FacePlane>& planes,
+                      double within, Eigen::Vector3d* best, int* on_one) {
+    const int np = static_cast<int>(planes.size());
+    double best_d2 = std::numeric_limits<double>::infinity();
+    int best_k = 0;
+    int near_mask = 0;
+    for (int p = 0; p < np; ++p) {
+        const FacePlane& f = planes[static_cast<std::size_t>(p)];
+        if (std::abs(f.normal.dot(v) - f.offset) <= within) near_mask |= 1 << p;
+    }
+    for (int mask = 1; mask < (1 << np); ++mask) {
+        int k = 0;
+        Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d b = Eigen::Vector3d::Zero();
+        Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+        int single = -1;
+        for (int p = 0; p < np; ++p) {
+            if ((mask & (1 << p)) == 0) continue;
+            A.row(k) = planes[static_cast<std::size_t>(p)].normal.transpose();
+            b(k) = planes[static_cast<std::size_t>(p)].offset;
+            centre += planes[static_cast<std::size_t>(p)].centroid;
+            single = p;
+            ++k;
+        }
+        centre /= k;
+        // x = v − Aᵀ (A Aᵀ)⁻¹ (A v − b): the nearest point of {A x = b} (A's rows unit normals
+        // ≥ 30° apart, so A Aᵀ is well conditioned unless three normals are nearly coplanar).
+        using Rows = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor, 3, 3>;
+        using Gram = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3, 3>;
+        using Vec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 3, 1>;
+        const Rows As = A.topRows(k);
+        const Gram G = As * As.transpose();
+        if (G.determinant() < 1e-3) continue;
+        const Vec residual = As * v - b.head(k);
+        const Eigen::Vector3d x = v - As.transpose() * G.ldlt().solve(residual);
+        bool valid = true;
+        for (int p = 0; p < np && valid; ++p) {
+            if ((mask & (1 << p)) != 0) continue;
+            const FacePlane& f = planes[static_cast<std::size_t>(p)];
+            const double side = f.normal.dot(centre) - f.offset;
+            valid = (f.normal.dot(x) - f.offset) * side >= 0.0;
+        }
+        const double d2 = (x - v).squaredNorm();
+        // Within noise of several planes: their intersection (the most planes) wins.
+        const int rank = (mask & ~near_mask) == 0 ? k : 0;
+        if (valid && (rank > best_k || (rank == best_k && d2 < best_d2))) {
+            best_k = rank;
+            best_d2 = d2;
+            *best = x;
+            *on_one = k == 1 ? single : -1;
+        }
+    }
+    return best_d2 < std::numeric_limits<double>::infinity();
+}
+
+}  // namespace
+
 // ---------------------------------------------------------------- denoiser
 
 void PointSetParams::validate() const {
@@ -497,6 +577,13 @@ void PointSetParams::validate() const {
         bad("inlier_sigmas must be finite and > 0");
     }
     if (!(support >= 1.0 && std::isfinite(support))) bad("support must be finite and >= 1");
+    if (!(snap_group_deg > 0.0 && snap_group_deg < 90.0)) bad("snap_group_deg must be in (0, 90)");
+    if (!(snap_support >= 1.0 && std::isfinite(snap_support))) {
+        bad("snap_support must be finite and >= 1");
+    }
+    if (!(snap_sigmas >= 0.0 && std::isfinite(snap_sigmas))) {
+        bad("snap_sigmas must be finite and >= 0");
+    }
 }
 
 PointSetResult pointset_denoise(const Vertices& points, const PointSetParams& params) {
@@ -683,6 +770,189 @@ PointSetResult pointset_denoise(const Vertices& points, const PointSetParams& pa
         ++out.iterations;
     }
     out.seconds_iterations = seconds_since(t_iter);
+    if (params.snap_edges && params.iterations > 0) {
+        const auto t_snap = std::chrono::steady_clock::now();
+        const double cos_group = std::cos(params.snap_group_deg * M_PI / 180.0);
+        const double support_radius = params.snap_support * out.radius;
+        const std::vector<PointClass>& cls = out.classes;
+        Vertices Vs = out.V;
+        Vertices Ns = N;
+        std::vector<int> moved(static_cast<std::size_t>(n), 0);
+        const double* const v = out.V.data();
+        const double* const fn = N.data();
+        // A point is near a feature if its Ω_i holds an edge or corner point.
+        std::vector<char> near_feature(static_cast<std::size_t>(n), 0);
+        for (int i = 0; i < n; ++i) {
+            for (int k = offsets[i]; k < offsets[i + 1]; ++k) {
+                if (cls[static_cast<std::size_t>(items[k])] != PointClass::kFlat) {
+                    near_feature[static_cast<std::size_t>(i)] = 1;
+                    break;
+                }
+            }
+        }
+        const double* const v0 = points.data();
+        const auto reliable = [&](int j) {
+            return cls[static_cast<std::size_t>(j)] == PointClass::kFlat &&
+                   near_feature[static_cast<std::size_t>(j)] == 0;
+        };
+        detail::parallel_for(n, params.threads, [&](int begin, int end) {
+            std::vector<int> ball;
+            std::vector<int> members;
+            std::vector<Vec3> sums;   // group normal sums
+            std::vector<Vec3> units;  // their directions
+            std::vector<int> counts;
+            std::vector<FacePlane> planes;
+            const auto nearest_group = [&](const Vec3& nj) {
+                int g_best = -1;
+                double c_best = cos_group;
+                for (std::size_t g = 0; g < units.size(); ++g) {
+                    const double c = counts[g] > 0 ? units[g].dot(nj) : -2.0;
+                    if (c >= c_best) {
+                        c_best = c;
+                        g_best = static_cast<int>(g);
+                    }
+                }
+                return g_best;
+            };
+            const auto groups_left = [&] {
+                return std::count_if(counts.begin(), counts.end(), [](int c) { return c > 0; });
+            };
+            for (int i = begin; i < end; ++i) {
+                if (near_feature[static_cast<std::size_t>(i)] == 0) continue;
+                const CMap vi(v + 3 * i);
+                const CMap v0i(v0 + 3 * i);
+                // The reliable points: classified flat, with no feature point in their Ω_j.
+                tree.within(v0i, support_radius, ball);
+                members.clear();
+                for (const int j : ball) {
+                    if (reliable(j)) members.push_back(j);
+                }
+                // Group their filtered normals: each joins the group whose mean normal is
+                // nearest if within snap_group_deg, else starts a new group.
+                sums.clear();
+                units.clear();
+                counts.clear();
+                for (const int j : members) {
+                    const CMap nj(fn + 3 * j);
+                    const int g = nearest_group(nj);
+                    if (g < 0) {
+                        sums.emplace_back(nj);
+                        units.emplace_back(nj);
+                        counts.push_back(1);
+                    } else {
+                        const auto gs = static_cast<std::size_t>(g);
+                        sums[gs] += nj;
+                        units[gs] = sums[gs].normalized();
+                        ++counts[gs];
+                    }
+                }
+                // Merge groups whose mean normals are within snap_group_deg of each other: the
+                // greedy pass splits a curved patch whose normals span more than that angle
+                // (a sphere's cap), though its halves' means are closer.
+                for (bool merged = true; merged;) {
+                    merged = false;
+                    for (std::size_t g = 0; g < units.size() && !merged; ++g) {
+                        for (std::size_t h = g + 1; h < units.size() && !merged; ++h) {
+                            if (counts[g] == 0 || counts[h] == 0 ||
+                                units[g].dot(units[h]) < cos_group) {
+                                continue;
+                            }
+                            sums[g] += sums[h];
+                            units[g] = sums[g].normalized();
+                            counts[g] += counts[h];
+                            counts[h] = 0;
+                            merged = true;
+                        }
+                    }
+                }
+                // Drop the small groups (the blended normals of the last points near an edge),
+                // keep the 3 largest.
+                const int min_count =
+                    std::max(6, static_cast<int>(0.1 * static_cast<double>(members.size())));
+                for (int& c : counts) c = c < min_count ? 0 : c;
+                while (groups_left() > 3) {
+                    auto smallest = counts.end();
+                    for (auto it = counts.begin(); it != counts.end(); ++it) {
+                        if (*it > 0 && (smallest == counts.end() || *it < *smallest)) {
+                            smallest = it;
+                        }
+                    }
+                    *smallest = 0;
+                }
+                if (groups_left() < 2) continue;  // one face (or none): nothing to sharpen
+                // Every reliable point to the nearest surviving group; one pass accumulates the
+                // moments of each group's denoised positions (the plane) and of its input
+                // positions (their scatter about that plane: σ̂), relative to v_i / v⁰_i.
+                struct Moments {
+                    int m = 0;
+                    Vec3 d = Vec3::Zero();
+                    Vec3 d0 = Vec3::Zero();
+                    Vec3 normals = Vec3::Zero();
+                    Sym3 S;
+                    Sym3 S0;
+                };
+                std::array<Moments, 8> mo{};
+                std::array<int, 8> slot{};
+                slot.fill(-1);
+                int used = 0;
+                for (std::size_t g = 0; g < counts.size() && used < 3; ++g) {
+                    if (counts[g] > 0 && g < slot.size()) slot[g] = used++;
+                }
+                for (const int j : members) {
+                    const int g = nearest_group(CMap(fn + 3 * j));
+                    if (g < 0 || g >= static_cast<int>(slot.size()) ||
+                        slot[static_cast<std::size_t>(g)] < 0) {
+                        continue;
+                    }
+                    Moments& q = mo[static_cast<std::size_t>(slot[static_cast<std::size_t>(g)])];
+                    const Vec3 d = CMap(v + 3 * j) - vi;
+                    const Vec3 d0 = CMap(v0 + 3 * j) - v0i;
+                    ++q.m;
+                    q.d += d;
+                    q.d0 += d0;
+                    q.normals += CMap(fn + 3 * j);
+                    q.S.add(d);
+                    q.S0.add(d0);
+                }
+                planes.clear();
+                double sigma = 0.0;
+                for (int g = 0; g < used; ++g) {
+                    const Moments& q = mo[static_cast<std::size_t>(g)];
+                    if (q.m < 3) continue;
+                    const Vec3 mean = q.d / q.m;
+                    const Vec3 mean0 = q.d0 / q.m;
+                    const Eigen::Matrix3d C = q.S.matrix() / q.m - mean * mean.transpose();
+                    const Eigen::Matrix3d C0 = q.S0.matrix() / q.m - mean0 * mean0.transpose();
+                    Vec3 normal = eigen_decreasing(C).vectors.col(2);
+                    if (normal.dot(q.normals) < 0.0) normal = -normal;
+                    const Vec3 centroid = vi + mean;
+                    // Mean squared distance of the input points to the plane (Σ over the
+                    // group of (n·(v⁰_j − c))², c the plane's centroid).
+                    const double off = normal.dot(v0i + mean0 - centroid);
+                    sigma = std::max(sigma, std::sqrt(std::max(0.0, normal.dot(C0 * normal)) +
+                                                      off * off));
+                    planes.push_back(FacePlane{normal, normal.dot(centroid), centroid});
+                }
+                if (planes.size() < 2) continue;
+                Vec3 x;
+                int on_one = -1;
+                if (!nearest_on_faces(vi, planes, params.snap_sigmas * sigma, &x, &on_one)) {
+                    continue;
+                }
+                // Eq. 4.11: the bound on the deviation from the input.
+                if ((x - v0i).norm() > out.epsilon) continue;
+                Vs.row(i) = x.transpose();
+                if (on_one >= 0) {
+                    Ns.row(i) = planes[static_cast<std::size_t>(on_one)].normal.transpose();
+                }
+                moved[static_cast<std::size_t>(i)] = 1;
+            }
+        });
+        out.V.swap(Vs);
+        N.swap(Ns);
+        out.snapped_points = std::accumulate(moved.begin(), moved.end(), 0);
+        out.seconds_snap = seconds_since(t_snap);
+    }
     out.normals = N;
     out.held_points = std::accumulate(held.begin(), held.end(), 0);
     for (const PointClass c : out.classes) {

@@ -30,6 +30,9 @@ public:
 
     // Every point within distance `radius` of p (inclusive), in ascending index order.
     [[nodiscard]] std::vector<int> within(const Eigen::Vector3d& p, double radius) const;
+    // The same points into `out` (cleared first; its capacity is reused), in the tree's
+    // traversal order — deterministic, but not sorted.
+    void within(const Eigen::Vector3d& p, double radius, std::vector<int>& out) const;
 
     [[nodiscard]] int size() const { return static_cast<int>(P_.rows()); }
 
@@ -130,6 +133,17 @@ struct PointSetParams {
     NormalEstimator normals = NormalEstimator::kPca;
     double inlier_sigmas = 1.0;
     double support = 2.0;
+    // Final edge-aware step (beyond §4.1, docs/algorithms/pointset.md "Edge snapping"): a point
+    // whose Ω_i holds an edge or corner point gathers the points classified flat within
+    // `support` × r, groups their filtered normals (a normal farther than `snap_group_deg` from
+    // every group's mean starts a new group; groups with fewer than max(6, 10 %) of those points
+    // are dropped), fits a plane to each group's positions, and moves onto the nearest point of
+    // the piecewise-planar surface they bound (a plane, the line of two, the corner of three),
+    // bounded by ε (Eq. 4.11). Points with one group (flat regions, smooth surfaces) stay.
+    bool snap_edges = true;
+    double snap_group_deg = 45.0;  // in (0, 90)
+    double snap_support = 4.0;     // ball radius in units of r; ≥ 1
+    double snap_sigmas = 3.0;      // "within noise" of a plane, in units of σ̂; ≥ 0
 
     // Throws std::invalid_argument naming the first bad field.
     void validate() const;
@@ -145,11 +159,13 @@ struct PointSetResult {
     double epsilon = 0;                // ε used (length unit)
     double mean_neighbourhood = 0;     // mean |Ω_i| (points, incl. i)
     int held_points = 0;               // updates refused by the ε bound, over all iterations
+    int snapped_points = 0;            // points moved by the edge snapping (0 if off)
     int corners = 0;                   // points classified corner / edge / flat (last iteration)
     int edges = 0;
     int flats = 0;
     double seconds_setup = 0;          // k-d tree, Ω_i (and the support), initial normals
     double seconds_iterations = 0;     // all iterations
+    double seconds_snap = 0;           // the edge snapping
     std::vector<std::string> warnings;
 };
 
