@@ -36,6 +36,7 @@ struct DenoiseOptions {
     std::optional<double> rho;
     std::optional<double> epsilon_mm;
     std::optional<std::string> normals;  // pointset: pca | shifted
+    bool no_edge_snap = false;           // pointset: skip the final edge snapping
 };
 
 // --method pointset: point-set NVT denoising (thesis §4, docs/algorithms/pointset.md).
@@ -51,6 +52,7 @@ void run_pointset_denoise(const DenoiseOptions& o) {
                                             : mesh::NormalEstimator::kPca;
     }
     if (o.iterations) p.iterations = *o.iterations;
+    p.snap_edges = !o.no_edge_snap;
     p.threads = o.threads;
     validate_options(p);
     const mesh::Vertices points = io::read_point_set(o.input);
@@ -74,7 +76,8 @@ void run_pointset_denoise(const DenoiseOptions& o) {
                         {"damping", p.damping}, {"lambda", p.lambda}, {"radius_mm", r.radius},
                         {"epsilon_mm", r.epsilon},
                         {"normals", p.normals == mesh::NormalEstimator::kShifted ? "shifted"
-                                                                                 : "pca"}}},
+                                                                                 : "pca"},
+                        {"snap_edges", p.snap_edges}}},
         {"points", points.rows()},
         {"mean_spacing_mm", r.mean_spacing},
         {"mean_neighbourhood_points", r.mean_neighbourhood},
@@ -82,9 +85,11 @@ void run_pointset_denoise(const DenoiseOptions& o) {
         {"edge_points", r.edges},
         {"flat_points", r.flats},
         {"updates_held_by_epsilon", r.held_points},
+        {"snapped_points", r.snapped_points},
         {"threads", o.threads},
         {"seconds_setup", r.seconds_setup},
         {"seconds_iterations", r.seconds_iterations},
+        {"seconds_snap", r.seconds_snap},
         {"warnings", r.warnings}};
     std::cout << j.dump(2) << '\n';
 }
@@ -97,8 +102,8 @@ void run_denoise(const DenoiseOptions& o) {
         run_pointset_denoise(o);
         return;
     }
-    if (o.rho || o.epsilon_mm || o.normals) {
-        throw UsageError("--rho, --epsilon and --normals apply to pointset");
+    if (o.rho || o.epsilon_mm || o.normals || o.no_edge_snap) {
+        throw UsageError("--rho, --epsilon, --normals and --no-edge-snap apply to pointset");
     }
     const bool rofi_like = o.method == "rofi" || o.method == "bilateral";
     if (!rofi_like && (o.sigma_s || o.lambda_i || !o.similarity.empty())) {
@@ -228,6 +233,9 @@ void add_denoise_command(CLI::App& app, RunContext& /*ctx*/) {
                     "neighbourhood containing the point: sharper edges, docs/algorithms/"
                     "pointset.md)")
         ->check(CLI::IsMember({"pca", "shifted"}));
+    cmd->add_flag("--no-edge-snap", opts->no_edge_snap,
+                  "pointset: skip the final edge snapping (on by default: points near an edge "
+                  "or corner move onto the planes of its faces, docs/algorithms/pointset.md)");
     cmd->add_flag("--json", opts->json, "Print the parameters and timings as JSON on stdout");
     cmd->callback([opts] { run_denoise(*opts); });
 }

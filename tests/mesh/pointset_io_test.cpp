@@ -106,6 +106,20 @@ TEST(PointSetIo, DenoiseCommandRunsThePointSetMethod) {
     const mesh::Vertices S = io::read_point_set(dir / "shifted.xyz");
     ASSERT_EQ(S.rows(), 900);
     EXPECT_LT(S.col(2).cwiseAbs().mean(), P.col(2).cwiseAbs().mean());
+    // The edge snapping is on by default and reported; a plane has one face, so it moves no
+    // point and --no-edge-snap gives the same output.
+    EXPECT_EQ(j.at("parameters").at("snap_edges"), true);
+    EXPECT_EQ(j.at("snapped_points"), 0);
+    const RunResult unsnapped = run_octshape("denoise " + (dir / "in.xyz").string() + " -o " +
+                                             (dir / "unsnapped.ply").string() +
+                                             " --method pointset --no-edge-snap --json -p 10");
+    ASSERT_EQ(unsnapped.exit_code, 0) << unsnapped.err;
+    EXPECT_EQ(nlohmann::json::parse(unsnapped.out).at("parameters").at("snap_edges"), false);
+    EXPECT_EQ(io::read_point_set(dir / "unsnapped.ply"), Q);
+    EXPECT_EQ(run_octshape("denoise " + (dir / "in.xyz").string() + " -o " +
+                           (dir / "o.ply").string() + " --method envt --no-edge-snap")
+                  .exit_code,
+              64);
     // --normals belongs to the point-set method.
     EXPECT_EQ(run_octshape("denoise " + (dir / "in.xyz").string() + " -o " +
                            (dir / "o.ply").string() + " --method envt --normals shifted")

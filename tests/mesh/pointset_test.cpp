@@ -167,7 +167,10 @@ TEST(PointSet, ParamsValidateNamesTheField) {
     EXPECT_THROW(p.validate(), std::invalid_argument);
     for (const auto& [field, bad] : std::vector<std::pair<std::string, mesh::PointSetParams>>{
              {"inlier_sigmas", [] { mesh::PointSetParams q; q.inlier_sigmas = 0.0; return q; }()},
-             {"support", [] { mesh::PointSetParams q; q.support = 0.5; return q; }()}}) {
+             {"support", [] { mesh::PointSetParams q; q.support = 0.5; return q; }()},
+             {"snap_group_deg", [] { mesh::PointSetParams q; q.snap_group_deg = 90; return q; }()},
+             {"snap_support", [] { mesh::PointSetParams q; q.snap_support = 0.5; return q; }()},
+             {"snap_sigmas", [] { mesh::PointSetParams q; q.snap_sigmas = -1; return q; }()}}) {
         try {
             bad.validate();
             FAIL() << field << " accepted";

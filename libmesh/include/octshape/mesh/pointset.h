@@ -133,13 +133,19 @@ struct PointSetParams {
     NormalEstimator normals = NormalEstimator::kPca;
     double inlier_sigmas = 1.0;
     double support = 2.0;
-    // Final edge-aware step (beyond §4.1, docs/algorithms/pointset.md "Edge snapping"): a point
-    // whose Ω_i holds an edge or corner point gathers the points classified flat within
-    // `support` × r, groups their filtered normals (a normal farther than `snap_group_deg` from
-    // every group's mean starts a new group; groups with fewer than max(6, 10 %) of those points
-    // are dropped), fits a plane to each group's positions, and moves onto the nearest point of
-    // the piecewise-planar surface they bound (a plane, the line of two, the corner of three),
-    // bounded by ε (Eq. 4.11). Points with one group (flat regions, smooth surfaces) stay.
+    // Final edge snapping (beyond §4.1, docs/algorithms/pointset.md "Edge snapping"), after the
+    // last iteration, for every point whose Ω_i holds an edge or corner point: the reliable
+    // points within `snap_support` × r of it (classified flat, with no feature point in their
+    // own Ω_j, so ≥ ~1.5 r from an edge) are grouped by their filtered normals (greedy: a normal
+    // farther than `snap_group_deg` from every group's mean starts a new group; groups whose
+    // means are closer than that are merged; groups with fewer than max(6, 10 %) of the points
+    // are dropped, at most 3 kept). With two or more groups, a plane is fitted to each group's
+    // denoised positions and the point moves to the nearest point of the piecewise-planar
+    // surface they bound — onto the intersection of all planes it lies within `snap_sigmas` ×
+    // σ̂ of (σ̂: RMS distance of the groups' input points to their plane), else the nearest
+    // plane — unless that is farther than ε from its input position (Eq. 4.11). Points with one
+    // group (flat regions, smooth surfaces) do not move. Classes are those of the last
+    // iteration.
     bool snap_edges = true;
     double snap_group_deg = 45.0;  // in (0, 90)
     double snap_support = 4.0;     // ball radius in units of r; ≥ 1
