@@ -777,6 +777,10 @@ PointSetResult pointset_denoise(const Vertices& points, const PointSetParams& pa
     }
     out.seconds_iterations = seconds_since(t_iter);
     if (params.snap_edges && params.iterations > 0) {
+        // Edge snapping (beyond §4.1; PointSetParams, docs/algorithms/pointset.md): near a
+        // feature, the faces are refitted from the points ≥ ~1.5 r away (whose normals the NVT
+        // leaves on the face) and the point is moved onto them, bounded by ε (Eq. 4.11). Reads
+        // the final positions and normals, writes row i of copies: thread-count independent.
         const auto t_snap = std::chrono::steady_clock::now();
         const double cos_group = std::cos(params.snap_group_deg * M_PI / 180.0);
         const double support_radius = params.snap_support * out.radius;
@@ -807,6 +811,7 @@ PointSetResult pointset_denoise(const Vertices& points, const PointSetParams& pa
             std::vector<Vec3> sums;   // group normal sums
             std::vector<Vec3> units;  // their directions
             std::vector<int> counts;
+            std::vector<int> slot;  // group → index of its moments
             std::vector<FacePlane> planes;
             const auto nearest_group = [&](const Vec3& nj) {
                 int g_best = -1;
@@ -897,19 +902,15 @@ PointSetResult pointset_denoise(const Vertices& points, const PointSetParams& pa
                     Sym3 S;
                     Sym3 S0;
                 };
-                std::array<Moments, 8> mo{};
-                std::array<int, 8> slot{};
-                slot.fill(-1);
+                std::array<Moments, 3> mo{};  // the ≤ 3 surviving groups
+                slot.assign(counts.size(), -1);
                 int used = 0;
-                for (std::size_t g = 0; g < counts.size() && used < 3; ++g) {
-                    if (counts[g] > 0 && g < slot.size()) slot[g] = used++;
+                for (std::size_t g = 0; g < counts.size(); ++g) {
+                    if (counts[g] > 0) slot[g] = used++;
                 }
                 for (const int j : members) {
                     const int g = nearest_group(CMap(fn + 3 * j));
-                    if (g < 0 || g >= static_cast<int>(slot.size()) ||
-                        slot[static_cast<std::size_t>(g)] < 0) {
-                        continue;
-                    }
+                    if (g < 0) continue;
                     Moments& q = mo[static_cast<std::size_t>(slot[static_cast<std::size_t>(g)])];
                     const Vec3 d = CMap(v + 3 * j) - vi;
                     const Vec3 d0 = CMap(v0 + 3 * j) - v0i;
