@@ -11,6 +11,7 @@ PKGS=(
   libeigen3-dev
   libvtk9-dev
   libopencv-dev
+  libtiff-dev zlib1g-dev              # the Heyex XML export's TIFF B-scans; PNG QC pictures
   libssl-dev                          # libcrypto: SHA-256 (CPU SHA extensions), HMAC
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev

@@ -1,21 +1,31 @@
 #include "commands/qc_draw.h"
 
+#include <cstdint>
 #include <cstdio>
-#include <opencv2/imgcodecs.hpp>
+#include <span>
 #include <opencv2/imgproc.hpp>
 #include <string_view>
 #include <vector>
 
 #include "octshape/io/atomic_file.h"
 #include "octshape/io/error.h"
+#include "octshape/io/image.h"
 
 namespace octshape::app {
 
 void save_png(const cv::Mat& img, const std::string& path) {
-    std::vector<uchar> buf;
-    if (!cv::imencode(".png", img, buf)) throw OutputError(path, "PNG encoding failed");
-    io::write_text_atomically(
-        path, std::string_view(reinterpret_cast<const char*>(buf.data()), buf.size()));
+    cv::Mat px;
+    if (img.type() == CV_8UC3) {
+        cv::cvtColor(img, px, cv::COLOR_BGR2RGB);  // OpenCV draws in BGR order
+    } else if (img.type() == CV_8UC1) {
+        px = img.isContinuous() ? img : img.clone();
+    } else {
+        throw OutputError(path, "PNG encoding failed: not an 8-bit grey or colour picture");
+    }
+    const std::string png = io::encode_png(
+        px.cols, px.rows, px.channels(),
+        std::span<const std::uint8_t>(px.data, px.total() * px.elemSize()));
+    io::write_text_atomically(path, png);
 }
 
 std::string printf_number(const char* format, double value) {

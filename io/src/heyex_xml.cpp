@@ -8,9 +8,8 @@
 #include <limits>
 #include <set>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include "octshape/io/error.h"
+#include "octshape/io/image.h"
 #include "xml_dom.h"
 
 namespace octshape::io {
@@ -202,7 +201,7 @@ private:
         return fs::path(path_).parent_path() / base;
     }
 
-    cv::Mat load_image(const XmlNode& image, int width, int height) const {
+    std::vector<std::uint8_t> load_image(const XmlNode& image, int width, int height) const {
         const fs::path file = image_file(image);
         std::error_code ec;
         // Errors name the image file and the export that refers to it.
@@ -210,16 +209,7 @@ private:
         if (!fs::is_regular_file(file, ec)) {
             throw InputError(InputError::Kind::kMissing, file.string(), "no such file" + of);
         }
-        cv::Mat m = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
-        if (m.empty()) throw InputError::corrupt(file.string(), "not a readable image" + of);
-        if (m.cols != width || m.rows != height || m.type() != CV_8UC1) {
-            throw InputError::corrupt(file.string(),
-                                      "image is " + std::to_string(m.cols) + "x" +
-                                          std::to_string(m.rows) + ", the XML says " +
-                                          std::to_string(width) + "x" + std::to_string(height) +
-                                          of);
-        }
-        return m;
+        return read_tiff_gray(file.string(), width, height, of);
     }
 
     void read_localizer(const XmlNode& image, Scan& scan) const {
@@ -234,8 +224,7 @@ private:
         }
         if (ctx->child("Focus") != nullptr) scan.meta.scan_focus_dpt = number(*ctx, "Focus");
         if (options_.pixels) {
-            const cv::Mat m = load_image(image, scan.meta.size_x_slo, scan.meta.size_y_slo);
-            scan.slo.assign(m.datastart, m.dataend);
+            scan.slo = load_image(image, scan.meta.size_x_slo, scan.meta.size_y_slo);
         }
     }
 
@@ -327,16 +316,12 @@ private:
                 }
             }
             if (options_.pixels) {
-                const cv::Mat m = load_image(*image, width, height);
-                b.pixels.resize(static_cast<std::size_t>(width) * static_cast<std::size_t>(height));
-                for (int r = 0; r < height; ++r) {
-                    const auto* row = m.ptr<std::uint8_t>(r);
-                    for (int c = 0; c < width; ++c) {
-                        // Inverse of the display transform v^0.25 * 255.
-                        const double d = row[c] / 255.0;
-                        b.pixels[static_cast<std::size_t>(r) * static_cast<std::size_t>(width) +
-                                 static_cast<std::size_t>(c)] = static_cast<float>(d * d * d * d);
-                    }
+                const std::vector<std::uint8_t> m = load_image(*image, width, height);
+                b.pixels.resize(m.size());
+                for (std::size_t i = 0; i < m.size(); ++i) {
+                    // Inverse of the display transform v^0.25 * 255.
+                    const double d = m[i] / 255.0;
+                    b.pixels[i] = static_cast<float>(d * d * d * d);
                 }
             }
             scan.bscans.push_back(std::move(b));
