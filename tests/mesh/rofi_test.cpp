@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
@@ -69,6 +70,74 @@ TEST(Rofi, PerRowPairWeightsGiveTheSameBitsAsSharedOnes) {
             EXPECT_NE(shared.V, m.V) << m.name;
         }
     }
+}
+
+TEST(Rofi, BaselineAndAvx2KernelsGiveTheSameBits) {
+    // The 4-lane kernels do the same IEEE operations per lane on SSE2 and AVX2 (no FMA), so
+    // the results must be identical, not merely close. On a CPU without AVX2 only the
+    // baseline runs, and kAvx2 must be refused.
+    for (const auto& m : noisy_family()) {
+        for (const auto sim : {mesh::Similarity::kTukey, mesh::Similarity::kGaussian}) {
+            auto p = params();
+            p.similarity = sim;
+            p.simd = mesh::SimdPath::kBaseline;
+            const auto baseline = mesh::rofi_denoise(m.V, m.F, p);
+            EXPECT_NE(baseline.V, m.V) << m.name;
+            p.simd = mesh::SimdPath::kAvx2;
+            if (!mesh::simd_avx2_available()) {
+                EXPECT_THROW(p.validate(), std::invalid_argument);
+                continue;
+            }
+            EXPECT_EQ(mesh::rofi_denoise(m.V, m.F, p).V, baseline.V) << m.name;
+            p.pair_weights = mesh::PairWeights::kPerRow;
+            p.threads = 2;
+            EXPECT_EQ(mesh::rofi_denoise(m.V, m.F, p).V, baseline.V) << m.name;
+        }
+    }
+}
+
+TEST(Rofi, VectorisedExpMatchesStdExpOverTheRangeUsed) {
+    // RoFi's weights are exp(x) for x ≤ 0 (closeness −d²/(2σ_c²), Gaussian similarity). Dense
+    // samples over [−708, 0] (log-spaced near 0, where the weights live) plus the ends; the
+    // bound 1e−15 relative is the error argument in libmesh/src/simd.h (≈ 7e−16) with
+    // std::exp's own < 1 ulp (2.2e−16) beside it. Below −708 the result is 0 by definition.
+    std::vector<double> x;
+    for (int i = 0; i <= 200000; ++i) x.push_back(-708.0 * i / 200000.0);
+    for (int i = 0; i <= 2000; ++i) x.push_back(-std::pow(10.0, -12.0 + 14.0 * i / 2000.0));
+    for (const double c : {0.0, -0.0, -0.5 * std::numbers::ln2, -std::numbers::ln2, -1e-300}) {
+        x.push_back(c);
+    }
+    x.push_back(-709.0);
+    x.push_back(-1e6);
+    const auto paths = mesh::simd_avx2_available()
+                           ? std::vector<mesh::SimdPath>{mesh::SimdPath::kBaseline,
+                                                         mesh::SimdPath::kAvx2}
+                           : std::vector<mesh::SimdPath>{mesh::SimdPath::kBaseline};
+    std::vector<double> first;
+    for (const auto path : paths) {
+        std::vector<double> out(x.size(), -1.0);
+        mesh::simd_exp_nonpositive(x.data(), out.data(), x.size(), path);
+        double worst = 0.0;
+        for (std::size_t i = 0; i < x.size(); ++i) {
+            if (x[i] < -708.0) {
+                EXPECT_EQ(out[i], 0.0) << x[i];
+                continue;
+            }
+            const double ref = std::exp(x[i]);
+            worst = std::max(worst, std::abs(out[i] - ref) / ref);
+        }
+        EXPECT_LT(worst, 1e-15);
+        EXPECT_EQ(out[0], 1.0);  // exp(0) exactly
+        if (first.empty()) {
+            first = out;
+        } else {
+            EXPECT_EQ(out, first);  // same bits on both instruction sets
+        }
+    }
+    // Any count, including a ragged tail, gives the same values element by element.
+    std::vector<double> three(3);
+    mesh::simd_exp_nonpositive(x.data() + 5, three.data(), 3);
+    for (int i = 0; i < 3; ++i) EXPECT_EQ(three[static_cast<std::size_t>(i)], first[5 + i]);
 }
 
 TEST(Rofi, RigidMotionOfTheInputMovesTheOutputTheSameWay) {

@@ -14,6 +14,7 @@
 
 #include "octshape/mesh/denoise.h"
 #include "octshape/mesh/mesh.h"
+#include "octshape/mesh/simd_exp.h"
 
 namespace octshape::mesh {
 
@@ -40,6 +41,9 @@ struct RofiParams {
     PairWeights pair_weights = PairWeights::kShared;
     bool fix_boundary = true;   // keep boundary / non-manifold vertices in place
     int threads = 1;            // std::threads; results do not depend on it; ≥ 1
+    // Instruction set of the pair-weight kernels; results do not depend on it (simd_exp.h).
+    // kAvx2 needs a CPU with AVX2.
+    SimdPath simd = SimdPath::kBest;
 
     // Throws std::invalid_argument naming the first bad field.
     void validate() const;
