@@ -606,9 +606,10 @@ TEST(CohortWorkers, AHungEyeTimesOutACrashedEyeIsRecordedAndTheRestFinish) {
     const double secs =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     EXPECT_GE(secs, 2.0);  // the hung eye was given its 2 s
-    // One worker did the rest (an eye takes >= 50 ms, so 1 ms sampling would see a process
-    // per eye).
-    EXPECT_EQ(later.size(), 1U);
+    // One worker did the rest: a process per eye (each living for an eye's >= 20 ms) would be
+    // seen several times by 1 ms sampling. At most one, not exactly one: a test thread starved
+    // for the whole run on a loaded machine sees none, which says nothing against the workers.
+    EXPECT_LE(later.size(), 1U);
 
     const auto fails = read_csv(out / "failures.csv");
     ASSERT_EQ(fails.size(), 3U) << slurp(out / "failures.csv");
