@@ -203,7 +203,8 @@ __attribute__((target("avx2"))) void rows_avx2(const PairKernel& k, bool tukey, 
     }
 }
 
-__attribute__((target("avx2"))) void exp_avx2(const double* x, double* out, std::size_t n) {
+// One body for both paths (inlined into each, compiled for its instruction set).
+[[gnu::always_inline]] inline void exp_impl(const double* x, double* out, std::size_t n) {
     detail::V4d e{};
     for (std::size_t i = 0; i < n; i += 4) {
         const auto at = [&](std::size_t l) { return i + l < n ? x[i + l] : 0.0; };
@@ -213,15 +214,11 @@ __attribute__((target("avx2"))) void exp_avx2(const double* x, double* out, std:
     }
 }
 
-void exp_baseline(const double* x, double* out, std::size_t n) {
-    detail::V4d e{};
-    for (std::size_t i = 0; i < n; i += 4) {
-        const auto at = [&](std::size_t l) { return i + l < n ? x[i + l] : 0.0; };
-        const detail::V4d v{at(0), at(1), at(2), at(3)};
-        detail::exp_lanes(v, e);
-        for (std::size_t l = 0; l < 4 && i + l < n; ++l) out[i + l] = e[l];
-    }
+__attribute__((target("avx2"))) void exp_avx2(const double* x, double* out, std::size_t n) {
+    exp_impl(x, out, n);
 }
+
+void exp_baseline(const double* x, double* out, std::size_t n) { exp_impl(x, out, n); }
 
 void require(bool ok, const std::string& field, const std::string& rule, double value) {
     if (!ok) {
