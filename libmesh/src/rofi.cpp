@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -21,69 +22,128 @@ double seconds_since(Clock::time_point t0) {
     return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-// For each slot p of Ω (row i, item j): the slot of i in row j if j < i and i ∈ Ω_j (this row
-// computes the pair and also writes there), −2 if j > i and j's row will write slot p, −1
-// otherwise (this row computes the pair for itself alone; also the centre face j = i).
+// The pairs of Ω whose weight f g is computed once per iteration, in one flat list (no
+// per-row loop, so no branch on a row's length): pair k = (first[k], second[k]), and
+// slot_pair[p] = the pair whose weight slot p of Ω uses. A pair (i, j) with j ∈ Ω_i and
+// i ∈ Ω_j (nearly all) is listed once and used by both slots; a pair with j ∈ Ω_i but i ∉ Ω_j
+// is listed for slot p alone. The centre slot of a row has no pair (its weight is 1):
+// slot_pair = −1. The list is padded to a multiple of kPairBlock with the pair (0, 0).
+constexpr int kPairBlock = 4;
+
+struct PairTable {
+    std::vector<int> first;      // pair k = (first[k], second[k])
+    std::vector<int> second;
+    std::vector<int> slot_pair;  // per slot of Ω
+};
+
 // Rows list f_i first and then ascending indices (mesh.h), so row j is searched by bisection.
-std::vector<int> mirror_slots(const Csr& omega) {
-    std::vector<int> out(omega.items.size(), -1);
+PairTable pair_table(const Csr& omega) {
+    PairTable t;
+    t.slot_pair.assign(omega.items.size(), -1);
     const auto find = [&](int row, int item) {
         const auto first = omega.items.begin() + omega.begin(row) + 1;
         const auto last = omega.items.begin() + omega.end(row);
         const auto it = std::lower_bound(first, last, item);
         return it != last && *it == item ? static_cast<int>(it - omega.items.begin()) : -1;
     };
+    const auto add = [&](int i, int j) {
+        t.first.push_back(i);
+        t.second.push_back(j);
+        return static_cast<int>(t.first.size()) - 1;
+    };
+    t.first.reserve(omega.items.size() / 2 + kPairBlock);
+    t.second.reserve(omega.items.size() / 2 + kPairBlock);
     for (int i = 0; i < omega.rows(); ++i) {
         for (int p = omega.begin(i) + 1; p < omega.end(i); ++p) {
             const int j = omega.item(p);
             if (j < i) {
+                const int k = add(i, j);
+                t.slot_pair[static_cast<std::size_t>(p)] = k;
                 const int q = find(j, i);
-                if (q >= 0) {
-                    out[static_cast<std::size_t>(p)] = q;
-                    out[static_cast<std::size_t>(q)] = -2;
-                }
+                if (q >= 0) t.slot_pair[static_cast<std::size_t>(q)] = k;
             }
         }
     }
-    return out;
+    // The slots still without a pair: j > i with i ∉ Ω_j.
+    for (int i = 0; i < omega.rows(); ++i) {
+        for (int p = omega.begin(i) + 1; p < omega.end(i); ++p) {
+            if (t.slot_pair[static_cast<std::size_t>(p)] < 0) {
+                t.slot_pair[static_cast<std::size_t>(p)] = add(i, omega.item(p));
+            }
+        }
+    }
+    while (t.first.size() % kPairBlock != 0) add(0, 0);
+    return t;
 }
 
-// The per-row work of Eq. 5.1 on flat arrays (Ω in CSR, the slot weights, the face records).
-// The pair weights are computed four pairs at a time (detail::V4d lanes, simd.h); each lane
-// does the same operations whatever lanes it shares a vector with, so a weight has the same
-// bits in either pass, in either PairWeights mode and on either instruction set.
+// The differences of four pairs of face records, lane l: rec[a[l]] − rec[b[l]].
+struct Diffs4 {
+    detail::V4d nx, ny, nz;  // n_a − n_b
+    detail::V4d cx, cy, cz;  // c_a − c_b
+};
+
+// Loads each record as two 4-double halves (normal + area, centroid + padding), subtracts the
+// halves of each pair and transposes the four difference vectors into lanes. The same IEEE
+// subtraction per component as a lane-by-lane load would do.
+[[gnu::always_inline]] inline detail::V4d half(const double* p) {
+    detail::V4d v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+}
+
+[[gnu::always_inline]] inline void transpose3(const detail::V4d& d0, const detail::V4d& d1,
+                                              const detail::V4d& d2, const detail::V4d& d3,
+                                              detail::V4d& x, detail::V4d& y, detail::V4d& z) {
+    const detail::V4d t0 = __builtin_shufflevector(d0, d1, 0, 4, 2, 6);
+    const detail::V4d t1 = __builtin_shufflevector(d0, d1, 1, 5, 3, 7);
+    const detail::V4d t2 = __builtin_shufflevector(d2, d3, 0, 4, 2, 6);
+    const detail::V4d t3 = __builtin_shufflevector(d2, d3, 1, 5, 3, 7);
+    x = __builtin_shufflevector(t0, t2, 0, 1, 4, 5);
+    y = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
+    z = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
+}
+
+[[gnu::always_inline]] inline void diffs4(const detail::FaceState* rec, const int* a,
+                                          const int* b, Diffs4& d) {
+    detail::V4d n[4];
+    detail::V4d c[4];
+    for (int l = 0; l < 4; ++l) {
+        const detail::FaceState& fa = rec[a[l]];
+        const detail::FaceState& fb = rec[b[l]];
+        n[l] = half(fa.normal) - half(fb.normal);
+        c[l] = half(fa.centroid) - half(fb.centroid);
+    }
+    transpose3(n[0], n[1], n[2], n[3], d.nx, d.ny, d.nz);
+    transpose3(c[0], c[1], c[2], c[3], d.cx, d.cy, d.cz);
+}
+
+// The per-row work of Eq. 5.1 on flat arrays (Ω in CSR, the pair table and weights, the face
+// records). The pair weights are computed four pairs at a time (detail::V4d lanes, simd.h);
+// each lane does the same operations whatever lanes it shares a vector with, so a weight has
+// the same bits in either PairWeights mode and on either instruction set.
 struct PairKernel {
     const int* off;                   // Ω offsets
     const int* items;                 // Ω items: f_i, then ascending indices
-    const int* mir;                   // mirror_slots(Ω)
-    double* weight;                   // f g per slot (the centre slot unused: its weight is 1)
+    const int* first;                 // PairTable
+    const int* second;
+    const int* slot_pair;
+    double* pair_weight;              // f g per pair of the table
     const detail::FaceState* rec;     // current normal, area, centroid
     detail::FaceState* out;           // filtered normal ñ_i, area, centroid
     double inv_s2;                    // 1 / σ_s²
     double inv_two_sc2;               // 1 / (2 σ_c²)
     double inv_two_s2;                // 1 / (2 σ_s²)
 
-    // f(|c_i − c_j|; σ_c) g(|n_i − n_j|; σ_s) of the pairs (i, j[l]), lane l.
+    // f(|c_a − c_b|; σ_c) g(|n_a − n_b|; σ_s) of the pairs (a[l], b[l]), lane l. Symmetric in
+    // a and b bit for bit (the squares of negated differences are equal).
     template <bool kTukey>
-    [[gnu::always_inline]] void weights4(const detail::FaceState& fi, const int* j,
-                                         detail::V4d& w) const {
+    [[gnu::always_inline]] void weights4(const int* a, const int* b, detail::V4d& w) const {
         using detail::splat;
         using detail::V4d;
-        const detail::FaceState& a = rec[j[0]];
-        const detail::FaceState& b = rec[j[1]];
-        const detail::FaceState& c = rec[j[2]];
-        const detail::FaceState& d = rec[j[3]];
-        const V4d dx = splat(fi.normal[0]) - V4d{a.normal[0], b.normal[0], c.normal[0], d.normal[0]};
-        const V4d dy = splat(fi.normal[1]) - V4d{a.normal[1], b.normal[1], c.normal[1], d.normal[1]};
-        const V4d dz = splat(fi.normal[2]) - V4d{a.normal[2], b.normal[2], c.normal[2], d.normal[2]};
-        const V4d x2 = dx * dx + dy * dy + dz * dz;  // |n_i − n_j|²
-        const V4d cx =
-            splat(fi.centroid[0]) - V4d{a.centroid[0], b.centroid[0], c.centroid[0], d.centroid[0]};
-        const V4d cy =
-            splat(fi.centroid[1]) - V4d{a.centroid[1], b.centroid[1], c.centroid[1], d.centroid[1]};
-        const V4d cz =
-            splat(fi.centroid[2]) - V4d{a.centroid[2], b.centroid[2], c.centroid[2], d.centroid[2]};
-        const V4d d2 = cx * cx + cy * cy + cz * cz;  // |c_i − c_j|²
+        Diffs4 d;
+        diffs4(rec, a, b, d);
+        const V4d x2 = d.nx * d.nx + d.ny * d.ny + d.nz * d.nz;  // |n_a − n_b|²
+        const V4d d2 = d.cx * d.cx + d.cy * d.cy + d.cz * d.cz;  // |c_a − c_b|²
         if constexpr (kTukey) {
             // Eq. 5.3 without its constant ½ (it cancels in K_i): (1 − x²/σ_s²)² for x ≤ σ_s,
             // else 0 — no diffusion across the cut-off. Eq. 5.2's Gaussian closeness.
@@ -96,46 +156,37 @@ struct PairKernel {
         }
     }
 
-    // The weights of row i's slots [p0, p1) into w[0 .. p1 − p0).
+    // The weights of the pair blocks [b0, b1) of the table.
+    template <bool kTukey>
+    [[gnu::always_inline]] void pairs(int b0, int b1) const {
+        detail::V4d v{};
+        for (int k = b0 * kPairBlock; k < b1 * kPairBlock; k += kPairBlock) {
+            weights4<kTukey>(first + k, second + k, v);
+            std::memcpy(pair_weight + k, &v, sizeof v);
+        }
+    }
+
+    // The weights of row i's slots [p0, p1) into w[0 .. p1 − p0) (PairWeights::kPerRow).
     template <bool kTukey>
     [[gnu::always_inline]] void row_weights(int i, int p0, int p1, double* w) const {
-        const detail::FaceState& fi = rec[i];
+        const int centre[4] = {i, i, i, i};
         int p = p0;
         detail::V4d v{};
         for (; p + 4 <= p1; p += 4) {
-            weights4<kTukey>(fi, items + p, v);
+            weights4<kTukey>(centre, items + p, v);
             for (int l = 0; l < 4; ++l) w[p - p0 + l] = v[l];
         }
         if (p < p1) {  // the last 1–3 slots; the other lanes pair f_i with itself, unused
             int j[4] = {i, i, i, i};
             for (int l = 0; p + l < p1; ++l) j[l] = items[p + l];
-            weights4<kTukey>(fi, j, v);
+            weights4<kTukey>(centre, j, v);
             for (int l = 0; p + l < p1; ++l) w[p - p0 + l] = v[l];
-        }
-    }
-
-    // The pairs row i computes: the neighbours j < i (a row lists ascending indices after
-    // f_i), written to their slots and mirror slots, then the rare j > i with i ∉ Ω_j.
-    template <bool kTukey>
-    [[gnu::always_inline]] void row_pairs(int i) const {
-        const int b = off[i] + 1;
-        const int e = off[i + 1];
-        int lo = b;
-        while (lo < e && items[lo] < i) ++lo;
-        row_weights<kTukey>(i, b, lo, weight + b);
-        for (int p = b; p < lo; ++p) {
-            const int q = mir[p];
-            if (q >= 0) weight[q] = weight[p];
-        }
-        for (int p = lo; p < e; ++p) {
-            if (mir[p] == -1) row_weights<kTukey>(i, p, p + 1, weight + p);
         }
     }
 
     // Eq. 5.1: ñ_i = normalise(Σ_j a_j w_ij n_j) over Ω_i in row order (K_i cancels in the
     // normalisation); the centre face has w = 1. Writes out[i]. kStored: the weights from
-    // `weight` (row_pairs); otherwise computed here in blocks (PairWeights::kPerRow), the same
-    // bits.
+    // the pair table; otherwise computed here in blocks (PairWeights::kPerRow), the same bits.
     template <bool kStored, bool kTukey>
     [[gnu::always_inline]] void row_sum(int i) const {
         const detail::FaceState& fi = rec[i];
@@ -144,21 +195,27 @@ struct PairKernel {
         double sy = 0.0 + fi.area * fi.normal[1];
         double sz = 0.0 + fi.area * fi.normal[2];
         const int e = off[i + 1];
-        constexpr int kBlock = 64;
-        double block[kBlock];
-        for (int p0 = off[i] + 1; p0 < e; p0 += kBlock) {
-            const int p1 = std::min(e, p0 + kBlock);
-            const double* wp = weight + p0;
-            if constexpr (!kStored) {
-                row_weights<kTukey>(i, p0, p1, block);
-                wp = block;
-            }
-            for (int p = p0; p < p1; ++p) {
+        if constexpr (kStored) {
+            for (int p = off[i] + 1; p < e; ++p) {
                 const detail::FaceState& fj = rec[items[p]];
-                const double w = fj.area * wp[p - p0];
+                const double w = fj.area * pair_weight[slot_pair[p]];
                 sx += w * fj.normal[0];
                 sy += w * fj.normal[1];
                 sz += w * fj.normal[2];
+            }
+        } else {
+            constexpr int kBlock = 64;
+            double block[kBlock];
+            for (int p0 = off[i] + 1; p0 < e; p0 += kBlock) {
+                const int p1 = std::min(e, p0 + kBlock);
+                row_weights<kTukey>(i, p0, p1, block);
+                for (int p = p0; p < p1; ++p) {
+                    const detail::FaceState& fj = rec[items[p]];
+                    const double w = fj.area * block[p - p0];
+                    sx += w * fj.normal[0];
+                    sy += w * fj.normal[1];
+                    sz += w * fj.normal[2];
+                }
             }
         }
         const double len = std::sqrt(sx * sx + sy * sy + sz * sz);
@@ -172,13 +229,14 @@ struct PairKernel {
     }
 };
 
-// The passes over rows [begin, end), one copy per instruction set (simd.h): kind 0 = the
-// shared pair weights, 1 = the sums from them, 2 = the sums with the weights computed per row.
+// The passes, one copy per instruction set (simd.h): kind 0 = the pair weights of pair blocks
+// [begin, end), 1 = the sums of rows [begin, end) from them, 2 = the sums with the weights
+// computed per row.
 template <bool kTukey>
 [[gnu::always_inline]] inline void rows_impl(const PairKernel& k, int kind, int begin,
                                              int end) {
     if (kind == 0) {
-        for (int i = begin; i < end; ++i) k.row_pairs<kTukey>(i);
+        k.pairs<kTukey>(begin, end);
     } else if (kind == 1) {
         for (int i = begin; i < end; ++i) k.row_sum<true, kTukey>(i);
     } else {
@@ -298,11 +356,12 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
     // The centre face's own weight is exactly 1 (x = 0, d = 0: (1 − 0)² exp(−0) = 1) and is not
     // stored: the slot holds the weight from the first neighbour on.
     const bool shared = params.pair_weights == PairWeights::kShared;
-    const std::vector<int> mirror = shared ? mirror_slots(omega) : std::vector<int>();
-    std::vector<double> pair_weight(shared ? omega.items.size() : 0);
-    PairKernel kernel{omega.offsets.data(), omega.items.data(), mirror.data(),
-                      pair_weight.data(), current.data(), faces.data(), inv_s2,
-                      inv_two_sc2, inv_two_s2};
+    const PairTable table = shared ? pair_table(omega) : PairTable{};
+    std::vector<double> pair_weight(table.first.size());
+    const int pair_blocks = static_cast<int>(table.first.size()) / kPairBlock;
+    PairKernel kernel{omega.offsets.data(), omega.items.data(), table.first.data(),
+                      table.second.data(), table.slot_pair.data(), pair_weight.data(),
+                      current.data(), faces.data(), inv_s2, inv_two_sc2, inv_two_s2};
     // The same bits either way (simd.h).
     const bool avx2 = params.simd == SimdPath::kAvx2 ||
                       (params.simd == SimdPath::kBest && simd_avx2_available());
@@ -312,7 +371,8 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
             detail::update_faces(result.V, F, begin, end, current.data());
         });
         const auto rows = [&](int kind) {
-            detail::parallel_for(m, params.threads, [&](int begin, int end) {
+            detail::parallel_for(kind == 0 ? pair_blocks : m, params.threads,
+                                 [&](int begin, int end) {
                 if (avx2) {
                     rows_avx2(kernel, tukey, kind, begin, end);
                 } else {
