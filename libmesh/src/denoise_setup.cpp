@@ -2,7 +2,10 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <string>
+
+#include "simd.h"
 
 namespace octshape::mesh::detail {
 
@@ -65,14 +68,36 @@ void update_faces(const Vertices& V, const Faces& F, int begin, int end, FaceSta
     }
 }
 
-void vertex_step(const Vertices& V,
-                 const FaceState* faces,
-                 const Adjacency& adjacency,
-                 const std::vector<std::uint8_t>& fixed,
-                 double lambda_i,
-                 int begin,
-                 int end,
-                 Vertices& out) {
+namespace {
+
+// Lanes 0–2 = x, y, z; lane 3 is carried along and never read.
+[[gnu::always_inline]] inline V4d load3(const double* p) { return V4d{p[0], p[1], p[2], 0.0}; }
+
+// Half h of a face record: 0 = normal and area, 1 = centroid and padding.
+[[gnu::always_inline]] inline V4d face_half(const FaceState& f, int h) {
+    static_assert(sizeof(FaceState) == 2 * sizeof(V4d));
+    V4d v;
+    std::memcpy(&v, reinterpret_cast<const unsigned char*>(&f) + h * sizeof v, sizeof v);
+    return v;
+}
+
+// a·b over lanes 0–2, added in the order (a0 b0 + a1 b1) + a2 b2.
+[[gnu::always_inline]] inline double dot3(const V4d& a, const V4d& b) {
+    const V4d p = a * b;
+    return p[0] + p[1] + p[2];
+}
+
+// The x, y, z components are the lanes 0–2 of a V4d (simd.h): each lane does the IEEE double
+// operations the scalar formula does for its component, in the same order. One body, inlined
+// into a baseline and an AVX2 copy (the same bits).
+[[gnu::always_inline]] inline void vertex_step_impl(const Vertices& V,
+                                                    const FaceState* faces,
+                                                    const Adjacency& adjacency,
+                                                    const std::vector<std::uint8_t>& fixed,
+                                                    double lambda_i,
+                                                    int begin,
+                                                    int end,
+                                                    Vertices& out) {
     const int* vf_off = adjacency.vertex_faces.offsets.data();
     const int* vf = adjacency.vertex_faces.items.data();
     const int* vv_off = adjacency.vertex_vertices.offsets.data();
@@ -80,56 +105,79 @@ void vertex_step(const Vertices& V,
     const double* v = V.data();
     double* o = out.data();
     for (int i = begin; i < end; ++i) {
-        const double vi[3] = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
+        const V4d vi = load3(v + 3 * static_cast<std::ptrdiff_t>(i));
         const int fb = vf_off[i];
         const int fe = vf_off[i + 1];
         if (fixed[static_cast<std::size_t>(i)] != 0 || fb == fe) {
             for (int k = 0; k < 3; ++k) o[3 * i + k] = vi[k];
             continue;
         }
-        double step[3] = {0.0, 0.0, 0.0};
-        double normal[3] = {0.0, 0.0, 0.0};
+        V4d step = splat(0.0);
+        V4d normal = splat(0.0);
         for (int p = fb; p < fe; ++p) {
             const FaceState& s = faces[vf[p]];
-            const double* nk = s.normal;
-            const double d = nk[0] * (s.centroid[0] - vi[0]) + nk[1] * (s.centroid[1] - vi[1]) +
-                             nk[2] * (s.centroid[2] - vi[2]);
-            for (int k = 0; k < 3; ++k) {
-                step[k] += d * nk[k];             // Eq. 5.9 / 3.7, edge term
-                normal[k] += s.area * nk[k];      // Eq. 5.7
-            }
+            const V4d nk = face_half(s, 0);  // ñ_k, a_k
+            const double d = dot3(nk, face_half(s, 1) - vi);
+            step = step + splat(d) * nk;             // Eq. 5.9 / 3.7, edge term
+            normal = normal + splat(s.area) * nk;    // Eq. 5.7
         }
-        const double inv_faces = 1.0 / static_cast<double>(fe - fb);
-        for (double& s : step) s *= inv_faces;
+        step = step * splat(1.0 / static_cast<double>(fe - fb));
         if (lambda_i != 0.0) {
             // Eq. 5.6: D_i = Σ w_ij v_j / Σ w_ij − v_i with w_ij = |v_i − v_j|².
-            double weighted[3] = {0.0, 0.0, 0.0};
+            V4d weighted = splat(0.0);
             double weight = 0.0;
             for (int p = vv_off[i]; p < vv_off[i + 1]; ++p) {
-                const double* vj = v + 3 * static_cast<std::ptrdiff_t>(vv[p]);
-                const double dx = vi[0] - vj[0];
-                const double dy = vi[1] - vj[1];
-                const double dz = vi[2] - vj[2];
-                const double w = dx * dx + dy * dy + dz * dz;
-                for (int k = 0; k < 3; ++k) weighted[k] += w * vj[k];
+                const V4d vj = load3(v + 3 * static_cast<std::ptrdiff_t>(vv[p]));
+                const V4d dv = vi - vj;
+                const double w = dot3(dv, dv);
+                weighted = weighted + splat(w) * vj;
                 weight += w;
             }
             if (weight > 0.0) {
-                double d[3];
-                for (int k = 0; k < 3; ++k) d[k] = weighted[k] / weight - vi[k];
+                const V4d d = weighted / splat(weight) - vi;
                 // Eq. 5.7 normalised to unit length so that Eq. 5.8 is a true projection.
-                const double len = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] +
-                                             normal[2] * normal[2]);
+                const double len = std::sqrt(dot3(normal, normal));
                 const double inv_len = len > 0.0 ? 1.0 / len : 0.0;
-                double nv[3];
-                for (int k = 0; k < 3; ++k) nv[k] = normal[k] * inv_len;
-                const double dn = d[0] * nv[0] + d[1] * nv[1] + d[2] * nv[2];
-                for (int k = 0; k < 3; ++k) {
-                    step[k] += lambda_i * (d[k] + (d[k] - dn * nv[k]));  // Eq. 5.5, 5.8, 5.9
-                }
+                const V4d nv = normal * splat(inv_len);
+                const double dn = dot3(d, nv);
+                step = step + splat(lambda_i) * (d + (d - splat(dn) * nv));  // Eq. 5.5, 5.8, 5.9
             }
         }
-        for (int k = 0; k < 3; ++k) o[3 * i + k] = vi[k] + step[k];
+        const V4d r = vi + step;
+        for (int k = 0; k < 3; ++k) o[3 * i + k] = r[k];
+    }
+}
+
+void vertex_step_baseline(const Vertices& V, const FaceState* faces, const Adjacency& adjacency,
+                          const std::vector<std::uint8_t>& fixed, double lambda_i, int begin,
+                          int end, Vertices& out) {
+    vertex_step_impl(V, faces, adjacency, fixed, lambda_i, begin, end, out);
+}
+
+__attribute__((target("avx2"))) void vertex_step_avx2(const Vertices& V,
+                                                      const FaceState* faces,
+                                                      const Adjacency& adjacency,
+                                                      const std::vector<std::uint8_t>& fixed,
+                                                      double lambda_i, int begin, int end,
+                                                      Vertices& out) {
+    vertex_step_impl(V, faces, adjacency, fixed, lambda_i, begin, end, out);
+}
+
+}  // namespace
+
+void vertex_step(const Vertices& V,
+                 const FaceState* faces,
+                 const Adjacency& adjacency,
+                 const std::vector<std::uint8_t>& fixed,
+                 double lambda_i,
+                 int begin,
+                 int end,
+                 Vertices& out,
+                 bool avx2) {
+    if (avx2) {
+        vertex_step_avx2(V, faces, adjacency, fixed, lambda_i, begin, end, out);
+    } else {
+        vertex_step_baseline(V, faces, adjacency, fixed, lambda_i, begin, end, out);
     }
 }
 

@@ -50,7 +50,8 @@ void update_faces(const Vertices& V, const Faces& F, int begin, int end, FaceSta
 //   v_i + 1/|F_v(i)| Σ_k (ñ_k·(c_k − v_i)) ñ_k + λ_I R_i
 // which equals 1/(3|F_v(i)|) Σ_k Σ_{j∈f_k, j≠i} (ñ_k·(v_j − v_i)) ñ_k (Eq. 5.9, 3.7) because
 // Σ_{j∈f_k, j≠i} (v_j − v_i) = 3 (c_k − v_i). R_i = D_i + D_t,i (Eq. 5.5–5.8). Fixed vertices
-// and vertices without faces are copied.
+// and vertices without faces are copied. avx2: run the AVX2 copy (the CPU must have AVX2;
+// the same bits as the baseline copy).
 void vertex_step(const Vertices& V,
                  const FaceState* faces,
                  const Adjacency& adjacency,
@@ -58,6 +59,7 @@ void vertex_step(const Vertices& V,
                  double lambda_i,
                  int begin,
                  int end,
-                 Vertices& out);
+                 Vertices& out,
+                 bool avx2);
 
 }  // namespace octshape::mesh::detail

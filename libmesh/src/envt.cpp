@@ -1,5 +1,7 @@
 #include "octshape/mesh/envt.h"
 
+#include "octshape/mesh/simd_exp.h"
+
 #include <chrono>
 #include <cmath>
 #include <numbers>
@@ -121,7 +123,7 @@ DenoiseResult envt_denoise(const Vertices& V, const Faces& F, const EnvtParams& 
         });
         detail::parallel_for(n, params.threads, [&](int begin, int end) {
             detail::vertex_step(result.V, faces.data(), setup.adjacency, setup.fixed, 0.0, begin,
-                                end, next);
+                                end, next, simd_avx2_available());
         });
         result.V.swap(next);
         ++result.iterations;

@@ -85,9 +85,11 @@ struct Diffs4 {
 // Loads each record as two 4-double halves (normal + area, centroid + padding), subtracts the
 // halves of each pair and transposes the four difference vectors into lanes. The same IEEE
 // subtraction per component as a lane-by-lane load would do.
-[[gnu::always_inline]] inline detail::V4d half(const double* p) {
+// Half h of a face record: 0 = normal and area, 1 = centroid and padding.
+[[gnu::always_inline]] inline detail::V4d half(const detail::FaceState& f, int h) {
+    static_assert(sizeof(detail::FaceState) == 2 * sizeof(detail::V4d));
     detail::V4d v;
-    std::memcpy(&v, p, sizeof v);
+    std::memcpy(&v, reinterpret_cast<const unsigned char*>(&f) + h * sizeof v, sizeof v);
     return v;
 }
 
@@ -110,8 +112,8 @@ struct Diffs4 {
     for (int l = 0; l < 4; ++l) {
         const detail::FaceState& fa = rec[a[l]];
         const detail::FaceState& fb = rec[b[l]];
-        n[l] = half(fa.normal) - half(fb.normal);
-        c[l] = half(fa.centroid) - half(fb.centroid);
+        n[l] = half(fa, 0) - half(fb, 0);
+        c[l] = half(fa, 1) - half(fb, 1);
     }
     transpose3(n[0], n[1], n[2], n[3], d.nx, d.ny, d.nz);
     transpose3(c[0], c[1], c[2], c[3], d.cx, d.cy, d.cz);
@@ -185,47 +187,54 @@ struct PairKernel {
     }
 
     // Eq. 5.1: ñ_i = normalise(Σ_j a_j w_ij n_j) over Ω_i in row order (K_i cancels in the
-    // normalisation); the centre face has w = 1. Writes out[i]. kStored: the weights from
-    // the pair table; otherwise computed here in blocks (PairWeights::kPerRow), the same bits.
-    template <bool kStored, bool kTukey>
-    [[gnu::always_inline]] void row_sum(int i) const {
+    // normalisation); the centre face has w = 1. Lanes 0–2 of the sum: x, y, z, each added in
+    // row order; lane 3 adds a_j w_ij a_j alongside and is not used. 0.0 + keeps the bits of a
+    // sum that starts from zero (−0 becomes +0).
+    [[gnu::always_inline]] detail::V4d sum_start(int i) const {
         const detail::FaceState& fi = rec[i];
-        // 0.0 + keeps the bits of a sum that starts from zero (−0 becomes +0).
-        double sx = 0.0 + fi.area * fi.normal[0];
-        double sy = 0.0 + fi.area * fi.normal[1];
-        double sz = 0.0 + fi.area * fi.normal[2];
-        const int e = off[i + 1];
-        if constexpr (kStored) {
-            for (int p = off[i] + 1; p < e; ++p) {
-                const detail::FaceState& fj = rec[items[p]];
-                const double w = fj.area * pair_weight[slot_pair[p]];
-                sx += w * fj.normal[0];
-                sy += w * fj.normal[1];
-                sz += w * fj.normal[2];
-            }
-        } else {
-            constexpr int kBlock = 64;
-            double block[kBlock];
-            for (int p0 = off[i] + 1; p0 < e; p0 += kBlock) {
-                const int p1 = std::min(e, p0 + kBlock);
-                row_weights<kTukey>(i, p0, p1, block);
-                for (int p = p0; p < p1; ++p) {
-                    const detail::FaceState& fj = rec[items[p]];
-                    const double w = fj.area * block[p - p0];
-                    sx += w * fj.normal[0];
-                    sy += w * fj.normal[1];
-                    sz += w * fj.normal[2];
-                }
-            }
-        }
-        const double len = std::sqrt(sx * sx + sy * sy + sz * sz);
+        return detail::splat(0.0) + detail::splat(fi.area) * half(fi, 0);
+    }
+
+    // Adds slot p's term with the weight w (f g of its pair).
+    [[gnu::always_inline]] void sum_add(int p, double w, detail::V4d& s) const {
+        const detail::FaceState& fj = rec[items[p]];
+        s = s + detail::splat(fj.area * w) * half(fj, 0);
+    }
+
+    // Writes out[i]: ñ_i, and the area and centroid of rec[i].
+    [[gnu::always_inline]] void sum_finish(int i, const detail::V4d& s) const {
+        const detail::FaceState& fi = rec[i];
+        const double len = std::sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
         detail::FaceState& o = out[i];
         o = fi;
         if (len > 0.0) {  // else keep n_i
-            o.normal[0] = sx / len;
-            o.normal[1] = sy / len;
-            o.normal[2] = sz / len;
+            const detail::V4d n = s / detail::splat(len);
+            o.normal[0] = n[0];
+            o.normal[1] = n[1];
+            o.normal[2] = n[2];
         }
+    }
+
+    // Row i from the pair weights.
+    [[gnu::always_inline]] void row_sum(int i) const {
+        detail::V4d s = sum_start(i);
+        for (int p = off[i] + 1; p < off[i + 1]; ++p) sum_add(p, pair_weight[slot_pair[p]], s);
+        sum_finish(i, s);
+    }
+
+    // Row i with its weights computed here in blocks (PairWeights::kPerRow), the same bits.
+    template <bool kTukey>
+    [[gnu::always_inline]] void row_sum_per_row(int i) const {
+        detail::V4d s = sum_start(i);
+        const int e = off[i + 1];
+        constexpr int kBlock = 64;
+        double block[kBlock];
+        for (int p0 = off[i] + 1; p0 < e; p0 += kBlock) {
+            const int p1 = std::min(e, p0 + kBlock);
+            row_weights<kTukey>(i, p0, p1, block);
+            for (int p = p0; p < p1; ++p) sum_add(p, block[p - p0], s);
+        }
+        sum_finish(i, s);
     }
 };
 
@@ -238,9 +247,9 @@ template <bool kTukey>
     if (kind == 0) {
         k.pairs<kTukey>(begin, end);
     } else if (kind == 1) {
-        for (int i = begin; i < end; ++i) k.row_sum<true, kTukey>(i);
+        for (int i = begin; i < end; ++i) k.row_sum(i);
     } else {
-        for (int i = begin; i < end; ++i) k.row_sum<false, kTukey>(i);
+        for (int i = begin; i < end; ++i) k.row_sum_per_row<kTukey>(i);
     }
 }
 
@@ -391,7 +400,7 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
         // Eq. 5.9.
         detail::parallel_for(n, params.threads, [&](int begin, int end) {
             detail::vertex_step(result.V, faces.data(), setup.adjacency, setup.fixed, lambda,
-                                begin, end, next);
+                                begin, end, next, avx2);
         });
         result.V.swap(next);
         lambda *= params.lambda_decay;
