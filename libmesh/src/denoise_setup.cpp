@@ -44,30 +44,6 @@ DenoiseSetup prepare_denoise(const Vertices& V,
     return s;
 }
 
-void update_faces(const Vertices& V, const Faces& F, int begin, int end, FaceState* faces) {
-    const double* v = V.data();  // row-major: vertex i at v[3i .. 3i+2]
-    const int* tri = F.data();
-    for (int f = begin; f < end; ++f) {
-        const double* a = v + 3 * static_cast<std::ptrdiff_t>(tri[3 * f]);
-        const double* b = v + 3 * static_cast<std::ptrdiff_t>(tri[3 * f + 1]);
-        const double* c = v + 3 * static_cast<std::ptrdiff_t>(tri[3 * f + 2]);
-        const double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-        const double e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-        const double x = e1[1] * e2[2] - e1[2] * e2[1];
-        const double y = e1[2] * e2[0] - e1[0] * e2[2];
-        const double z = e1[0] * e2[1] - e1[1] * e2[0];
-        const double norm = std::sqrt(x * x + y * y + z * z);
-        FaceState& s = faces[f];
-        s.area = 0.5 * norm;
-        const double inv = norm > 0.0 ? 1.0 / norm : 0.0;  // zero normal for a degenerate face
-        s.normal[0] = x * inv;
-        s.normal[1] = y * inv;
-        s.normal[2] = z * inv;
-        for (int k = 0; k < 3; ++k) s.centroid[k] = (a[k] + b[k] + c[k]) / 3.0;  // Eq. 2.31
-        s.unused = 0.0;
-    }
-}
-
 namespace {
 
 // Lanes 0–2 = x, y, z; lane 3 is carried along and never read.
@@ -85,6 +61,35 @@ namespace {
 [[gnu::always_inline]] inline double dot3(const V4d& a, const V4d& b) {
     const V4d p = a * b;
     return p[0] + p[1] + p[2];
+}
+
+// Recomputes normal, area and centroid of faces [begin, end). The x, y, z components are the
+// lanes 0–2 of a V4d; each lane does the scalar formula's IEEE operations for its component
+// (the cross product's lane x: e1_y e2_z − e1_z e2_y, and so on), in the same order.
+[[gnu::always_inline]] inline void update_faces_impl(const Vertices& V, const Faces& F,
+                                                     int begin, int end, FaceState* faces) {
+    const double* v = V.data();  // row-major: vertex i at v[3i .. 3i+2]
+    const int* tri = F.data();
+    for (int f = begin; f < end; ++f) {
+        const V4d a = load3(v + 3 * static_cast<std::ptrdiff_t>(tri[3 * f]));
+        const V4d b = load3(v + 3 * static_cast<std::ptrdiff_t>(tri[3 * f + 1]));
+        const V4d c = load3(v + 3 * static_cast<std::ptrdiff_t>(tri[3 * f + 2]));
+        const V4d e1 = b - a;
+        const V4d e2 = c - a;
+        const V4d cross = __builtin_shufflevector(e1, e1, 1, 2, 0, 3) *
+                              __builtin_shufflevector(e2, e2, 2, 0, 1, 3) -
+                          __builtin_shufflevector(e1, e1, 2, 0, 1, 3) *
+                              __builtin_shufflevector(e2, e2, 1, 2, 0, 3);
+        const double norm = std::sqrt(dot3(cross, cross));
+        const double inv = norm > 0.0 ? 1.0 / norm : 0.0;  // zero normal for a degenerate face
+        const V4d normal = cross * splat(inv);
+        const V4d centroid = (a + b + c) / splat(3.0);  // Eq. 2.31; lane 3 = 0 (padding)
+        // (normal, area), (centroid, 0): the two halves of the record.
+        const V4d h0 = __builtin_shufflevector(normal, splat(0.5 * norm), 0, 1, 2, 4);
+        unsigned char* rec = reinterpret_cast<unsigned char*>(faces + f);
+        std::memcpy(rec, &h0, sizeof h0);
+        std::memcpy(rec + sizeof h0, &centroid, sizeof centroid);
+    }
 }
 
 // The x, y, z components are the lanes 0–2 of a V4d (simd.h): each lane does the IEEE double
@@ -163,6 +168,16 @@ __attribute__((target("avx2"))) void vertex_step_avx2(const Vertices& V,
     vertex_step_impl(V, faces, adjacency, fixed, lambda_i, begin, end, out);
 }
 
+void update_faces_baseline(const Vertices& V, const Faces& F, int begin, int end,
+                           FaceState* faces) {
+    update_faces_impl(V, F, begin, end, faces);
+}
+
+__attribute__((target("avx2"))) void update_faces_avx2(const Vertices& V, const Faces& F,
+                                                       int begin, int end, FaceState* faces) {
+    update_faces_impl(V, F, begin, end, faces);
+}
+
 }  // namespace
 
 void vertex_step(const Vertices& V,
@@ -178,6 +193,15 @@ void vertex_step(const Vertices& V,
         vertex_step_avx2(V, faces, adjacency, fixed, lambda_i, begin, end, out);
     } else {
         vertex_step_baseline(V, faces, adjacency, fixed, lambda_i, begin, end, out);
+    }
+}
+
+void update_faces(const Vertices& V, const Faces& F, int begin, int end, FaceState* faces,
+                  bool avx2) {
+    if (avx2) {
+        update_faces_avx2(V, F, begin, end, faces);
+    } else {
+        update_faces_baseline(V, F, begin, end, faces);
     }
 }
 

@@ -42,8 +42,10 @@ struct alignas(64) FaceState {
     double unused;
 };
 
-// Recomputes normal (into `normal`), area and centroid of faces [begin, end) from V.
-void update_faces(const Vertices& V, const Faces& F, int begin, int end, FaceState* faces);
+// Recomputes normal (into `normal`), area and centroid of faces [begin, end) from V. avx2:
+// run the AVX2 copy (the CPU must have AVX2; the same bits as the baseline copy).
+void update_faces(const Vertices& V, const Faces& F, int begin, int end, FaceState* faces,
+                  bool avx2);
 
 // One Jacobi step for vertices [begin, end): out.row(i) from V, the per-face state (normal =
 // the FILTERED normal ñ_k) and λ_I (0 = ENVT / plain orthogonality step):

@@ -86,7 +86,7 @@ DenoiseResult envt_denoise(const Vertices& V, const Faces& F, const EnvtParams& 
     Vertices next(n, 3);
     for (int it = 0; it < params.iterations; ++it) {
         detail::parallel_for(m, params.threads, [&](int begin, int end) {
-            detail::update_faces(result.V, F, begin, end, faces.data());
+            detail::update_faces(result.V, F, begin, end, faces.data(), simd_avx2_available());
             for (int f = begin; f < end; ++f) {
                 const double* nf = faces[static_cast<std::size_t>(f)].normal;
                 normals.row(f) << nf[0], nf[1], nf[2];

@@ -377,7 +377,7 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
     double lambda = params.lambda_i;
     for (int it = 0; it < params.iterations; ++it) {
         detail::parallel_for(m, params.threads, [&](int begin, int end) {
-            detail::update_faces(result.V, F, begin, end, current.data());
+            detail::update_faces(result.V, F, begin, end, current.data(), avx2);
         });
         const auto rows = [&](int kind) {
             detail::parallel_for(kind == 0 ? pair_blocks : m, params.threads,
