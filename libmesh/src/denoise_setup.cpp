@@ -93,8 +93,8 @@ namespace {
 }
 
 // The x, y, z components are the lanes 0–2 of a V4d (simd.h): each lane does the IEEE double
-// operations the scalar formula does for its component, in the same order. One body, inlined
-// into a baseline and an AVX2 copy (the same bits).
+// operations the scalar formula (vertex_step_scalar) does for its component, in the same
+// order. Inlined into the AVX2 copy.
 [[gnu::always_inline]] inline void vertex_step_impl(const Vertices& V,
                                                     const FaceState* faces,
                                                     const Adjacency& adjacency,
@@ -153,12 +153,6 @@ namespace {
     }
 }
 
-void vertex_step_baseline(const Vertices& V, const FaceState* faces, const Adjacency& adjacency,
-                          const std::vector<std::uint8_t>& fixed, double lambda_i, int begin,
-                          int end, Vertices& out) {
-    vertex_step_impl(V, faces, adjacency, fixed, lambda_i, begin, end, out);
-}
-
 __attribute__((target("avx2"))) void vertex_step_avx2(const Vertices& V,
                                                       const FaceState* faces,
                                                       const Adjacency& adjacency,
@@ -168,9 +162,100 @@ __attribute__((target("avx2"))) void vertex_step_avx2(const Vertices& V,
     vertex_step_impl(V, faces, adjacency, fixed, lambda_i, begin, end, out);
 }
 
-void update_faces_baseline(const Vertices& V, const Faces& F, int begin, int end,
-                           FaceState* faces) {
-    update_faces_impl(V, F, begin, end, faces);
+// The baseline copies: the same formulas on scalars (GCC lowers 4-double vectors to SSE2
+// poorly); each component gets the same IEEE operations in the same order as a lane of the
+// AVX2 copies, so the results are the same bits (test Rofi.BaselineAndAvx2KernelsGiveTheSameBits).
+void update_faces_scalar(const Vertices& V, const Faces& F, int begin, int end,
+                         FaceState* faces) {
+    const double* v = V.data();  // row-major: vertex i at v[3i .. 3i+2]
+    const int* tri = F.data();
+    for (int f = begin; f < end; ++f) {
+        const double* a = v + 3 * static_cast<std::ptrdiff_t>(tri[3 * f]);
+        const double* b = v + 3 * static_cast<std::ptrdiff_t>(tri[3 * f + 1]);
+        const double* c = v + 3 * static_cast<std::ptrdiff_t>(tri[3 * f + 2]);
+        const double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+        const double e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        const double x = e1[1] * e2[2] - e1[2] * e2[1];
+        const double y = e1[2] * e2[0] - e1[0] * e2[2];
+        const double z = e1[0] * e2[1] - e1[1] * e2[0];
+        const double norm = std::sqrt(x * x + y * y + z * z);
+        FaceState& s = faces[f];
+        s.area = 0.5 * norm;
+        const double inv = norm > 0.0 ? 1.0 / norm : 0.0;  // zero normal for a degenerate face
+        s.normal[0] = x * inv;
+        s.normal[1] = y * inv;
+        s.normal[2] = z * inv;
+        for (int k = 0; k < 3; ++k) s.centroid[k] = (a[k] + b[k] + c[k]) / 3.0;  // Eq. 2.31
+        s.unused = 0.0;
+    }
+}
+
+void vertex_step_scalar(const Vertices& V,
+                        const FaceState* faces,
+                        const Adjacency& adjacency,
+                        const std::vector<std::uint8_t>& fixed,
+                        double lambda_i,
+                        int begin,
+                        int end,
+                        Vertices& out) {
+    const int* vf_off = adjacency.vertex_faces.offsets.data();
+    const int* vf = adjacency.vertex_faces.items.data();
+    const int* vv_off = adjacency.vertex_vertices.offsets.data();
+    const int* vv = adjacency.vertex_vertices.items.data();
+    const double* v = V.data();
+    double* o = out.data();
+    for (int i = begin; i < end; ++i) {
+        const double vi[3] = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
+        const int fb = vf_off[i];
+        const int fe = vf_off[i + 1];
+        if (fixed[static_cast<std::size_t>(i)] != 0 || fb == fe) {
+            for (int k = 0; k < 3; ++k) o[3 * i + k] = vi[k];
+            continue;
+        }
+        double step[3] = {0.0, 0.0, 0.0};
+        double normal[3] = {0.0, 0.0, 0.0};
+        for (int p = fb; p < fe; ++p) {
+            const FaceState& s = faces[vf[p]];
+            const double* nk = s.normal;
+            const double d = nk[0] * (s.centroid[0] - vi[0]) + nk[1] * (s.centroid[1] - vi[1]) +
+                             nk[2] * (s.centroid[2] - vi[2]);
+            for (int k = 0; k < 3; ++k) {
+                step[k] += d * nk[k];             // Eq. 5.9 / 3.7, edge term
+                normal[k] += s.area * nk[k];      // Eq. 5.7
+            }
+        }
+        const double inv_faces = 1.0 / static_cast<double>(fe - fb);
+        for (double& s : step) s *= inv_faces;
+        if (lambda_i != 0.0) {
+            // Eq. 5.6: D_i = Σ w_ij v_j / Σ w_ij − v_i with w_ij = |v_i − v_j|².
+            double weighted[3] = {0.0, 0.0, 0.0};
+            double weight = 0.0;
+            for (int p = vv_off[i]; p < vv_off[i + 1]; ++p) {
+                const double* vj = v + 3 * static_cast<std::ptrdiff_t>(vv[p]);
+                const double dx = vi[0] - vj[0];
+                const double dy = vi[1] - vj[1];
+                const double dz = vi[2] - vj[2];
+                const double w = dx * dx + dy * dy + dz * dz;
+                for (int k = 0; k < 3; ++k) weighted[k] += w * vj[k];
+                weight += w;
+            }
+            if (weight > 0.0) {
+                double d[3];
+                for (int k = 0; k < 3; ++k) d[k] = weighted[k] / weight - vi[k];
+                // Eq. 5.7 normalised to unit length so that Eq. 5.8 is a true projection.
+                const double len = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] +
+                                             normal[2] * normal[2]);
+                const double inv_len = len > 0.0 ? 1.0 / len : 0.0;
+                double nv[3];
+                for (int k = 0; k < 3; ++k) nv[k] = normal[k] * inv_len;
+                const double dn = d[0] * nv[0] + d[1] * nv[1] + d[2] * nv[2];
+                for (int k = 0; k < 3; ++k) {
+                    step[k] += lambda_i * (d[k] + (d[k] - dn * nv[k]));  // Eq. 5.5, 5.8, 5.9
+                }
+            }
+        }
+        for (int k = 0; k < 3; ++k) o[3 * i + k] = vi[k] + step[k];
+    }
 }
 
 __attribute__((target("avx2"))) void update_faces_avx2(const Vertices& V, const Faces& F,
@@ -192,7 +277,7 @@ void vertex_step(const Vertices& V,
     if (avx2) {
         vertex_step_avx2(V, faces, adjacency, fixed, lambda_i, begin, end, out);
     } else {
-        vertex_step_baseline(V, faces, adjacency, fixed, lambda_i, begin, end, out);
+        vertex_step_scalar(V, faces, adjacency, fixed, lambda_i, begin, end, out);
     }
 }
 
@@ -201,7 +286,7 @@ void update_faces(const Vertices& V, const Faces& F, int begin, int end, FaceSta
     if (avx2) {
         update_faces_avx2(V, F, begin, end, faces);
     } else {
-        update_faces_baseline(V, F, begin, end, faces);
+        update_faces_scalar(V, F, begin, end, faces);
     }
 }
 

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "denoise_setup.h"
 #include "parallel.h"
@@ -105,19 +106,51 @@ struct Diffs4 {
     z = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
 }
 
+// kWide (the AVX2 copy): each record is loaded as two 4-double halves, the halves of each
+// pair subtracted and the four difference vectors transposed into lanes. Otherwise (the
+// baseline copy, where GCC lowers 4-double shuffles poorly) lane by lane from scalar loads.
+// The same IEEE subtraction per component either way.
+template <bool kWide>
 [[gnu::always_inline]] inline void diffs4(const detail::FaceState* rec, const int* a,
                                           const int* b, Diffs4& d) {
-    detail::V4d n[4];
-    detail::V4d c[4];
-    for (int l = 0; l < 4; ++l) {
-        const detail::FaceState& fa = rec[a[l]];
-        const detail::FaceState& fb = rec[b[l]];
-        n[l] = half(fa, 0) - half(fb, 0);
-        c[l] = half(fa, 1) - half(fb, 1);
+    if constexpr (kWide) {
+        detail::V4d n[4];
+        detail::V4d c[4];
+        for (int l = 0; l < 4; ++l) {
+            const detail::FaceState& fa = rec[a[l]];
+            const detail::FaceState& fb = rec[b[l]];
+            n[l] = half(fa, 0) - half(fb, 0);
+            c[l] = half(fa, 1) - half(fb, 1);
+        }
+        transpose3(n[0], n[1], n[2], n[3], d.nx, d.ny, d.nz);
+        transpose3(c[0], c[1], c[2], c[3], d.cx, d.cy, d.cz);
+    } else {
+        const detail::FaceState* A[4] = {rec + a[0], rec + a[1], rec + a[2], rec + a[3]};
+        const detail::FaceState* B[4] = {rec + b[0], rec + b[1], rec + b[2], rec + b[3]};
+        const auto lanes = [&](const detail::FaceState* const* f, auto field) {
+            return detail::V4d{field(*f[0]), field(*f[1]), field(*f[2]), field(*f[3])};
+        };
+        const auto nx = [](const detail::FaceState& f) { return f.normal[0]; };
+        const auto ny = [](const detail::FaceState& f) { return f.normal[1]; };
+        const auto nz = [](const detail::FaceState& f) { return f.normal[2]; };
+        const auto cx = [](const detail::FaceState& f) { return f.centroid[0]; };
+        const auto cy = [](const detail::FaceState& f) { return f.centroid[1]; };
+        const auto cz = [](const detail::FaceState& f) { return f.centroid[2]; };
+        d.nx = lanes(A, nx) - lanes(B, nx);
+        d.ny = lanes(A, ny) - lanes(B, ny);
+        d.nz = lanes(A, nz) - lanes(B, nz);
+        d.cx = lanes(A, cx) - lanes(B, cx);
+        d.cy = lanes(A, cy) - lanes(B, cy);
+        d.cz = lanes(A, cz) - lanes(B, cz);
     }
-    transpose3(n[0], n[1], n[2], n[3], d.nx, d.ny, d.nz);
-    transpose3(c[0], c[1], c[2], c[3], d.cx, d.cy, d.cz);
 }
+
+// The running sum of Eq. 5.1: lanes 0–2 of a V4d (kWide) or three scalars.
+struct Sum3 {
+    double x, y, z;
+};
+template <bool kWide>
+using Sum = std::conditional_t<kWide, detail::V4d, Sum3>;
 
 // The per-row work of Eq. 5.1 on flat arrays (Ω in CSR, the pair table and weights, the face
 // records). The pair weights are computed four pairs at a time (detail::V4d lanes, simd.h);
@@ -138,12 +171,12 @@ struct PairKernel {
 
     // f(|c_a − c_b|; σ_c) g(|n_a − n_b|; σ_s) of the pairs (a[l], b[l]), lane l. Symmetric in
     // a and b bit for bit (the squares of negated differences are equal).
-    template <bool kTukey>
+    template <bool kTukey, bool kWide>
     [[gnu::always_inline]] void weights4(const int* a, const int* b, detail::V4d& w) const {
         using detail::splat;
         using detail::V4d;
         Diffs4 d;
-        diffs4(rec, a, b, d);
+        diffs4<kWide>(rec, a, b, d);
         const V4d x2 = d.nx * d.nx + d.ny * d.ny + d.nz * d.nz;  // |n_a − n_b|²
         const V4d d2 = d.cx * d.cx + d.cy * d.cy + d.cz * d.cz;  // |c_a − c_b|²
         if constexpr (kTukey) {
@@ -159,114 +192,150 @@ struct PairKernel {
     }
 
     // The weights of the pair blocks [b0, b1) of the table.
-    template <bool kTukey>
+    template <bool kTukey, bool kWide>
     [[gnu::always_inline]] void pairs(int b0, int b1) const {
         detail::V4d v{};
         for (int k = b0 * kPairBlock; k < b1 * kPairBlock; k += kPairBlock) {
-            weights4<kTukey>(first + k, second + k, v);
+            weights4<kTukey, kWide>(first + k, second + k, v);
             std::memcpy(pair_weight + k, &v, sizeof v);
         }
     }
 
     // The weights of row i's slots [p0, p1) into w[0 .. p1 − p0) (PairWeights::kPerRow).
-    template <bool kTukey>
+    template <bool kTukey, bool kWide>
     [[gnu::always_inline]] void row_weights(int i, int p0, int p1, double* w) const {
         const int centre[4] = {i, i, i, i};
         int p = p0;
         detail::V4d v{};
         for (; p + 4 <= p1; p += 4) {
-            weights4<kTukey>(centre, items + p, v);
+            weights4<kTukey, kWide>(centre, items + p, v);
             for (int l = 0; l < 4; ++l) w[p - p0 + l] = v[l];
         }
         if (p < p1) {  // the last 1–3 slots; the other lanes pair f_i with itself, unused
             int j[4] = {i, i, i, i};
             for (int l = 0; p + l < p1; ++l) j[l] = items[p + l];
-            weights4<kTukey>(centre, j, v);
+            weights4<kTukey, kWide>(centre, j, v);
             for (int l = 0; p + l < p1; ++l) w[p - p0 + l] = v[l];
         }
     }
 
     // Eq. 5.1: ñ_i = normalise(Σ_j a_j w_ij n_j) over Ω_i in row order (K_i cancels in the
-    // normalisation); the centre face has w = 1. Lanes 0–2 of the sum: x, y, z, each added in
-    // row order; lane 3 adds a_j w_ij a_j alongside and is not used. 0.0 + keeps the bits of a
-    // sum that starts from zero (−0 becomes +0).
-    [[gnu::always_inline]] detail::V4d sum_start(int i) const {
+    // normalisation); the centre face has w = 1. kWide (the AVX2 copy): the sum is lanes 0–2
+    // of a V4d (x, y, z, each added in row order; lane 3 adds a_j w_ij a_j alongside and is
+    // not used); otherwise three scalars: the same operations. 0.0 + keeps the bits of a sum
+    // that starts from zero (−0 becomes +0).
+    template <bool kWide>
+    [[gnu::always_inline]] Sum<kWide> sum_start(int i) const {
         const detail::FaceState& fi = rec[i];
-        return detail::splat(0.0) + detail::splat(fi.area) * half(fi, 0);
+        if constexpr (kWide) {
+            return detail::splat(0.0) + detail::splat(fi.area) * half(fi, 0);
+        } else {
+            return {0.0 + fi.area * fi.normal[0], 0.0 + fi.area * fi.normal[1],
+                    0.0 + fi.area * fi.normal[2]};
+        }
     }
 
     // Adds slot p's term with the weight w (f g of its pair).
-    [[gnu::always_inline]] void sum_add(int p, double w, detail::V4d& s) const {
+    template <bool kWide>
+    [[gnu::always_inline]] void sum_add(int p, double w, Sum<kWide>& s) const {
         const detail::FaceState& fj = rec[items[p]];
-        s = s + detail::splat(fj.area * w) * half(fj, 0);
+        if constexpr (kWide) {
+            s = s + detail::splat(fj.area * w) * half(fj, 0);
+        } else {
+            const double aw = fj.area * w;
+            s.x += aw * fj.normal[0];
+            s.y += aw * fj.normal[1];
+            s.z += aw * fj.normal[2];
+        }
     }
 
     // Writes out[i]: ñ_i, and the area and centroid of rec[i].
-    [[gnu::always_inline]] void sum_finish(int i, const detail::V4d& s) const {
-        const detail::FaceState& fi = rec[i];
-        const double len = std::sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+    template <bool kWide>
+    [[gnu::always_inline]] void sum_finish(int i, const Sum<kWide>& s) const {
+        double sx;
+        double sy;
+        double sz;
+        if constexpr (kWide) {
+            sx = s[0];
+            sy = s[1];
+            sz = s[2];
+        } else {
+            sx = s.x;
+            sy = s.y;
+            sz = s.z;
+        }
+        const double len = std::sqrt(sx * sx + sy * sy + sz * sz);
         detail::FaceState& o = out[i];
-        o = fi;
+        o = rec[i];
         if (len > 0.0) {  // else keep n_i
-            const detail::V4d n = s / detail::splat(len);
-            o.normal[0] = n[0];
-            o.normal[1] = n[1];
-            o.normal[2] = n[2];
+            if constexpr (kWide) {
+                const detail::V4d n = s / detail::splat(len);
+                o.normal[0] = n[0];
+                o.normal[1] = n[1];
+                o.normal[2] = n[2];
+            } else {
+                o.normal[0] = sx / len;
+                o.normal[1] = sy / len;
+                o.normal[2] = sz / len;
+            }
         }
     }
 
     // Row i from the pair weights.
+    template <bool kWide>
     [[gnu::always_inline]] void row_sum(int i) const {
-        detail::V4d s = sum_start(i);
-        for (int p = off[i] + 1; p < off[i + 1]; ++p) sum_add(p, pair_weight[slot_pair[p]], s);
-        sum_finish(i, s);
+        Sum<kWide> s = sum_start<kWide>(i);
+        for (int p = off[i] + 1; p < off[i + 1]; ++p) {
+            sum_add<kWide>(p, pair_weight[slot_pair[p]], s);
+        }
+        sum_finish<kWide>(i, s);
     }
 
     // Row i with its weights computed here in blocks (PairWeights::kPerRow), the same bits.
-    template <bool kTukey>
+    template <bool kTukey, bool kWide>
     [[gnu::always_inline]] void row_sum_per_row(int i) const {
-        detail::V4d s = sum_start(i);
+        Sum<kWide> s = sum_start<kWide>(i);
         const int e = off[i + 1];
         constexpr int kBlock = 64;
         double block[kBlock];
         for (int p0 = off[i] + 1; p0 < e; p0 += kBlock) {
             const int p1 = std::min(e, p0 + kBlock);
-            row_weights<kTukey>(i, p0, p1, block);
-            for (int p = p0; p < p1; ++p) sum_add(p, block[p - p0], s);
+            row_weights<kTukey, kWide>(i, p0, p1, block);
+            for (int p = p0; p < p1; ++p) sum_add<kWide>(p, block[p - p0], s);
         }
-        sum_finish(i, s);
+        sum_finish<kWide>(i, s);
     }
 };
 
 // The passes, one copy per instruction set (simd.h): kind 0 = the pair weights of pair blocks
 // [begin, end), 1 = the sums of rows [begin, end) from them, 2 = the sums with the weights
 // computed per row.
-template <bool kTukey>
+template <bool kTukey, bool kWide>
 [[gnu::always_inline]] inline void rows_impl(const PairKernel& k, int kind, int begin,
                                              int end) {
     if (kind == 0) {
-        k.pairs<kTukey>(begin, end);
+        k.pairs<kTukey, kWide>(begin, end);
     } else if (kind == 1) {
-        for (int i = begin; i < end; ++i) k.row_sum(i);
+        for (int i = begin; i < end; ++i) k.row_sum<kWide>(i);
     } else {
-        for (int i = begin; i < end; ++i) k.row_sum_per_row<kTukey>(i);
+        for (int i = begin; i < end; ++i) k.row_sum_per_row<kTukey, kWide>(i);
     }
 }
 
 void rows_baseline(const PairKernel& k, bool tukey, int kind, int begin, int end) {
     if (tukey) {
-        rows_impl<true>(k, kind, begin, end);
+        rows_impl<true, false>(k, kind, begin, end);
     } else {
-        rows_impl<false>(k, kind, begin, end);
+        rows_impl<false, false>(k, kind, begin, end);
     }
 }
 
 __attribute__((target("avx2"))) void rows_avx2(const PairKernel& k, bool tukey, int kind,
                                                int begin, int end) {
     if (tukey) {
-        rows_impl<true>(k, kind, begin, end);
+        rows_impl<true, true>(k, kind, begin, end);
     } else {
-        rows_impl<false>(k, kind, begin, end);
+        rows_impl<false, true>(k, kind, begin, end);
     }
 }
 
@@ -359,11 +428,9 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
     Vertices next(n, 3);
     // The weight f g of a pair (Eq. 5.1 without a_j) is symmetric in i and j, and bit for bit
     // so (|c_i − c_j|² and |n_i − n_j|² square the same differences up to sign). Where j ∈ Ω_i
-    // and i ∈ Ω_j (nearly always), the row of the larger index computes it once and writes
-    // both slots; `mirror[p]` is the slot of the pair in row j (−1 if i ∉ Ω_j, −2 if the other
-    // row computes it). Each slot has one writer, so any thread count gives the same bits.
-    // The centre face's own weight is exactly 1 (x = 0, d = 0: (1 − 0)² exp(−0) = 1) and is not
-    // stored: the slot holds the weight from the first neighbour on.
+    // and i ∈ Ω_j (nearly always), it is computed once (PairTable) and read by both slots.
+    // Each weight has one writer, so any thread count gives the same bits. The centre face's
+    // own weight is exactly 1 (x = 0, d = 0: (1 − 0)² exp(−0) = 1) and is not computed.
     const bool shared = params.pair_weights == PairWeights::kShared;
     const PairTable table = shared ? pair_table(omega) : PairTable{};
     std::vector<double> pair_weight(table.first.size());
