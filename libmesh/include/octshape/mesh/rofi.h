@@ -26,8 +26,8 @@ enum class Similarity {
 // How the pair weights f·g of Eq. 5.1 are computed; both give bit-identical results (the
 // weight is symmetric in i and j bit for bit). docs/algorithms/rofi.md, "Memory".
 enum class PairWeights {
-    kShared,  // once per pair, stored for both rows: 16 bytes per slot of Ω, fastest
-    kPerRow,  // in each row, nothing stored: 4 bytes per slot, ~15–20 % more time per iteration
+    kShared,  // once per pair, read by both rows: ≈ 12 bytes per slot of Ω, fastest
+    kPerRow,  // in each row, nothing stored: 4 bytes per slot, ~15–25 % more time per iteration
 };
 
 struct RofiParams {
