@@ -83,9 +83,6 @@ struct Diffs4 {
     detail::V4d cx, cy, cz;  // c_a − c_b
 };
 
-// Loads each record as two 4-double halves (normal + area, centroid + padding), subtracts the
-// halves of each pair and transposes the four difference vectors into lanes. The same IEEE
-// subtraction per component as a lane-by-lane load would do.
 // Half h of a face record: 0 = normal and area, 1 = centroid and padding.
 [[gnu::always_inline]] inline detail::V4d half(const detail::FaceState& f, int h) {
     static_assert(sizeof(detail::FaceState) == 2 * sizeof(detail::V4d));
@@ -94,6 +91,7 @@ struct Diffs4 {
     return v;
 }
 
+// The lanes 0, 1, 2 of d0..d3 as three vectors: x = {d0[0], d1[0], d2[0], d3[0]}, and so on.
 [[gnu::always_inline]] inline void transpose3(const detail::V4d& d0, const detail::V4d& d1,
                                               const detail::V4d& d2, const detail::V4d& d3,
                                               detail::V4d& x, detail::V4d& y, detail::V4d& z) {
