@@ -23,6 +23,10 @@ struct MetricsOptions {
     bool json = false;
 };
 
+bool same_triangulation(const io::MeshData& a, const io::MeshData& b) {
+    return a.F.rows() == b.F.rows() && a.V.rows() == b.V.rows() && a.F == b.F;
+}
+
 void run_metrics(const MetricsOptions& o) {
     const io::MeshData m = read_valid_mesh(o.mesh);
     const io::MeshData r = read_valid_mesh(o.reference);
@@ -31,7 +35,11 @@ void run_metrics(const MetricsOptions& o) {
                         {"reference", o.reference},
                         {"vertices", m.V.rows()},
                         {"faces", m.F.rows()}};
-    const bool same = m.F.rows() == r.F.rows() && m.V.rows() == r.V.rows() && m.F == r.F;
+    const bool same = same_triangulation(m, r);
+    if (!same && !o.input.empty()) {
+        throw UsageError("--input " + o.input + ": flips need the mesh and the reference to "
+                         "share the triangulation, and " + o.reference + " does not");
+    }
     if (same) {
         const mesh::MeshComparison c = mesh::compare_meshes(m.V, m.F, r.V, r.F);
         j["e_v_mm"] = c.vertex_error;
@@ -45,7 +53,7 @@ void run_metrics(const MetricsOptions& o) {
         j["closed"] = c.closed;
         if (!o.input.empty()) {
             const io::MeshData in = read_valid_mesh(o.input);
-            if (!(in.F.rows() == m.F.rows() && in.V.rows() == m.V.rows() && in.F == m.F)) {
+            if (!same_triangulation(in, m)) {
                 throw UsageError("--input " + o.input +
                                  ": not the same triangulation as the mesh (flips created by "
                                  "a denoiser need the mesh it was given)");
