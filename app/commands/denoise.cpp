@@ -37,6 +37,7 @@ struct DenoiseOptions {
     std::optional<double> epsilon_mm;
     std::optional<std::string> normals;  // pointset: pca | shifted
     bool no_edge_snap = false;           // pointset: skip the final edge snapping
+    bool no_fold_repair = false;         // rofi/bilateral: Eq. 5.1–5.9 alone (folds.h)
 };
 
 // --method pointset: point-set NVT denoising (thesis §4, docs/algorithms/pointset.md).
@@ -112,6 +113,9 @@ void run_denoise(const DenoiseOptions& o) {
     if (rofi_like && (o.tau || o.radius_mm)) {
         throw UsageError("--tau and --radius apply to envt");
     }
+    if (!rofi_like && o.no_fold_repair) {
+        throw UsageError("--no-fold-repair applies to rofi and bilateral");
+    }
     const bool explicit_params = o.sigma_s || o.lambda_i || o.iterations || o.tau || o.radius_mm;
     const bool use_auto = o.use_auto || !explicit_params;
 
@@ -142,12 +146,14 @@ void run_denoise(const DenoiseOptions& o) {
         if (o.lambda_i) p.lambda_i = *o.lambda_i;
         if (o.iterations) p.iterations = *o.iterations;
         p.threads = o.threads;
+        p.repair_folds = !o.no_fold_repair;
         validate_options(p);
         params = {{"sigma_s", p.sigma_s},
                   {"lambda_i", p.lambda_i},
                   {"iterations", p.iterations},
                   {"lambda_decay", p.lambda_decay},
-                  {"similarity", p.similarity == mesh::Similarity::kTukey ? "tukey" : "gaussian"}};
+                  {"similarity", p.similarity == mesh::Similarity::kTukey ? "tukey" : "gaussian"},
+                  {"repair_folds", p.repair_folds}};
         result = mesh::rofi_denoise(in.V, in.F, p);
     } else {
         mesh::EnvtParams p;
@@ -186,6 +192,9 @@ void run_denoise(const DenoiseOptions& o) {
             {"threads", o.threads},
             {"seconds_setup", result.seconds_setup},
             {"seconds_iterations", result.seconds_iterations},
+            {"seconds_fold_repair", result.seconds_fold_repair},
+            {"folds_repaired", result.folds_repaired},
+            {"folds_left", result.folds_left},
             {"warnings", result.warnings}};
         std::cout << j.dump(2) << '\n';
     }
@@ -236,6 +245,10 @@ void add_denoise_command(CLI::App& app, RunContext& /*ctx*/) {
     cmd->add_flag("--no-edge-snap", opts->no_edge_snap,
                   "pointset: skip the final edge snapping (on by default: points near an edge "
                   "or corner move onto the planes of its faces, docs/algorithms/pointset.md)");
+    cmd->add_flag("--no-fold-repair", opts->no_fold_repair,
+                  "rofi/bilateral: skip the repair of fold-overs after the last iteration (on "
+                  "by default: a face turned over against an edge-neighbour has its crossed "
+                  "corner moved to its 1-ring centroid, docs/algorithms/rofi.md)");
     cmd->add_flag("--json", opts->json, "Print the parameters and timings as JSON on stdout");
     cmd->callback([opts] { run_denoise(*opts); });
 }

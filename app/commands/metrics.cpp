@@ -19,8 +19,13 @@ namespace {
 struct MetricsOptions {
     std::string mesh;
     std::string reference;
+    std::string input;  // the denoiser's input: flips created / kept / fixed
     bool json = false;
 };
+
+bool same_triangulation(const io::MeshData& a, const io::MeshData& b) {
+    return a.F.rows() == b.F.rows() && a.V.rows() == b.V.rows() && a.F == b.F;
+}
 
 void run_metrics(const MetricsOptions& o) {
     const io::MeshData m = read_valid_mesh(o.mesh);
@@ -30,7 +35,11 @@ void run_metrics(const MetricsOptions& o) {
                         {"reference", o.reference},
                         {"vertices", m.V.rows()},
                         {"faces", m.F.rows()}};
-    const bool same = m.F.rows() == r.F.rows() && m.V.rows() == r.V.rows() && m.F == r.F;
+    const bool same = same_triangulation(m, r);
+    if (!same && !o.input.empty()) {
+        throw UsageError("--input " + o.input + ": flips need the mesh and the reference to "
+                         "share the triangulation, and " + o.reference + " does not");
+    }
     if (same) {
         const mesh::MeshComparison c = mesh::compare_meshes(m.V, m.F, r.V, r.F);
         j["e_v_mm"] = c.vertex_error;
@@ -42,6 +51,20 @@ void run_metrics(const MetricsOptions& o) {
         j["reference_volume_mm3"] = c.reference_volume;
         j["volume_change_fraction"] = c.volume_change;
         j["closed"] = c.closed;
+        if (!o.input.empty()) {
+            const io::MeshData in = read_valid_mesh(o.input);
+            if (!same_triangulation(in, m)) {
+                throw UsageError("--input " + o.input +
+                                 ": not the same triangulation as the mesh (flips created by "
+                                 "a denoiser need the mesh it was given)");
+            }
+            const mesh::FlipTransitions t = mesh::flip_transitions(m.V, in.V, r.V, m.F);
+            j["input"] = o.input;
+            j["input_flipped_faces"] = t.input;
+            j["flipped_faces_created"] = t.created;
+            j["flipped_faces_kept"] = t.kept;
+            j["flipped_faces_fixed"] = t.fixed;
+        }
     } else {
         // Different triangulations: only the measures that need no face correspondence.
         const mesh::TriangleTree tree(r.V, r.F);
@@ -57,7 +80,8 @@ void run_metrics(const MetricsOptions& o) {
         return;
     }
     for (const char* key : {"e_v_mm", "msae_deg", "quality_q", "reference_quality_q",
-                            "flipped_faces", "volume_mm3", "reference_volume_mm3",
+                            "flipped_faces", "input_flipped_faces", "flipped_faces_created",
+                            "flipped_faces_kept", "flipped_faces_fixed", "volume_mm3", "reference_volume_mm3",
                             "volume_change_fraction"}) {
         if (!j.contains(key)) continue;
         std::cout << key << '\t' << j[key].dump() << '\n';
@@ -75,6 +99,9 @@ void add_metrics_command(CLI::App& app, RunContext& /*ctx*/) {
         "MSAE, mesh quality Q, flipped faces, volume change");
     cmd->add_option("mesh", opts->mesh, "Mesh to evaluate")->required();
     cmd->add_option("--reference", opts->reference, "Reference (ground-truth) mesh")->required();
+    cmd->add_option("--input", opts->input,
+                    "The denoiser's input (same triangulation): also count the flipped faces "
+                    "it created, kept and fixed");
     cmd->add_flag("--json", opts->json, "Print JSON instead of tab-separated lines");
     cmd->callback([opts] { run_metrics(*opts); });
 }

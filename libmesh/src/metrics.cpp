@@ -95,6 +95,28 @@ int flipped_faces(const Vertices& V,
     return flips;
 }
 
+FlipTransitions flip_transitions(const Vertices& output_V,
+                                 const Vertices& input_V,
+                                 const Vertices& reference_V,
+                                 const Faces& F) {
+    require_same_triangulation(output_V, F, reference_V, F);
+    require_same_triangulation(input_V, F, reference_V, F);
+    const FaceGeometry out = face_geometry(output_V, F);
+    const FaceGeometry in = face_geometry(input_V, F);
+    const FaceGeometry ref = face_geometry(reference_V, F);
+    FlipTransitions t;
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+        const bool flipped_in = in.normals.row(f).dot(ref.normals.row(f)) < 0.0;
+        const bool flipped_out = out.normals.row(f).dot(ref.normals.row(f)) < 0.0;
+        t.input += flipped_in ? 1 : 0;
+        t.output += flipped_out ? 1 : 0;
+        t.created += (flipped_out && !flipped_in) ? 1 : 0;
+        t.kept += (flipped_out && flipped_in) ? 1 : 0;
+        t.fixed += (flipped_in && !flipped_out) ? 1 : 0;
+    }
+    return t;
+}
+
 double signed_volume(const Vertices& V, const Faces& F) {
     double sum = 0.0;
     for (Eigen::Index f = 0; f < F.rows(); ++f) {

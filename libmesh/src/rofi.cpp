@@ -1,6 +1,7 @@
 #include "octshape/mesh/rofi.h"
 
 #include "octshape/mesh/simd_exp.h"
+#include "octshape/mesh/folds.h"
 
 #include <algorithm>
 #include <chrono>
@@ -470,6 +471,13 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
         result.V.swap(next);
         lambda *= params.lambda_decay;
         ++result.iterations;
+    }
+    if (params.repair_folds && result.iterations > 0) {
+        const auto t2 = Clock::now();
+        const FoldRepairResult folds = repair_folds(result.V, F, setup.adjacency, setup.fixed);
+        result.folds_repaired = folds.folds_found - folds.folds_left;
+        result.folds_left = folds.folds_left;
+        result.seconds_fold_repair = seconds_since(t2);
     }
     result.seconds_iterations = seconds_since(t1);
     return result;

@@ -9,6 +9,7 @@
 
 #include "mesh/mesh_fixtures.h"
 #include "octshape/io/error.h"
+#include "octshape/mesh/metrics.h"
 #include "test_paths.h"
 
 namespace octshape::test {
@@ -161,6 +162,22 @@ TEST(MeshCommands, DenoiseThenMetricsAndFeatures) {
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.out.find("\"msae_deg\""), std::string::npos);
     EXPECT_NE(r.out.find("\"flipped_faces\": 0"), std::string::npos) << r.out;
+    // The flips against the denoiser's input: none created here, and the input's own count.
+    const int input_flips = mesh::flipped_faces(noisy.V, noisy.F, clean.V, clean.F);
+    r = run_octshape("metrics '" + out + "' --reference '" + (tmp / "clean.off").string() +
+                     "' --input '" + in + "' --json");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("\"flipped_faces_created\": 0"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("\"input_flipped_faces\": " + std::to_string(input_flips)),
+              std::string::npos)
+        << r.out;
+    // An input of another triangulation is a usage error.
+    const auto other = plane_grid(2);
+    io::write_mesh(tmp / "other.off", other.V, other.F);
+    EXPECT_EQ(run_octshape("metrics '" + out + "' --reference '" + (tmp / "clean.off").string() +
+                           "' --input '" + (tmp / "other.off").string() + "'")
+                  .exit_code,
+              64);
     r = run_octshape("features '" + out + "' -o '" + (tmp / "f.vtp").string() + "'");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_TRUE(std::filesystem::exists(tmp / "f.vtp"));

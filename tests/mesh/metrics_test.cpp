@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <initializer_list>
 #include <numbers>
 
 #include "mesh/mesh_fixtures.h"
@@ -73,6 +74,45 @@ TEST(Metrics, MirroredPlaneHasEveryFaceFlipped) {
     EXPECT_EQ(mesh::flipped_faces(V, ref.F, ref.V, ref.F), ref.F.rows());
     EXPECT_NEAR(mesh::mean_angle_error_deg(V, ref.F, ref.V, ref.F), 180.0, 1e-9);
     EXPECT_EQ(mesh::flipped_faces(ref.V, ref.F, ref.V, ref.F), 0);
+}
+
+// Pushing an interior vertex of the plane 1.5 grid steps sideways, past its neighbour, turns
+// some of its faces over (their normals point down); a vertex far away does the same to its
+// own faces. Flipped in the input only = fixed, in the output only = created, in both = kept.
+TEST(Metrics, FlipTransitionsSortFacesByWhereTheyFlipped) {
+    const int n = 8;
+    const auto ref = plane_grid(n);
+    const double h = 1.0 / n;
+    const auto pushed = [&](std::initializer_list<int> vertices) {
+        mesh::Vertices V = ref.V;
+        for (const int v : vertices) V(v, 0) += 1.5 * h;
+        return V;
+    };
+    const int a = 2 * (n + 1) + 2;  // vertex (2, 2)
+    const int b = 6 * (n + 1) + 5;  // vertex (5, 6): no face shared with a's
+    const int flips_a = mesh::flipped_faces(pushed({a}), ref.F, ref.V, ref.F);
+    const int flips_b = mesh::flipped_faces(pushed({b}), ref.F, ref.V, ref.F);
+    ASSERT_GT(flips_a, 0);
+    ASSERT_GT(flips_b, 0);
+
+    const auto moved = mesh::flip_transitions(pushed({b}), pushed({a}), ref.V, ref.F);
+    EXPECT_EQ(moved.input, flips_a);
+    EXPECT_EQ(moved.output, flips_b);
+    EXPECT_EQ(moved.created, flips_b);
+    EXPECT_EQ(moved.kept, 0);
+    EXPECT_EQ(moved.fixed, flips_a);
+
+    const auto added = mesh::flip_transitions(pushed({a, b}), pushed({a}), ref.V, ref.F);
+    EXPECT_EQ(added.output, flips_a + flips_b);
+    EXPECT_EQ(added.created, flips_b);
+    EXPECT_EQ(added.kept, flips_a);
+    EXPECT_EQ(added.fixed, 0);
+
+    const auto same = mesh::flip_transitions(ref.V, ref.V, ref.V, ref.F);
+    EXPECT_EQ(same.input + same.output + same.created + same.kept + same.fixed, 0);
+    const auto other = plane_grid(n + 1);
+    EXPECT_THROW((void)mesh::flip_transitions(other.V, ref.V, ref.V, ref.F),
+                 std::invalid_argument);
 }
 
 TEST(Metrics, VolumeOfTheCubeAndVolumeChange) {

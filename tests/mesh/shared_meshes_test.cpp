@@ -63,18 +63,18 @@ TEST(SharedMeshes, RofiAutoTwelveImpulsive) {
     const auto c = rofi_auto(p);
     EXPECT_LE(c.msae_deg, 3.84);
     EXPECT_LE(c.quality, c.reference_quality + 0.05);
-    EXPECT_LE(c.flipped_faces, p.input.flipped_faces);
+    EXPECT_EQ(c.flipped_faces, 0);  // the input's 7 all fixed, none created
 }
 
 TEST(SharedMeshes, RofiAutoSharpSphere) {
     // The creases are the hard case: the input has 201 flipped faces there. The MSAE target
-    // holds; the flip count stays at the input's level (README: a faithful RoFi keeps
-    // ~160–200), so it is bounded by the input's + 5 % rather than by zero.
+    // holds; the flip count stays below the input's (README: a faithful RoFi keeps ~160–200;
+    // the flips it creates are faces thinner than its vertex error, rofi.md).
     const Pair p = load("SharpSphere0.3");
     const auto c = rofi_auto(p);
     EXPECT_LE(c.msae_deg, 8.17);
     EXPECT_LE(c.quality, c.reference_quality + 0.05);
-    EXPECT_LE(c.flipped_faces, p.input.flipped_faces * 105 / 100);
+    EXPECT_LE(c.flipped_faces, p.input.flipped_faces);
 }
 
 TEST(SharedMeshes, RofiTunedFandisk) {
@@ -101,6 +101,43 @@ TEST(SharedMeshes, RofiTunedSharpSphere) {
     const auto c = compare(p, mesh::rofi_denoise(p.noisy.V, p.noisy.F, params));
     EXPECT_LE(c.msae_deg, 8.17);
     EXPECT_LE(c.flipped_faces, p.input.flipped_faces);
+}
+
+TEST(SharedMeshes, FoldRepairRemovesTheFlipsRofiCreatesOnTwelveAndBlock) {
+    // Eq. 5.1–5.9 alone (repair_folds = false) turn over faces that the input had right: on
+    // Twelve at auto parameters and on Block at (0.6, 0.2, 100). Each is a fold (a face lying
+    // back on its edge-neighbour); with the repair RoFi creates none, and the MSAE targets hold.
+    struct Case {
+        const char* name;
+        bool automatic;
+        double target_deg;
+    };
+    for (const Case& k : {Case{"Twelve0.5Impulsive", true, 3.84}, Case{"Block0.4", false, 4.09}}) {
+        const Pair p = load(k.name);
+        mesh::RofiParams params;
+        if (k.automatic) {
+            params = mesh::auto_rofi_params(mesh::estimate_noise(p.noisy.V, p.noisy.F));
+        } else {
+            params.sigma_s = 0.6;
+            params.lambda_i = 0.2;
+            params.iterations = 100;
+        }
+        params.repair_folds = false;
+        const auto plain = mesh::rofi_denoise(p.noisy.V, p.noisy.F, params);
+        params.repair_folds = true;
+        const auto repaired = mesh::rofi_denoise(p.noisy.V, p.noisy.F, params);
+        const auto t0 = mesh::flip_transitions(plain.V, p.noisy.V, p.truth.V, p.noisy.F);
+        const auto t1 = mesh::flip_transitions(repaired.V, p.noisy.V, p.truth.V, p.noisy.F);
+        std::printf("  %s: created %d -> %d, folds repaired %d\n", k.name, t0.created,
+                    t1.created, repaired.folds_repaired);
+        EXPECT_GT(t0.created, 0) << k.name;
+        EXPECT_EQ(t1.created, 0) << k.name;
+        EXPECT_GT(repaired.folds_repaired, 0) << k.name;
+        EXPECT_EQ(repaired.folds_left, 0) << k.name;
+        EXPECT_LE(mesh::mean_angle_error_deg(repaired.V, p.noisy.F, p.truth.V, p.truth.F),
+                  k.target_deg)
+            << k.name;
+    }
 }
 
 TEST(SharedMeshes, EnvtAutoFandisk) {

@@ -31,6 +31,24 @@ namespace octshape::mesh {
                                 const Vertices& reference_V,
                                 const Faces& reference_F);
 
+// A denoiser's flips against its input (meshes/README: "zero flipped faces" means none that
+// the denoiser creates): faces flipped (normal > 90° from the reference's, as above) in the
+// input, in the output, created (flipped in the output, not in the input), kept (in both) and
+// fixed (in the input, not in the output). All three meshes share the triangulation F.
+struct FlipTransitions {
+    int input = 0;    // flipped in the input
+    int output = 0;   // flipped in the output = created + kept
+    int created = 0;  // flipped in the output only
+    int kept = 0;     // flipped in both
+    int fixed = 0;    // flipped in the input only; input = kept + fixed
+};
+
+// Throws std::invalid_argument if the triangulations differ or a mesh is invalid.
+[[nodiscard]] FlipTransitions flip_transitions(const Vertices& output_V,
+                                               const Vertices& input_V,
+                                               const Vertices& reference_V,
+                                               const Faces& F);
+
 // Signed enclosed volume Σ_f a·(b × c) / 6 (divergence theorem; length unit³). Positive for a
 // closed, outward-oriented mesh; for an open mesh it depends on the origin.
 [[nodiscard]] double signed_volume(const Vertices& V, const Faces& F);

@@ -40,6 +40,10 @@ struct RofiParams {
     Similarity similarity = Similarity::kTukey;
     PairWeights pair_weights = PairWeights::kShared;
     bool fix_boundary = true;   // keep boundary / non-manifold vertices in place
+    // After the last iteration, repair fold-overs (folds.h: faces turned over against an
+    // edge-neighbour, n_a · n_b < −0.9; their apex moves to its 1-ring centroid). Not in
+    // Eq. 5.1–5.9 (docs/algorithms/rofi.md, "Fold-overs"); false = the equations alone.
+    bool repair_folds = true;
     int threads = 1;            // std::threads; results do not depend on it; ≥ 1
     // Instruction set of the pair-weight kernels; results do not depend on it (simd_exp.h).
     // kAvx2 needs a CPU with AVX2.
