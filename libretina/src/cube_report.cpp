@@ -108,6 +108,7 @@ J cube_json(const CubeResult& r, const CubeParams& p) {
     o["max_rounds"] = p.max_rounds;
     o["energy_tolerance"] = p.energy_tolerance;
     o["rim_point"] = to_string(p.rim_point);
+    o["local_fit_min_noise_um"] = num(p.local_fit_min_noise_um);
     j["options"] = o;
     J c;
     c["source"] = r.centre_source;
@@ -139,6 +140,8 @@ J cube_json(const CubeResult& r, const CubeParams& p) {
     noise["thickness_noise_sd_um"] = num(r.thickness_noise_sd_um);
     noise["crest_tolerance_um"] =
         p.rim_point == RimPoint::kCrest ? num(3.0 * r.thickness_noise_sd_um) : J(nullptr);
+    noise["radial_samples"] = r.local_fit_samples ? "local fit" : "bilinear";
+    noise["centre_fit_radius_mm"] = num(r.centre_fit_radius_mm);
     j["noise"] = noise;
     J hl = J::array();
     for (const auto& h : r.half_lines) {

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <numbers>
 
 #include "octshape/io/error.h"
@@ -224,6 +225,16 @@ TEST(CubeParams, ValidateNamesTheField) {
     p = {};
     p.tau_mm = 0.0;
     EXPECT_THROW(p.validate(), UsageError);
+    p = {};
+    p.local_fit_min_noise_um = std::numeric_limits<double>::quiet_NaN();
+    try {
+        p.validate();
+        FAIL();
+    } catch (const UsageError& e) {
+        EXPECT_NE(std::string(e.what()).find("local_fit_min_noise_um"), std::string::npos);
+    }
+    p.local_fit_min_noise_um = std::numeric_limits<double>::infinity();  // always bilinear
+    EXPECT_NO_THROW(p.validate());
 }
 
 TEST(CubeThicknessMap, BilinearExactOnPlanesAndMissingRespected) {
@@ -492,17 +503,66 @@ TEST(CubePhantom, SegmentationNoiseGivesRmseOfTheNoiseLevel) {
         EXPECT_LE(e.cft, 0.02 * t.cft_mm);
         EXPECT_LE(e.rim_height, 0.02 * t.rim_height_mm);
         EXPECT_LE(e.vir_rel, 0.02);
+        // The radial samples are local fits over every node of their sector (the noise is far
+        // above CubeParams::local_fit_min_noise_um = 0.5 um): the parameters that bilinear
+        // samples left above 2 % but that average many samples now meet it. Their errors over
+        // 36 seeds (7-42, docs/algorithms/cube.md "Radial samples under noise"), RMS / worst:
+        // pit depth 0.62 / 1.74 %, max slope 0.68 / 1.75 %, V_p 0.55 / 1.20 %, rim diameter
+        // 0.89 / 2.13 %: 2 % is >= 2.9 RMS for the first three (a 1-in-270 event for a normal
+        // error) and 2.2 RMS for the rim diameter (1 of the 36 seeds exceeded it by 0.13 %).
+        EXPECT_TRUE(r.local_fit_samples);
+        EXPECT_LE(std::fabs(r.pit_depth_mm / t.pit_depth_mm - 1.0), 0.02);
+        EXPECT_LE(e.slope_deg, 0.02 * t.max_pit_slope_deg);
+        EXPECT_LE(e.vp_rel, 0.02);
+        EXPECT_LE(e.rim_diameter, 0.02 * t.rim.diameter_mm);
         // The rim at the maximum sample (the thesis's split) is pushed outward by the noise:
         // on a crest that falls ~5 um over 0.2 mm the largest of the ~40 samples within the
         // noise of the top is most often one of the outer ones, for every half-line alike, so
         // the bias survives the average over 24 half-lines (3-6 % of the diameter here). The
-        // fitted rim has no such selection: its error must be well below that bias.
-        CubeParams at_max;
+        // fitted rim has no such selection: its error must be well below that bias. Compared on
+        // the bilinear samples of SPEC §4.3, whose noise (0.5-1 sigma) the argument is about:
+        // the local fits' smaller noise shrinks the maximum's bias itself.
+        CubeParams crest_bilinear;
+        crest_bilinear.local_fit_min_noise_um = std::numeric_limits<double>::infinity();
+        const Errors c = errors(analyse_macula(ph.scan, crest_bilinear), ph);
+        CubeParams at_max = crest_bilinear;
         at_max.rim_point = RimPoint::kMaximum;
         const Errors m = errors(analyse_macula(ph.scan, at_max), ph);
         record("bezier_noise_193_rim_at_maximum_seed" + std::to_string(seed), m);
-        EXPECT_LT(e.rim_diameter, 0.5 * m.rim_diameter);
-        EXPECT_LT(e.vr_rel, 0.5 * m.vr_rel);
+        EXPECT_LT(c.rim_diameter, 0.5 * m.rim_diameter);
+        EXPECT_LT(c.vr_rel, 0.5 * m.vr_rel);
+    }
+}
+
+TEST(CubePhantom, LocalFitSamplesOfANoiseFreeMapStayWithinTheSamplingBounds) {
+    // The local fits forced on (threshold 0) on the noise-free Bezier phantoms: quadratic in
+    // the radius and linear across, they reproduce a rotationally symmetric map up to its
+    // quartic radial terms, so they must stay within the sampling bounds that the bilinear
+    // samples are held to (BezierErrorsWithinSamplingBoundsAndShrinkWithBScans). By default
+    // (threshold 0.5 um) these maps keep their bilinear samples.
+    const double s2 = 0.5 * 0.01169;
+    for (const int nb : {61, 193}) {
+        SCOPED_TRACE(nb);
+        const MaculaPhantomParams p = volume_params(MaculaFamily::kBezier, nb);
+        const MaculaPhantom ph = make_macula_phantom(p);
+        EXPECT_FALSE(analyse_macula(ph.scan).local_fit_samples);
+        CubeParams forced;
+        forced.local_fit_min_noise_um = 0.0;
+        const CubeResult r = analyse_macula(ph.scan, forced);
+        EXPECT_TRUE(r.local_fit_samples);
+        const Errors e = errors(r, ph);
+        record("bezier_local_fit_" + std::to_string(nb), e);
+        const SamplingBounds sb = sampling_bounds(p, ph.scan.meta.scale_x_mm,
+                                                  ph.scan.meta.distance_mm,
+                                                  CubeParams{}.tie_tolerance_mm);
+        EXPECT_LE(e.centre, sb.centre_mm);
+        EXPECT_LE(e.cft, sb.node_rise_mm + 0.0005 + sb.bilinear_mm);
+        const double rim_pos = sb.centre_mm + s2 + std::sqrt(4 * sb.bilinear_mm / sb.rim_curv);
+        EXPECT_LE(e.rim_diameter, 2.0 * rim_pos);
+        EXPECT_LE(e.rim_area_rel, 2.0 * rim_pos / sb.min_rim_radius);
+        EXPECT_LE(e.vr_rel, 2.0 * rim_pos / sb.min_rim_radius);
+        // The RMSE is measured against the bilinear samples either way.
+        EXPECT_LE(e.rmse_um, 1e3 * (sb.bilinear_mm + sb.node_rise_mm));
     }
 }
 

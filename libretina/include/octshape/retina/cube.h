@@ -88,6 +88,14 @@ struct CubeParams {
     double energy_tolerance = 1e-10;   // stop on relative energy change below this
     double rmse_warning_um = 10.0;     // QC "fit RMSE high" above this (thesis: 1.0-7.1 um)
     RimPoint rim_point = RimPoint::kCrest;
+    // Radial samples under segmentation noise (docs/algorithms/cube.md "Radial samples under
+    // noise"): when the map's node noise SD (thickness_noise_sd) is at least this, a volume's
+    // radial sample is the value at the sample of a local regression (quadratic in the radius,
+    // linear across) over every valid node of its half-line's angular sector within a radial
+    // window, instead of the bilinear mix of 4 nodes; the reported RMSE stays that of the
+    // bilinear samples. Below it (noise-free maps, the device's smooth lines) and for line scans
+    // the samples are SPEC §4.3's bilinear ones. +inf = always bilinear.
+    double local_fit_min_noise_um = 0.5;
     // Forces the centre (grid mm) instead of searching: validation from a known centre.
     std::optional<Eigen::Vector2d> centre_mm;
     // Throws UsageError naming the bad field.
@@ -219,6 +227,11 @@ struct CubeResult {
     double beta_mean_mm = kMissing;
     double rmse_um = kMissing;  // over every sample of every valid half-line
     double thickness_noise_sd_um = kMissing;  // thickness_noise_sd of the map (sets the crest)
+    // The noise-adaptive estimators (CubeParams::local_fit_min_noise_um): whether the radial
+    // samples are local fits (else bilinear), and the half-width of the window whose quadratic
+    // vertex placed the centre (NaN when the centre is given or not refined).
+    bool local_fit_samples = false;
+    double centre_fit_radius_mm = kMissing;
     std::vector<CubeHalfLine> half_lines;
     std::vector<std::string> qc_flags;  // short, stable phrases
     std::vector<std::string> notes;
