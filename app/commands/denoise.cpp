@@ -37,7 +37,7 @@ struct DenoiseOptions {
     std::optional<double> epsilon_mm;
     std::optional<std::string> normals;  // pointset: pca | shifted
     bool no_edge_snap = false;           // pointset: skip the final edge snapping
-    bool no_fold_repair = false;         // rofi/bilateral: Eq. 5.1–5.9 alone (folds.h)
+    bool no_fold_repair = false;         // Eq. 5.1–5.9 / 3.1–3.7 alone (folds.h)
 };
 
 // --method pointset: point-set NVT denoising (thesis §4, docs/algorithms/pointset.md).
@@ -100,6 +100,9 @@ void run_denoise(const DenoiseOptions& o) {
         if (o.sigma_s || o.lambda_i || !o.similarity.empty()) {
             throw UsageError("--sigma-s, --lambda-i and --similarity apply to rofi and bilateral");
         }
+        if (o.no_fold_repair) {
+            throw UsageError("--no-fold-repair applies to rofi, bilateral and envt");
+        }
         run_pointset_denoise(o);
         return;
     }
@@ -112,9 +115,6 @@ void run_denoise(const DenoiseOptions& o) {
     }
     if (rofi_like && (o.tau || o.radius_mm)) {
         throw UsageError("--tau and --radius apply to envt");
-    }
-    if (!rofi_like && o.no_fold_repair) {
-        throw UsageError("--no-fold-repair applies to rofi and bilateral");
     }
     const bool explicit_params = o.sigma_s || o.lambda_i || o.iterations || o.tau || o.radius_mm;
     const bool use_auto = o.use_auto || !explicit_params;
@@ -162,9 +162,10 @@ void run_denoise(const DenoiseOptions& o) {
         if (o.radius_mm) p.radius = *o.radius_mm;
         if (o.iterations) p.iterations = *o.iterations;
         p.threads = o.threads;
+        if (o.no_fold_repair) p.fold_repair_interval = 0;
         validate_options(p);
         params = {{"tau", p.tau}, {"iterations", p.iterations}, {"rho_rad", p.rho},
-                  {"damping", p.damping}};
+                  {"damping", p.damping}, {"fold_repair_interval", p.fold_repair_interval}};
         result = mesh::envt_denoise(in.V, in.F, p);
     }
     for (const auto& w : result.warnings) spdlog::warn("{}: {}", o.input, w);
@@ -246,9 +247,10 @@ void add_denoise_command(CLI::App& app, RunContext& /*ctx*/) {
                   "pointset: skip the final edge snapping (on by default: points near an edge "
                   "or corner move onto the planes of its faces, docs/algorithms/pointset.md)");
     cmd->add_flag("--no-fold-repair", opts->no_fold_repair,
-                  "rofi/bilateral: skip the repair of fold-overs after the last iteration (on "
-                  "by default: a face turned over against an edge-neighbour has its crossed "
-                  "corner moved to its 1-ring centroid, docs/algorithms/rofi.md)");
+                  "rofi/bilateral/envt: skip the repair of fold-overs (on by default, after "
+                  "the last iteration and for envt every 10: a face turned over against an "
+                  "edge-neighbour has its crossed corner moved to its 1-ring centroid, "
+                  "docs/algorithms/rofi.md, envt.md)");
     cmd->add_flag("--json", opts->json, "Print the parameters and timings as JSON on stdout");
     cmd->callback([opts] { run_denoise(*opts); });
 }

@@ -1,6 +1,7 @@
 #include "octshape/mesh/envt.h"
 
 #include "octshape/mesh/simd_exp.h"
+#include "octshape/mesh/folds.h"
 
 #include <chrono>
 #include <cmath>
@@ -56,6 +57,8 @@ void EnvtParams::validate() const {
     require(rho > 0.0 && rho <= std::numbers::pi, "EnvtParams.rho", "in (0, pi]", rho);
     require(std::isfinite(damping) && damping >= 0.0, "EnvtParams.damping", "finite and >= 0",
             damping);
+    require(fold_repair_interval >= 0, "EnvtParams.fold_repair_interval", ">= 0",
+            fold_repair_interval);
     require(threads >= 1, "EnvtParams.threads", ">= 1", threads);
 }
 
@@ -127,6 +130,15 @@ DenoiseResult envt_denoise(const Vertices& V, const Faces& F, const EnvtParams& 
         });
         result.V.swap(next);
         ++result.iterations;
+        const int every = params.fold_repair_interval;
+        if (every > 0 && (result.iterations % every == 0 || it + 1 == params.iterations)) {
+            const auto t2 = Clock::now();
+            const FoldRepairResult folds =
+                repair_folds(result.V, F, setup.adjacency, setup.fixed);
+            result.folds_repaired += folds.folds_found - folds.folds_left;
+            result.folds_left = folds.folds_left;
+            result.seconds_fold_repair += seconds_since(t2);
+        }
     }
     result.seconds_iterations = seconds_since(t1);
     return result;

@@ -186,7 +186,18 @@ TEST(MeshCommands, DenoiseThenMetricsAndFeatures) {
               66);
     EXPECT_EQ(run_octshape("denoise '" + in + "' -o x.off --sigma-s -1").exit_code, 64);
     EXPECT_EQ(run_octshape("features '" + in + "' -o x.obj").exit_code, 64);
+    EXPECT_EQ(run_octshape("denoise '" + in + "' -o x.off --method pointset --no-fold-repair")
+                  .exit_code,
+              64);
     EXPECT_FALSE(std::filesystem::exists("x.off"));
+    // ENVT records its fold-repair interval; --no-fold-repair turns the repair off.
+    r = run_octshape("denoise '" + in + "' -o '" + out + "' --method envt -p 5 --json");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("\"fold_repair_interval\": 10"), std::string::npos) << r.out;
+    r = run_octshape("denoise '" + in + "' -o '" + out +
+                     "' --method envt -p 5 --no-fold-repair --json");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("\"fold_repair_interval\": 0"), std::string::npos) << r.out;
 }
 
 }  // namespace

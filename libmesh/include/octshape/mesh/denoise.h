@@ -18,9 +18,11 @@ struct DenoiseResult {
     int fixed_vertices = 0;             // boundary vertices kept in place
     double seconds_setup = 0;           // adjacency + neighbourhoods
     double seconds_iterations = 0;      // all iterations and the fold repair
-    int folds_repaired = 0;             // fold-overs repaired after the last iteration (folds.h)
-    int folds_left = 0;                 // fold-overs left after the repair
-    double seconds_fold_repair = 0;     // the repair alone (part of seconds_iterations)
+    // Fold-overs (folds.h) repaired: RoFi after its last iteration, ENVT every
+    // EnvtParams::fold_repair_interval iterations and after the last (summed over the repairs).
+    int folds_repaired = 0;
+    int folds_left = 0;                 // fold-overs left after the last repair
+    double seconds_fold_repair = 0;     // the repairs alone (part of seconds_iterations)
     std::vector<std::string> warnings;  // e.g. "mesh has non-manifold edges"
 };
 

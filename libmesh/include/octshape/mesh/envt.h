@@ -25,6 +25,11 @@ struct EnvtParams {
     double rho = 0.8;               // angle threshold ρ of Eq. 3.1, radians, in (0, π]
     double damping = 3.0;           // d of Eq. 3.5; ≥ 0
     bool fix_boundary = true;       // keep boundary / non-manifold vertices in place
+    // Repair fold-overs (folds.h) after every this many iterations and after the last; 0 =
+    // never (Eq. 3.1–3.7 alone). The tensor C̃ of Eq. 3.2–3.4 has no sign, so Eq. 3.5 keeps the
+    // side of a face's own normal and the vertex step flattens a folded face onto the wrong
+    // side: nothing in ENVT turns it back (docs/algorithms/envt.md, "Folds"). ≥ 0.
+    int fold_repair_interval = 10;
     int threads = 1;                // std::threads; results do not depend on it; ≥ 1
 
     // Throws std::invalid_argument naming the first bad field.
