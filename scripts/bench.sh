@@ -4,9 +4,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 cmake --preset release >/dev/null
 cmake --build --preset release -j 2 --target read_bench octshape_mesh_bench macula_bench octshape_shape_bench \
-  macula_accuracy macula_rescan cohort_bench onh_bench onh_pipeline_bench onh_rescan
+  macula_accuracy macula_rescan cohort_bench onh_bench onh_pipeline_bench onh_rescan \
+  mesh_realisations
 ./build/release/bench/read_bench
 ./build/release/bench/octshape_mesh_bench
+./build/release/bench/mesh_realisations
 ./build/release/bench/macula_bench
 ./build/release/bench/macula_accuracy
 ./build/release/bench/macula_rescan
