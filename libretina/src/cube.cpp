@@ -621,8 +621,13 @@ std::vector<double> smoothed_box(const ThicknessMap& m, const NodeBox& bx, doubl
 
 // Vertex of the least-squares quadratic surface fitted to the valid nodes of M within the window
 // |x - c.x| <= rx, |y - c.y| <= ry (a parabola in x for a line scan); nullopt when the fit is not
-// a bowl or its vertex leaves the window.
-std::optional<V2> quadratic_vertex(const ThicknessMap& m, const V2& c, double rx, double ry) {
+// a bowl or its vertex leaves the window. `value`, when given, receives the surface's height at
+// the vertex (2-D fits only; the analysis uses it as the centre sample under noise).
+std::optional<V2> quadratic_vertex(const ThicknessMap& m,
+                                   const V2& c,
+                                   double rx,
+                                   double ry,
+                                   double* value = nullptr) {
     const bool line = m.rows == 1;
     const int a0 = std::max(0, static_cast<int>(std::floor((c.x() - rx) / m.dx_mm)));
     const int a1 = std::min(m.cols - 1, static_cast<int>(std::ceil((c.x() + rx) / m.dx_mm)));
@@ -674,6 +679,8 @@ std::optional<V2> quadratic_vertex(const ThicknessMap& m, const V2& c, double rx
     if (!k.allFinite() || !(Hs(0, 0) > 0.0) || !(Hs.determinant() > 0.0)) return std::nullopt;
     const V2 v = -Hs.inverse() * V2(k(1), k(2));
     if (std::fabs(v.x()) > rx || std::fabs(v.y()) > ry) return std::nullopt;
+    // At the vertex the gradient k1 + Hs v vanishes: k0 + k.v + v^T Hs v / 2 = k0 + k.v / 2.
+    if (value != nullptr) *value = k(0) + 0.5 * (k(1) * v.x() + k(2) * v.y());
     return c + v;
 }
 
@@ -1324,6 +1331,10 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
                        res.thickness_noise_sd_um >= params.local_fit_min_noise_um;
     const ThicknessMap& m = res.map;
     const ScanGeometry geo(scan);
+    // Under noise, the centre sample of the CFT pass: the height of the centre's quadratic
+    // surface at its vertex (docs/algorithms/cube.md "Centre sample under noise"); NaN = M at
+    // the centre (bilinear, SPEC §4.3).
+    double centre_sample_mm = kMissing;
     const double width = (m.cols - 1) * m.dx_mm;
     const double height = (m.rows - 1) * m.dy_mm;
 
@@ -1401,12 +1412,17 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
             res.centre_fit_radius_mm = fit_r;
             const double rx = std::max(fit_r, 1.01 * m.dx_mm);
             const double ry = std::max(fit_r, 1.01 * m.dy_mm);
-            if (const auto v = quadratic_vertex(m, res.centre_mm, rx, ry)) res.centre_mm = *v;
+            double vertex_mm = kMissing;
+            if (const auto v = quadratic_vertex(m, res.centre_mm, rx, ry, &vertex_mm)) {
+                res.centre_mm = *v;
+                if (noisy) centre_sample_mm = vertex_mm;
+            }
         }
         double cv = m.sample(res.centre_mm.x(), res.centre_mm.y());
         if (std::isnan(cv) && res.centre_mm != node_centre) {
             // Missing values next to the refined centre: keep the minimum's node centre.
             res.centre_mm = node_centre;
+            centre_sample_mm = kMissing;
             cv = m.sample(node_centre.x(), node_centre.y());
             res.notes.push_back("missing thickness next to the refined centre: the centre is the "
                                 "minimum's node position");
@@ -1496,9 +1512,14 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
         free_pass.reserve(res.half_lines.size());
         double sum = 0.0;
         int count = 0;
+        // Every half-line's first sample is the centre: under noise the bilinear M there (4
+        // nodes, 2-4 um of noise) entered all 24 fits alike, an error no mean removes; the
+        // centre's quadratic surface averages the nodes of its window instead (+-0.2 mm at 1
+        // axial pixel: ~140 / 350 nodes at 61 / 193 B-scans).
+        const double centre_sample = std::isnan(centre_sample_mm) ? res.cft_mm : centre_sample_mm;
         for (const auto& h0 : res.half_lines) {
             CubeHalfLine& h = free_pass.emplace_back(h0);
-            fit_half_line(h, res.cft_mm, params, free_fs);
+            fit_half_line(h, centre_sample, params, free_fs);
             if (!h.valid) continue;
             sum += h.interior.control[0].y();
             ++count;
