@@ -38,15 +38,21 @@ struct PairTable {
     std::vector<int> slot_pair;  // per slot of Ω
 };
 
-// Rows list f_i first and then ascending indices (mesh.h), so row j is searched by bisection.
+// Rows list f_i first and then ascending indices (mesh.h). Row j is searched for i only by
+// the rows i > j, in ascending order of i, so a cursor per row that only moves forward finds
+// every mirror slot in one sweep of the row (no bisection per slot).
 PairTable pair_table(const Csr& omega) {
     PairTable t;
     t.slot_pair.assign(omega.items.size(), -1);
+    std::vector<int> cursor(omega.offsets.begin(), omega.offsets.end() - 1);
+    for (int& c : cursor) ++c;  // past f_j
+    const int* const items = omega.items.data();
     const auto find = [&](int row, int item) {
-        const auto first = omega.items.begin() + omega.begin(row) + 1;
-        const auto last = omega.items.begin() + omega.end(row);
-        const auto it = std::lower_bound(first, last, item);
-        return it != last && *it == item ? static_cast<int>(it - omega.items.begin()) : -1;
+        int c = cursor[static_cast<std::size_t>(row)];
+        const int e = omega.end(row);
+        while (c < e && items[c] < item) ++c;
+        cursor[static_cast<std::size_t>(row)] = c;
+        return c < e && items[c] == item ? c : -1;
     };
     const auto add = [&](int i, int j) {
         t.first.push_back(i);
