@@ -228,38 +228,61 @@ Csr disk_neighbourhoods(const Faces& F,
         // parallel_for splits [0, m) into `workers` chunks starting at m·w/workers.
         int w = 0;
         while (w + 1 < workers && static_cast<long long>(m) * (w + 1) / workers <= begin) ++w;
+        // Local copies of the pointers: the writes into the buffer could alias captured ones,
+        // which the compiler would then reload at every access.
+        const int* const vfo = vf_off;
+        const int* const vfi = vf;
+        const double* const c = cen;
+        const int* const t = tri;
         std::vector<int> face_stamp(static_cast<std::size_t>(m), -1);
         std::vector<int> vertex_stamp(static_cast<std::size_t>(n), -1);
+        int* const fs = face_stamp.data();
+        int* const vs = vertex_stamp.data();
         std::vector<int>& count = counts[static_cast<std::size_t>(w)];
         std::vector<int>& out = buffers[static_cast<std::size_t>(w)];
         count.resize(static_cast<std::size_t>(end - begin));
+        // out[0, size) is the worker's rows so far; out is grown before each vertex's faces
+        // are scanned, so that every candidate can be written without a branch and kept by
+        // advancing `size` (no mispredicted branch per tested face).
+        std::size_t size = 0;
+        out.resize(16 * static_cast<std::size_t>(end - begin) + 64);
         for (int i = begin; i < end; ++i) {
-            const double cx = cen[3 * i];
-            const double cy = cen[3 * i + 1];
-            const double cz = cen[3 * i + 2];
-            const std::size_t start = out.size();
-            out.push_back(i);
-            face_stamp[static_cast<std::size_t>(i)] = i;
-            for (std::size_t q = start; q < out.size(); ++q) {
+            const double cx = c[3 * i];
+            const double cy = c[3 * i + 1];
+            const double cz = c[3 * i + 2];
+            const std::size_t start = size;
+            if (size + 1 > out.size()) out.resize(2 * out.size());
+            out[size++] = i;
+            fs[i] = i;
+            for (std::size_t q = start; q < size; ++q) {
                 const int f = out[q];
                 for (int k = 0; k < 3; ++k) {
-                    const int v = tri[3 * f + k];
-                    if (vertex_stamp[static_cast<std::size_t>(v)] == i) continue;
-                    vertex_stamp[static_cast<std::size_t>(v)] = i;
-                    for (int p = vf_off[v]; p < vf_off[v + 1]; ++p) {
-                        const int g = vf[p];
-                        if (face_stamp[static_cast<std::size_t>(g)] == i) continue;
-                        face_stamp[static_cast<std::size_t>(g)] = i;
-                        const double dx = cen[3 * g] - cx;
-                        const double dy = cen[3 * g + 1] - cy;
-                        const double dz = cen[3 * g + 2] - cz;
-                        if (dx * dx + dy * dy + dz * dz <= r2) out.push_back(g);
+                    const int v = t[3 * f + k];
+                    if (vs[v] == i) continue;
+                    vs[v] = i;
+                    const int pb = vfo[v];
+                    const int pe = vfo[v + 1];
+                    const auto need = size + static_cast<std::size_t>(pe - pb);
+                    if (need > out.size()) out.resize(2 * need);
+                    int* const o = out.data();
+                    for (int p = pb; p < pe; ++p) {
+                        const int g = vfi[p];
+                        const bool fresh = fs[g] != i;
+                        fs[g] = i;
+                        const double dx = c[3 * g] - cx;
+                        const double dy = c[3 * g + 1] - cy;
+                        const double dz = c[3 * g + 2] - cz;
+                        const bool inside = dx * dx + dy * dy + dz * dz <= r2;
+                        o[size] = g;
+                        size += static_cast<std::size_t>(fresh & inside);
                     }
                 }
             }
-            std::sort(out.begin() + static_cast<std::ptrdiff_t>(start) + 1, out.end());
-            count[static_cast<std::size_t>(i - begin)] = static_cast<int>(out.size() - start);
+            std::sort(out.begin() + static_cast<std::ptrdiff_t>(start) + 1,
+                      out.begin() + static_cast<std::ptrdiff_t>(size));
+            count[static_cast<std::size_t>(i - begin)] = static_cast<int>(size - start);
         }
+        out.resize(size);
     });
     Csr omega;
     omega.offsets.assign(static_cast<std::size_t>(m) + 1, 0);

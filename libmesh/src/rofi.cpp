@@ -38,15 +38,21 @@ struct PairTable {
     std::vector<int> slot_pair;  // per slot of Ω
 };
 
-// Rows list f_i first and then ascending indices (mesh.h), so row j is searched by bisection.
+// Rows list f_i first and then ascending indices (mesh.h). Row j is searched for i only by
+// the rows i > j, in ascending order of i, so a cursor per row that only moves forward finds
+// every mirror slot in one sweep of the row (no bisection per slot).
 PairTable pair_table(const Csr& omega) {
     PairTable t;
     t.slot_pair.assign(omega.items.size(), -1);
+    std::vector<int> cursor(omega.offsets.begin(), omega.offsets.end() - 1);
+    for (int& c : cursor) ++c;  // past f_j
+    const int* const items = omega.items.data();
     const auto find = [&](int row, int item) {
-        const auto first = omega.items.begin() + omega.begin(row) + 1;
-        const auto last = omega.items.begin() + omega.end(row);
-        const auto it = std::lower_bound(first, last, item);
-        return it != last && *it == item ? static_cast<int>(it - omega.items.begin()) : -1;
+        int c = cursor[static_cast<std::size_t>(row)];
+        const int e = omega.end(row);
+        while (c < e && items[c] < item) ++c;
+        cursor[static_cast<std::size_t>(row)] = c;
+        return c < e && items[c] == item ? c : -1;
     };
     const auto add = [&](int i, int j) {
         t.first.push_back(i);
@@ -144,6 +150,51 @@ template <bool kWide>
     }
 }
 
+// The differences of eight pairs (the AVX-512 copy), lane l: rec[a[l]] − rec[b[l]].
+struct Diffs8 {
+    detail::V8d nx, ny, nz;  // n_a − n_b
+    detail::V8d cx, cy, cz;  // c_a − c_b
+};
+
+// Each record is loaded whole (8 doubles), the records of each pair subtracted (lanes 0–2:
+// normal, 3: area, 4–6: centroid, 7: padding, the same IEEE subtractions as diffs4) and the
+// eight difference vectors transposed into lanes in three rounds of two-source shuffles.
+[[gnu::always_inline]] inline void diffs8(const detail::FaceState* rec, const int* a,
+                                          const int* b, Diffs8& d) {
+    using detail::V8d;
+    static_assert(sizeof(detail::FaceState) == sizeof(V8d));
+    V8d r[8];
+    for (int l = 0; l < 8; ++l) {
+        V8d ra;
+        V8d rb;
+        std::memcpy(&ra, rec + a[l], sizeof ra);
+        std::memcpy(&rb, rec + b[l], sizeof rb);
+        r[l] = ra - rb;
+    }
+    // lo[m]: the even lanes of r[2m] and r[2m + 1] interleaved; hi[m]: the odd lanes.
+    V8d lo[4];
+    V8d hi[4];
+    for (int m = 0; m < 4; ++m) {
+        lo[m] = __builtin_shufflevector(r[2 * m], r[2 * m + 1], 0, 8, 2, 10, 4, 12, 6, 14);
+        hi[m] = __builtin_shufflevector(r[2 * m], r[2 * m + 1], 1, 9, 3, 11, 5, 13, 7, 15);
+    }
+    // Quad q (records 4q .. 4q + 3): x = lanes 0 then lanes 4, y = 1 then 5, z = 2 then 6.
+    V8d x[2];
+    V8d y[2];
+    V8d z[2];
+    for (int q = 0; q < 2; ++q) {
+        x[q] = __builtin_shufflevector(lo[2 * q], lo[2 * q + 1], 0, 1, 8, 9, 4, 5, 12, 13);
+        y[q] = __builtin_shufflevector(hi[2 * q], hi[2 * q + 1], 0, 1, 8, 9, 4, 5, 12, 13);
+        z[q] = __builtin_shufflevector(lo[2 * q], lo[2 * q + 1], 2, 3, 10, 11, 6, 7, 14, 15);
+    }
+    d.nx = __builtin_shufflevector(x[0], x[1], 0, 1, 2, 3, 8, 9, 10, 11);
+    d.cx = __builtin_shufflevector(x[0], x[1], 4, 5, 6, 7, 12, 13, 14, 15);
+    d.ny = __builtin_shufflevector(y[0], y[1], 0, 1, 2, 3, 8, 9, 10, 11);
+    d.cy = __builtin_shufflevector(y[0], y[1], 4, 5, 6, 7, 12, 13, 14, 15);
+    d.nz = __builtin_shufflevector(z[0], z[1], 0, 1, 2, 3, 8, 9, 10, 11);
+    d.cz = __builtin_shufflevector(z[0], z[1], 4, 5, 6, 7, 12, 13, 14, 15);
+}
+
 // The running sum of Eq. 5.1: lanes 0–2 of a V4d (kWide) or three scalars.
 struct Sum3 {
     double x, y, z;
@@ -172,21 +223,34 @@ struct PairKernel {
     // a and b bit for bit (the squares of negated differences are equal).
     template <bool kTukey, bool kWide>
     [[gnu::always_inline]] void weights4(const int* a, const int* b, detail::V4d& w) const {
-        using detail::splat;
-        using detail::V4d;
         Diffs4 d;
         diffs4<kWide>(rec, a, b, d);
-        const V4d x2 = d.nx * d.nx + d.ny * d.ny + d.nz * d.nz;  // |n_a − n_b|²
-        const V4d d2 = d.cx * d.cx + d.cy * d.cy + d.cz * d.cz;  // |c_a − c_b|²
+        weight_lanes<kTukey, detail::V4d, detail::V4i>(d, w);
+    }
+
+    // The same for eight pairs (the AVX-512 copy): the same operations in every lane.
+    template <bool kTukey>
+    [[gnu::always_inline]] void weights8(const int* a, const int* b, detail::V8d& w) const {
+        Diffs8 d;
+        diffs8(rec, a, b, d);
+        weight_lanes<kTukey, detail::V8d, detail::V8i>(d, w);
+    }
+
+    // f g from the differences d (Diffs4 or Diffs8), V = V4d or V8d.
+    template <bool kTukey, class V, class VI, class D>
+    [[gnu::always_inline]] void weight_lanes(const D& d, V& w) const {
+        const V x2 = d.nx * d.nx + d.ny * d.ny + d.nz * d.nz;  // |n_a − n_b|²
+        const V d2 = d.cx * d.cx + d.cy * d.cy + d.cz * d.cz;  // |c_a − c_b|²
         if constexpr (kTukey) {
             // Eq. 5.3 without its constant ½ (it cancels in K_i): (1 − x²/σ_s²)² for x ≤ σ_s,
             // else 0 — no diffusion across the cut-off. Eq. 5.2's Gaussian closeness.
-            const V4d t = splat(1.0) - x2 * splat(inv_s2);
-            V4d e{};
-            detail::exp_lanes(-d2 * splat(inv_two_sc2), e);
-            w = t > splat(0.0) ? t * t * e : splat(0.0);
+            const V t = detail::splat_as<V>(1.0) - x2 * detail::splat_as<V>(inv_s2);
+            V e{};
+            detail::exp_lanes_t<V, VI>(-d2 * detail::splat_as<V>(inv_two_sc2), e);
+            w = t > detail::splat_as<V>(0.0) ? t * t * e : detail::splat_as<V>(0.0);
         } else {
-            detail::exp_lanes(-d2 * splat(inv_two_sc2) - x2 * splat(inv_two_s2), w);
+            detail::exp_lanes_t<V, VI>(
+                -d2 * detail::splat_as<V>(inv_two_sc2) - x2 * detail::splat_as<V>(inv_two_s2), w);
         }
     }
 
@@ -197,6 +261,24 @@ struct PairKernel {
         for (int k = b0 * kPairBlock; k < b1 * kPairBlock; k += kPairBlock) {
             weights4<kTukey, kWide>(first + k, second + k, v);
             std::memcpy(pair_weight + k, &v, sizeof v);
+        }
+    }
+
+    // The weights of the pair blocks [b0, b1), eight pairs at a time (the AVX-512 copy; an
+    // odd last block by weights4: the same bits).
+    template <bool kTukey>
+    [[gnu::always_inline]] void pairs8(int b0, int b1) const {
+        int k = b0 * kPairBlock;
+        const int e = b1 * kPairBlock;
+        detail::V8d v{};
+        for (; k + 8 <= e; k += 8) {
+            weights8<kTukey>(first + k, second + k, v);
+            std::memcpy(pair_weight + k, &v, sizeof v);
+        }
+        detail::V4d u{};
+        for (; k < e; k += kPairBlock) {
+            weights4<kTukey, true>(first + k, second + k, u);
+            std::memcpy(pair_weight + k, &u, sizeof u);
         }
     }
 
@@ -338,22 +420,45 @@ __attribute__((target("avx2"))) void rows_avx2(const PairKernel& k, bool tukey, 
     }
 }
 
-// One body for both paths (inlined into each, compiled for its instruction set).
+// The AVX-512 copy: the pair weights eight at a time; the sums as in the AVX2 copy.
+__attribute__((target("avx512f,avx512dq,avx512vl,avx2"))) void rows_avx512(
+    const PairKernel& k, bool tukey, int kind, int begin, int end) {
+    if (kind != 0) {
+        rows_avx2(k, tukey, kind, begin, end);
+    } else if (tukey) {
+        k.pairs8<true>(begin, end);
+    } else {
+        k.pairs8<false>(begin, end);
+    }
+}
+
+// One body for all paths (inlined into each, compiled for its instruction set); V = V4d or
+// V8d, VI its integer vector.
+template <class V, class VI>
 [[gnu::always_inline]] inline void exp_impl(const double* x, double* out, std::size_t n) {
-    detail::V4d e{};
-    for (std::size_t i = 0; i < n; i += 4) {
-        const auto at = [&](std::size_t l) { return i + l < n ? x[i + l] : 0.0; };
-        const detail::V4d v{at(0), at(1), at(2), at(3)};
-        detail::exp_lanes(v, e);
-        for (std::size_t l = 0; l < 4 && i + l < n; ++l) out[i + l] = e[l];
+    constexpr std::size_t kLanes = sizeof(V) / sizeof(double);
+    V e{};
+    for (std::size_t i = 0; i < n; i += kLanes) {
+        V v{};
+        for (std::size_t l = 0; l < kLanes; ++l) v[l] = i + l < n ? x[i + l] : 0.0;
+        detail::exp_lanes_t<V, VI>(v, e);
+        for (std::size_t l = 0; l < kLanes && i + l < n; ++l) out[i + l] = e[l];
     }
 }
 
 __attribute__((target("avx2"))) void exp_avx2(const double* x, double* out, std::size_t n) {
-    exp_impl(x, out, n);
+    exp_impl<detail::V4d, detail::V4i>(x, out, n);
 }
 
-void exp_baseline(const double* x, double* out, std::size_t n) { exp_impl(x, out, n); }
+__attribute__((target("avx512f,avx512dq,avx512vl,avx2"))) void exp_avx512(const double* x,
+                                                                         double* out,
+                                                                         std::size_t n) {
+    exp_impl<detail::V8d, detail::V8i>(x, out, n);
+}
+
+void exp_baseline(const double* x, double* out, std::size_t n) {
+    exp_impl<detail::V4d, detail::V4i>(x, out, n);
+}
 
 void require(bool ok, const std::string& field, const std::string& rule, double value) {
     if (!ok) {
@@ -378,6 +483,9 @@ void RofiParams::validate() const {
     if (simd == SimdPath::kAvx2 && !simd_avx2_available()) {
         throw std::invalid_argument("RofiParams.simd is kAvx2 but this CPU has no AVX2");
     }
+    if (simd == SimdPath::kAvx512 && !simd_avx512_available()) {
+        throw std::invalid_argument("RofiParams.simd is kAvx512 but this CPU has no AVX-512");
+    }
 }
 
 bool simd_avx2_available() {
@@ -385,12 +493,27 @@ bool simd_avx2_available() {
     return available;
 }
 
+bool simd_avx512_available() {
+    static const bool available =
+        __builtin_cpu_supports("avx512f") != 0 && __builtin_cpu_supports("avx512dq") != 0 &&
+        __builtin_cpu_supports("avx512vl") != 0 && simd_avx2_available();
+    return available;
+}
+
 void simd_exp_nonpositive(const double* x, double* out, std::size_t n, SimdPath path) {
     if (path == SimdPath::kAvx2 && !simd_avx2_available()) {
         throw std::invalid_argument("simd_exp_nonpositive: SimdPath::kAvx2 on a CPU without AVX2");
     }
+    if (path == SimdPath::kAvx512 && !simd_avx512_available()) {
+        throw std::invalid_argument(
+            "simd_exp_nonpositive: SimdPath::kAvx512 on a CPU without AVX-512");
+    }
+    const bool avx512 =
+        path == SimdPath::kAvx512 || (path == SimdPath::kBest && simd_avx512_available());
     const bool avx2 = path == SimdPath::kAvx2 || (path == SimdPath::kBest && simd_avx2_available());
-    if (avx2) {
+    if (avx512) {
+        exp_avx512(x, out, n);
+    } else if (avx2) {
         exp_avx2(x, out, n);
     } else {
         exp_baseline(x, out, n);
@@ -437,8 +560,11 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
     PairKernel kernel{omega.offsets.data(), omega.items.data(), table.first.data(),
                       table.second.data(), table.slot_pair.data(), pair_weight.data(),
                       current.data(), faces.data(), inv_s2, inv_two_sc2, inv_two_s2};
-    // The same bits either way (simd.h).
-    const bool avx2 = params.simd == SimdPath::kAvx2 ||
+    // The same bits on every path (simd.h). kAvx512 runs the pair weights 8 lanes wide and
+    // everything else as kAvx2.
+    const bool avx512 = params.simd == SimdPath::kAvx512 ||
+                        (params.simd == SimdPath::kBest && simd_avx512_available());
+    const bool avx2 = avx512 || params.simd == SimdPath::kAvx2 ||
                       (params.simd == SimdPath::kBest && simd_avx2_available());
     double lambda = params.lambda_i;
     for (int it = 0; it < params.iterations; ++it) {
@@ -448,7 +574,9 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
         const auto rows = [&](int kind) {
             detail::parallel_for(kind == 0 ? pair_blocks : m, params.threads,
                                  [&](int begin, int end) {
-                if (avx2) {
+                if (avx512) {
+                    rows_avx512(kernel, tukey, kind, begin, end);
+                } else if (avx2) {
                     rows_avx2(kernel, tukey, kind, begin, end);
                 } else {
                     rows_baseline(kernel, tukey, kind, begin, end);

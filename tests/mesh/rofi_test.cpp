@@ -72,10 +72,12 @@ TEST(Rofi, PerRowPairWeightsGiveTheSameBitsAsSharedOnes) {
     }
 }
 
-TEST(Rofi, BaselineAndAvx2KernelsGiveTheSameBits) {
-    // The 4-lane kernels do the same IEEE operations per lane on SSE2 and AVX2 (no FMA), so
-    // the results must be identical, not merely close. On a CPU without AVX2 only the
-    // baseline runs, and kAvx2 must be refused.
+TEST(Rofi, BaselineAvx2AndAvx512KernelsGiveTheSameBits) {
+    // The vector kernels do the same IEEE operations per lane on SSE2, AVX2 and AVX-512 (no
+    // FMA; AVX-512 only widens the pair weights to 8 lanes), so the results must be identical,
+    // not merely close. Each path the CPU lacks is checked to be refused instead: without
+    // AVX2 only the baseline runs, without AVX-512 baseline and AVX2 are compared. The family
+    // has pair counts that are not multiples of 8 (the AVX-512 copy's 4-pair tail runs too).
     for (const auto& m : noisy_family()) {
         for (const auto sim : {mesh::Similarity::kTukey, mesh::Similarity::kGaussian}) {
             auto p = params();
@@ -83,15 +85,23 @@ TEST(Rofi, BaselineAndAvx2KernelsGiveTheSameBits) {
             p.simd = mesh::SimdPath::kBaseline;
             const auto baseline = mesh::rofi_denoise(m.V, m.F, p);
             EXPECT_NE(baseline.V, m.V) << m.name;
-            p.simd = mesh::SimdPath::kAvx2;
-            if (!mesh::simd_avx2_available()) {
-                EXPECT_THROW(p.validate(), std::invalid_argument);
-                continue;
+            for (const auto path : {mesh::SimdPath::kAvx2, mesh::SimdPath::kAvx512}) {
+                p.simd = path;
+                p.pair_weights = mesh::PairWeights::kShared;
+                p.threads = 1;
+                const bool available = path == mesh::SimdPath::kAvx2
+                                           ? mesh::simd_avx2_available()
+                                           : mesh::simd_avx512_available();
+                if (!available) {
+                    EXPECT_THROW(p.validate(), std::invalid_argument);
+                    continue;
+                }
+                EXPECT_EQ(mesh::rofi_denoise(m.V, m.F, p).V, baseline.V) << m.name;
+                p.threads = 2;
+                EXPECT_EQ(mesh::rofi_denoise(m.V, m.F, p).V, baseline.V) << m.name;
+                p.pair_weights = mesh::PairWeights::kPerRow;
+                EXPECT_EQ(mesh::rofi_denoise(m.V, m.F, p).V, baseline.V) << m.name;
             }
-            EXPECT_EQ(mesh::rofi_denoise(m.V, m.F, p).V, baseline.V) << m.name;
-            p.pair_weights = mesh::PairWeights::kPerRow;
-            p.threads = 2;
-            EXPECT_EQ(mesh::rofi_denoise(m.V, m.F, p).V, baseline.V) << m.name;
         }
     }
 }
@@ -109,10 +119,23 @@ TEST(Rofi, VectorisedExpMatchesStdExpOverTheRangeUsed) {
     }
     x.push_back(-709.0);
     x.push_back(-1e6);
-    const auto paths = mesh::simd_avx2_available()
-                           ? std::vector<mesh::SimdPath>{mesh::SimdPath::kBaseline,
-                                                         mesh::SimdPath::kAvx2}
-                           : std::vector<mesh::SimdPath>{mesh::SimdPath::kBaseline};
+    // Every path this CPU has (the others must be refused).
+    std::vector<mesh::SimdPath> paths{mesh::SimdPath::kBaseline};
+    if (mesh::simd_avx2_available()) {
+        paths.push_back(mesh::SimdPath::kAvx2);
+    } else {
+        std::vector<double> out(1);
+        EXPECT_THROW(mesh::simd_exp_nonpositive(x.data(), out.data(), 1, mesh::SimdPath::kAvx2),
+                     std::invalid_argument);
+    }
+    if (mesh::simd_avx512_available()) {
+        paths.push_back(mesh::SimdPath::kAvx512);
+    } else {
+        std::vector<double> out(1);
+        EXPECT_THROW(
+            mesh::simd_exp_nonpositive(x.data(), out.data(), 1, mesh::SimdPath::kAvx512),
+            std::invalid_argument);
+    }
     std::vector<double> first;
     for (const auto path : paths) {
         std::vector<double> out(x.size(), -1.0);
@@ -131,7 +154,7 @@ TEST(Rofi, VectorisedExpMatchesStdExpOverTheRangeUsed) {
         if (first.empty()) {
             first = out;
         } else {
-            EXPECT_EQ(out, first);  // same bits on both instruction sets
+            EXPECT_EQ(out, first);  // same bits on every instruction set
         }
     }
     // Any count, including a ragged tail, gives the same values element by element.

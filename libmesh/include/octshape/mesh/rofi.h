@@ -45,8 +45,8 @@ struct RofiParams {
     // Eq. 5.1–5.9 (docs/algorithms/rofi.md, "Fold-overs"); false = the equations alone.
     bool repair_folds = true;
     int threads = 1;            // std::threads; results do not depend on it; ≥ 1
-    // Instruction set of the pair-weight kernels; results do not depend on it (simd_exp.h).
-    // kAvx2 needs a CPU with AVX2.
+    // Instruction set of the vector kernels; results do not depend on it (simd_exp.h).
+    // kAvx2 / kAvx512 need a CPU with AVX2 / AVX-512.
     SimdPath simd = SimdPath::kBest;
 
     // Throws std::invalid_argument naming the first bad field.
