@@ -460,6 +460,21 @@ void exp_baseline(const double* x, double* out, std::size_t n) {
     exp_impl<detail::V4d, detail::V4i>(x, out, n);
 }
 
+// The path that runs for `requested`: kBest becomes the best this CPU has. A forced path the
+// CPU lacks throws std::invalid_argument naming `who`.
+SimdPath run_path(SimdPath requested, const char* who) {
+    if (requested == SimdPath::kAvx2 && !simd_avx2_available()) {
+        throw std::invalid_argument(std::string(who) + " is kAvx2 but this CPU has no AVX2");
+    }
+    if (requested == SimdPath::kAvx512 && !simd_avx512_available()) {
+        throw std::invalid_argument(std::string(who) +
+                                    " is kAvx512 but this CPU has no AVX-512");
+    }
+    if (requested != SimdPath::kBest) return requested;
+    if (simd_avx512_available()) return SimdPath::kAvx512;
+    return simd_avx2_available() ? SimdPath::kAvx2 : SimdPath::kBaseline;
+}
+
 void require(bool ok, const std::string& field, const std::string& rule, double value) {
     if (!ok) {
         throw std::invalid_argument("RofiParams." + field + " must be " + rule + ", got " +
@@ -480,12 +495,7 @@ void RofiParams::validate() const {
     require(std::isfinite(sigma_c_factor) && sigma_c_factor > 0.0, "sigma_c_factor",
             "finite and > 0", sigma_c_factor);
     require(threads >= 1, "threads", ">= 1", threads);
-    if (simd == SimdPath::kAvx2 && !simd_avx2_available()) {
-        throw std::invalid_argument("RofiParams.simd is kAvx2 but this CPU has no AVX2");
-    }
-    if (simd == SimdPath::kAvx512 && !simd_avx512_available()) {
-        throw std::invalid_argument("RofiParams.simd is kAvx512 but this CPU has no AVX-512");
-    }
+    (void)run_path(simd, "RofiParams.simd");
 }
 
 bool simd_avx2_available() {
@@ -501,19 +511,10 @@ bool simd_avx512_available() {
 }
 
 void simd_exp_nonpositive(const double* x, double* out, std::size_t n, SimdPath path) {
-    if (path == SimdPath::kAvx2 && !simd_avx2_available()) {
-        throw std::invalid_argument("simd_exp_nonpositive: SimdPath::kAvx2 on a CPU without AVX2");
-    }
-    if (path == SimdPath::kAvx512 && !simd_avx512_available()) {
-        throw std::invalid_argument(
-            "simd_exp_nonpositive: SimdPath::kAvx512 on a CPU without AVX-512");
-    }
-    const bool avx512 =
-        path == SimdPath::kAvx512 || (path == SimdPath::kBest && simd_avx512_available());
-    const bool avx2 = path == SimdPath::kAvx2 || (path == SimdPath::kBest && simd_avx2_available());
-    if (avx512) {
+    const SimdPath run = run_path(path, "simd_exp_nonpositive: path");
+    if (run == SimdPath::kAvx512) {
         exp_avx512(x, out, n);
-    } else if (avx2) {
+    } else if (run == SimdPath::kAvx2) {
         exp_avx2(x, out, n);
     } else {
         exp_baseline(x, out, n);
@@ -562,10 +563,9 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
                       current.data(), faces.data(), inv_s2, inv_two_sc2, inv_two_s2};
     // The same bits on every path (simd.h). kAvx512 runs the pair weights 8 lanes wide and
     // everything else as kAvx2.
-    const bool avx512 = params.simd == SimdPath::kAvx512 ||
-                        (params.simd == SimdPath::kBest && simd_avx512_available());
-    const bool avx2 = avx512 || params.simd == SimdPath::kAvx2 ||
-                      (params.simd == SimdPath::kBest && simd_avx2_available());
+    const SimdPath path = run_path(params.simd, "RofiParams.simd");
+    const bool avx512 = path == SimdPath::kAvx512;
+    const bool avx2 = path != SimdPath::kBaseline;
     double lambda = params.lambda_i;
     for (int it = 0; it < params.iterations; ++it) {
         detail::parallel_for(m, params.threads, [&](int begin, int end) {

@@ -23,8 +23,6 @@ using V4i = std::int64_t __attribute__((vector_size(32)));
 using V8d = double __attribute__((vector_size(64)));
 using V8i = std::int64_t __attribute__((vector_size(64)));
 
-[[gnu::always_inline]] inline V4d splat(double s) { return V4d{s, s, s, s}; }
-
 // s in every lane of a V (V4d or V8d).
 template <class V>
 [[gnu::always_inline]] inline V splat_as(double s) {
@@ -36,6 +34,8 @@ template <class V>
         return __builtin_shufflevector(one, one, 0, 0, 0, 0, 0, 0, 0, 0);
     }
 }
+
+[[gnu::always_inline]] inline V4d splat(double s) { return splat_as<V4d>(s); }
 
 // exp(x) lane by lane for x ≤ 0 (the closeness and Gaussian similarity weights of RoFi):
 // x = k ln2 + r with k = round(x / ln2), |r| ≤ ln2/2 (+ rounding); exp(r) by its Taylor
@@ -81,6 +81,5 @@ template <class V, class VI>
     const V scale = std::bit_cast<V>((k + 1023) << 52);
     out = under ? splat_as<V>(0.0) : p * scale;
 }
-
 
 }  // namespace octshape::mesh::detail
