@@ -31,6 +31,8 @@ struct DenoiseOptions {
     std::optional<int> iterations;
     std::optional<double> tau;
     std::optional<double> radius_mm;
+    std::optional<double> radius_factor;   // rofi/bilateral: r in units of c_a
+    std::optional<double> sigma_c_factor;  // rofi/bilateral: σ_c in units of c_a
     int threads = 1;
     bool json = false;
     std::optional<double> rho;
@@ -96,10 +98,14 @@ void run_pointset_denoise(const DenoiseOptions& o) {
 }
 
 void run_denoise(const DenoiseOptions& o) {
+    const bool rofi_option = o.sigma_s || o.lambda_i || !o.similarity.empty() ||
+                             o.radius_factor || o.sigma_c_factor;
+    const auto rofi_only = [] {
+        return UsageError("--sigma-s, --lambda-i, --similarity, --radius-factor and "
+                          "--sigma-c-factor apply to rofi and bilateral");
+    };
     if (o.method == "pointset") {
-        if (o.sigma_s || o.lambda_i || !o.similarity.empty()) {
-            throw UsageError("--sigma-s, --lambda-i and --similarity apply to rofi and bilateral");
-        }
+        if (rofi_option) throw rofi_only();
         if (o.no_fold_repair) {
             throw UsageError("--no-fold-repair applies to rofi, bilateral and envt");
         }
@@ -110,13 +116,12 @@ void run_denoise(const DenoiseOptions& o) {
         throw UsageError("--rho, --epsilon, --normals and --no-edge-snap apply to pointset");
     }
     const bool rofi_like = o.method == "rofi" || o.method == "bilateral";
-    if (!rofi_like && (o.sigma_s || o.lambda_i || !o.similarity.empty())) {
-        throw UsageError("--sigma-s, --lambda-i and --similarity apply to rofi and bilateral");
-    }
+    if (!rofi_like && rofi_option) throw rofi_only();
     if (rofi_like && (o.tau || o.radius_mm)) {
         throw UsageError("--tau and --radius apply to envt");
     }
-    const bool explicit_params = o.sigma_s || o.lambda_i || o.iterations || o.tau || o.radius_mm;
+    const bool explicit_params = o.sigma_s || o.lambda_i || o.iterations || o.tau ||
+                                 o.radius_mm || o.radius_factor || o.sigma_c_factor;
     const bool use_auto = o.use_auto || !explicit_params;
 
     const io::MeshData in = read_valid_mesh(o.input);
@@ -145,6 +150,8 @@ void run_denoise(const DenoiseOptions& o) {
         if (o.sigma_s) p.sigma_s = *o.sigma_s;
         if (o.lambda_i) p.lambda_i = *o.lambda_i;
         if (o.iterations) p.iterations = *o.iterations;
+        if (o.radius_factor) p.radius_factor = *o.radius_factor;
+        if (o.sigma_c_factor) p.sigma_c_factor = *o.sigma_c_factor;
         p.threads = o.threads;
         p.repair_folds = !o.no_fold_repair;
         validate_options(p);
@@ -152,6 +159,8 @@ void run_denoise(const DenoiseOptions& o) {
                   {"lambda_i", p.lambda_i},
                   {"iterations", p.iterations},
                   {"lambda_decay", p.lambda_decay},
+                  {"radius_factor", p.radius_factor},
+                  {"sigma_c_factor", p.sigma_c_factor},
                   {"similarity", p.similarity == mesh::Similarity::kTukey ? "tukey" : "gaussian"},
                   {"repair_folds", p.repair_folds}};
         result = mesh::rofi_denoise(in.V, in.F, p);
@@ -175,6 +184,10 @@ void run_denoise(const DenoiseOptions& o) {
                  result.seconds_setup, o.output);
     if (o.json) {
         params["radius_mm"] = result.radius;
+        if (rofi_like) {
+            params["sigma_c_mm"] =
+                params["sigma_c_factor"].get<double>() * result.mean_centroid_distance;
+        }
         const nlohmann::json j = {
             {"software", std::string("octshape ") + kVersion},
             {"input", o.input},
@@ -231,6 +244,12 @@ void add_denoise_command(CLI::App& app, RunContext& /*ctx*/) {
     cmd->add_option("--tau", opts->tau, "envt: eigenvalue threshold tau (default 0.3)");
     cmd->add_option("--radius", opts->radius_mm,
                     "envt: neighbourhood radius in mesh units (default 2 c_a)");
+    cmd->add_option("--radius-factor", opts->radius_factor,
+                    "rofi/bilateral: disk radius r in units of c_a, the mean distance between "
+                    "adjacent face centroids (default 2, thesis 5.2)");
+    cmd->add_option("--sigma-c-factor", opts->sigma_c_factor,
+                    "rofi/bilateral: closeness width sigma_c in units of c_a (default 1, thesis "
+                    "5.2)");
     cmd->add_option("--threads", opts->threads,
                     "Threads (results are identical for any number)")
         ->check(CLI::Range(1, 256));

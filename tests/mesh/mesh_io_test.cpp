@@ -3,6 +3,7 @@
 #include "octshape/io/mesh_io.h"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <fstream>
 #include <sstream>
@@ -189,6 +190,32 @@ TEST(MeshCommands, DenoiseThenMetricsAndFeatures) {
     EXPECT_EQ(run_octshape("denoise '" + in + "' -o x.off --method pointset --no-fold-repair")
                   .exit_code,
               64);
+    EXPECT_FALSE(std::filesystem::exists("x.off"));
+    // RoFi's disk radius and closeness width in units of c_a: used and recorded (r and σ_c
+    // in mesh units are the factors times the input's c_a), and refused for the other methods
+    // or out of range.
+    r = run_octshape("denoise '" + in + "' -o '" + out +
+                     "' -p 3 --radius-factor 3 --sigma-c-factor 1.5 --json");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    {
+        const auto j = nlohmann::json::parse(r.out);
+        const auto& p = j.at("parameters");
+        const double ca = j.at("noise").at("mean_centroid_distance_mm").get<double>();
+        EXPECT_FALSE(j.at("auto").get<bool>());
+        EXPECT_EQ(p.at("radius_factor").get<double>(), 3.0);
+        EXPECT_EQ(p.at("sigma_c_factor").get<double>(), 1.5);
+        EXPECT_DOUBLE_EQ(p.at("radius_mm").get<double>(), 3.0 * ca);
+        EXPECT_DOUBLE_EQ(p.at("sigma_c_mm").get<double>(), 1.5 * ca);
+        // A wider disk holds more faces than the default one.
+        const auto d = nlohmann::json::parse(
+            run_octshape("denoise '" + in + "' -o '" + out + "' -p 3 --json").out);
+        EXPECT_GT(j.at("mean_neighbourhood_faces").get<double>(),
+                  d.at("mean_neighbourhood_faces").get<double>());
+    }
+    EXPECT_EQ(run_octshape("denoise '" + in + "' -o x.off --method envt --radius-factor 3")
+                  .exit_code,
+              64);
+    EXPECT_EQ(run_octshape("denoise '" + in + "' -o x.off --sigma-c-factor 0").exit_code, 64);
     EXPECT_FALSE(std::filesystem::exists("x.off"));
     // ENVT records its fold-repair interval; --no-fold-repair turns the repair off.
     r = run_octshape("denoise '" + in + "' -o '" + out + "' --method envt -p 5 --json");
