@@ -12,6 +12,7 @@
 #include "commands/command.h"
 #include "commands/mesh_common.h"
 #include "octshape/io/pointset_io.h"
+#include "octshape/io/sha256.h"
 #include "octshape/mesh/envt.h"
 #include "octshape/mesh/pointset.h"
 #include "octshape/mesh/rofi.h"
@@ -73,6 +74,7 @@ void run_pointset_denoise(const DenoiseOptions& o) {
     const nlohmann::json j = {
         {"software", std::string("octshape ") + kVersion},
         {"input", o.input},
+        {"input_sha256", io::sha256_file(o.input)},
         {"output", o.output},
         {"method", o.method},
         {"parameters", {{"tau", p.tau}, {"rho_rad", p.rho}, {"iterations", p.iterations},
@@ -191,6 +193,7 @@ void run_denoise(const DenoiseOptions& o) {
         const nlohmann::json j = {
             {"software", std::string("octshape ") + kVersion},
             {"input", o.input},
+            {"input_sha256", io::sha256_file(o.input)},
             {"output", o.output},
             {"method", o.method},
             {"auto", use_auto},

@@ -10,6 +10,7 @@
 
 #include "commands/command.h"
 #include "commands/mesh_common.h"
+#include "octshape/io/sha256.h"
 #include "octshape/mesh/metrics.h"
 #include "octshape/version.h"
 
@@ -32,7 +33,9 @@ void run_metrics(const MetricsOptions& o) {
     const io::MeshData r = read_valid_mesh(o.reference);
     nlohmann::json j = {{"software", std::string("octshape ") + kVersion},
                         {"mesh", o.mesh},
+                        {"mesh_sha256", io::sha256_file(o.mesh)},
                         {"reference", o.reference},
+                        {"reference_sha256", io::sha256_file(o.reference)},
                         {"vertices", m.V.rows()},
                         {"faces", m.F.rows()}};
     const bool same = same_triangulation(m, r);
@@ -53,6 +56,7 @@ void run_metrics(const MetricsOptions& o) {
         j["closed"] = c.closed;
         if (!o.input.empty()) {
             const io::MeshData in = read_valid_mesh(o.input);
+            j["input_sha256"] = io::sha256_file(o.input);
             if (!same_triangulation(in, m)) {
                 throw UsageError("--input " + o.input +
                                  ": not the same triangulation as the mesh (flips created by "

@@ -1,6 +1,7 @@
 // Mesh files (io/mesh_io.h): round trips in every format, face scalars, bad files.
 
 #include "octshape/io/mesh_io.h"
+#include "octshape/io/sha256.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -169,6 +170,14 @@ TEST(MeshCommands, DenoiseThenMetricsAndFeatures) {
                      "' --input '" + in + "' --json");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.out.find("\"flipped_faces_created\": 0"), std::string::npos) << r.out;
+    {
+        const auto j = nlohmann::json::parse(r.out);
+        EXPECT_EQ(j.at("mesh_sha256").get<std::string>(), io::sha256_file(out));
+        EXPECT_EQ(j.at("reference_sha256").get<std::string>(),
+                  io::sha256_file((tmp / "clean.off").string()));
+        EXPECT_EQ(j.at("input_sha256").get<std::string>(), io::sha256_file(in));
+        EXPECT_NE(j.at("mesh_sha256"), j.at("input_sha256"));
+    }
     EXPECT_NE(r.out.find("\"input_flipped_faces\": " + std::to_string(input_flips)),
               std::string::npos)
         << r.out;
@@ -206,6 +215,7 @@ TEST(MeshCommands, DenoiseThenMetricsAndFeatures) {
         EXPECT_EQ(p.at("sigma_c_factor").get<double>(), 1.5);
         EXPECT_DOUBLE_EQ(p.at("radius_mm").get<double>(), 3.0 * ca);
         EXPECT_DOUBLE_EQ(p.at("sigma_c_mm").get<double>(), 1.5 * ca);
+        EXPECT_EQ(j.at("input_sha256").get<std::string>(), io::sha256_file(in));
         // A wider disk holds more faces than the default one.
         const auto d = nlohmann::json::parse(
             run_octshape("denoise '" + in + "' -o '" + out + "' -p 3 --json").out);
