@@ -180,20 +180,24 @@ void run_denoise(const DenoiseOptions& o) {
         result = mesh::envt_denoise(in.V, in.F, p);
     }
     for (const auto& w : result.warnings) spdlog::warn("{}: {}", o.input, w);
-    io::write_mesh(o.output, result.V, in.F);
+    params["radius_mm"] = result.radius;
+    if (rofi_like) {
+        params["sigma_c_mm"] =
+            params["sigma_c_factor"].get<double>() * result.mean_centroid_distance;
+    }
+    const std::string input_sha = io::sha256_file(o.input);
+    nlohmann::json options = {{"method", o.method}, {"auto", use_auto}, {"parameters", params},
+                              {"threads", o.threads}};
+    io::write_mesh(o.output, result.V, in.F, {},
+                   mesh_provenance("denoise", {o.input}, {input_sha}, options));
     spdlog::info("{}: {} iterations of {} in {:.3f} s (+{:.3f} s set-up), written to {}",
                  o.input, result.iterations, o.method, result.seconds_iterations,
                  result.seconds_setup, o.output);
     if (o.json) {
-        params["radius_mm"] = result.radius;
-        if (rofi_like) {
-            params["sigma_c_mm"] =
-                params["sigma_c_factor"].get<double>() * result.mean_centroid_distance;
-        }
         const nlohmann::json j = {
             {"software", std::string("octshape ") + kVersion},
             {"input", o.input},
-            {"input_sha256", io::sha256_file(o.input)},
+            {"input_sha256", input_sha},
             {"output", o.output},
             {"method", o.method},
             {"auto", use_auto},

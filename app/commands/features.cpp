@@ -37,7 +37,9 @@ void run_features(const FeaturesOptions& o) {
                     {"envt_lambda2", f.eigenvalues.col(1)},
                     {"envt_lambda3", f.eigenvalues.col(2)},
                     {"feature_strength", f.strength},
-                    {"mean_curvature_per_mm", f.mean_curvature}});
+                    {"mean_curvature_per_mm", f.mean_curvature}},
+                   mesh_provenance("features", {o.input}, {io::sha256_file(o.input)},
+                                   {{"radius_mm", f.radius}, {"threads", o.threads}}));
     spdlog::info("{}: features of {} faces (radius {:.4g} mm) written to {}", o.input,
                  in.F.rows(), f.radius, o.output);
 }

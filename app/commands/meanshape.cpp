@@ -86,7 +86,14 @@ void run_meanshape(const MeanShapeOptions& o) {
         surfaces[s]["correspondence_mean_distance_mm"] = result.mean_distance[s];
         surfaces[s]["correspondence_rms_distance_mm"] = result.rms_distance[s];
     }
-    io::write_mesh_vertex_scalars(o.output, result.mean, reference.F, {{"sd_mm", result.sd}});
+    std::vector<std::string> hashes;
+    for (const auto& f : o.inputs) hashes.push_back(io::sha256_file(f));
+    io::write_mesh_vertex_scalars(
+        o.output, result.mean, reference.F, {{"sd_mm", result.sd}},
+        mesh_provenance("meanshape", o.inputs, hashes,
+                        {{"icp_max_iterations", o.max_iterations},
+                         {"icp_refine_iterations", o.refine_iterations},
+                         {"threads", o.threads}}));
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const nlohmann::json j = {{"software", std::string("octshape ") + kVersion},

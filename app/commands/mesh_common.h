@@ -1,14 +1,20 @@
 #pragma once
-// Shared by the mesh commands (denoise, metrics, features): reading a mesh with libmesh's
-// std::invalid_argument mapped to the user-facing error types.
+// Shared by the mesh commands (denoise, metrics, features, meanshape): reading a mesh with
+// libmesh's std::invalid_argument mapped to the user-facing error types, and the provenance
+// line written into their output meshes.
 
 #include <filesystem>
 #include <stdexcept>
 #include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "octshape/io/error.h"
 #include "octshape/io/mesh_io.h"
+#include "octshape/io/sha256.h"
 #include "octshape/mesh/mesh.h"
+#include "octshape/version.h"
 
 namespace octshape::app {
 
@@ -21,6 +27,24 @@ inline io::MeshData read_valid_mesh(const std::filesystem::path& path) {
         throw InputError::corrupt(path.string(), e.what());
     }
     return mesh;
+}
+
+// The provenance of an output mesh (io::write_mesh): one line of JSON with the software
+// version, the command, every input with its SHA-256 (`hashes`, in the order of `inputs`) and
+// the options used.
+inline std::string mesh_provenance(const std::string& command,
+                                   const std::vector<std::string>& inputs,
+                                   const std::vector<std::string>& hashes,
+                                   const nlohmann::json& options) {
+    nlohmann::json in = nlohmann::json::array();
+    for (std::size_t i = 0; i < inputs.size(); ++i) {
+        in.push_back({{"path", inputs[i]}, {"sha256", hashes.at(i)}});
+    }
+    return nlohmann::json{{"software", std::string("octshape ") + kVersion},
+                          {"command", command},
+                          {"inputs", in},
+                          {"options", options}}
+        .dump();
 }
 
 // Runs `validate` and turns libmesh's std::invalid_argument into a UsageError.

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "commands/eye_output.h"
+#include "commands/mesh_common.h"
 #include "commands/onh_qc.h"
 #include "octshape/io/error.h"
 #include "octshape/io/mesh_io.h"
@@ -20,7 +21,9 @@ namespace {
 
 // DIR/STEM_ilm.EXT (per-face height above the RPE, region bits, signed projected area, local
 // ENVT strength) and DIR/STEM_rpe.EXT (per-face: 1 where a corner was filled).
-void write_meshes(const retina::OnhResult& r, const OnhEyeOptions& o, const std::string& stem) {
+// `provenance`: io::write_mesh's line (the input, its SHA-256 and the options).
+void write_meshes(const retina::OnhResult& r, const OnhEyeOptions& o, const std::string& stem,
+                  const std::string& provenance) {
     std::error_code ec;
     std::filesystem::create_directories(o.mesh_dir, ec);
     if (ec) throw OutputError(o.mesh_dir, "cannot create the mesh directory: " + ec.message());
@@ -35,7 +38,7 @@ void write_meshes(const retina::OnhResult& r, const OnhEyeOptions& o, const std:
     if (r.face_envt_strength.size() == r.ilm_F.rows()) {
         ilm.emplace_back("envt_strength", r.face_envt_strength);
     }
-    io::write_mesh(d / (stem + "_ilm." + o.mesh_format), r.ilm_V, r.ilm_F, ilm);
+    io::write_mesh(d / (stem + "_ilm." + o.mesh_format), r.ilm_V, r.ilm_F, ilm, provenance);
     Eigen::VectorXd filled(r.rpe_F.rows());
     for (Eigen::Index f = 0; f < r.rpe_F.rows(); ++f) {
         bool any = false;
@@ -43,7 +46,8 @@ void write_meshes(const retina::OnhResult& r, const OnhEyeOptions& o, const std:
             any = any || r.rpe.filled[static_cast<std::size_t>(r.rpe_F(f, k))];
         filled(f) = any ? 1.0 : 0.0;
     }
-    io::write_mesh(d / (stem + "_rpe." + o.mesh_format), r.rpe_V, r.rpe_F, {{"filled", filled}});
+    io::write_mesh(d / (stem + "_rpe." + o.mesh_format), r.rpe_V, r.rpe_F, {{"filled", filled}},
+                   provenance);
 }
 
 }  // namespace
@@ -135,7 +139,10 @@ EyeResult analyse_onh_eye(const std::string& file,
     const std::string stem =
         o.qc_stem.empty() ? std::filesystem::path(file).stem().string() : o.qc_stem;
     if (!o.qc_dir.empty()) write_onh_qc(scan, r, o.params, o.qc_dir, stem);
-    if (!o.mesh_dir.empty()) write_meshes(r, o, stem);
+    if (!o.mesh_dir.empty()) {
+        write_meshes(r, o, stem,
+                     mesh_provenance("onh", {file}, {sha}, {{"options", onh_options_text(o)}}));
+    }
     spdlog::info(
         "{}: {} eye, ILM {}, BMO area {:.4f} mm2, cup {:.4f} mm3, CONHT {:.4f} mm, "
         "MRW {:.4f} mm",

@@ -30,6 +30,8 @@
 #include <vtkSTLReader.h>
 #include <vtkSTLWriter.h>
 #include <vtkSmartPointer.h>
+#include <vtkStringArray.h>
+#include <vtkFieldData.h>
 #include <vtkXMLPolyDataReader.h>
 #include <vtkXMLPolyDataWriter.h>
 
@@ -105,7 +107,38 @@ MeshData from_polydata(vtkPolyData* poly, const std::string& name) {
 template <class Reader>
 MeshData read_with_vtk(const fs::path& path) {
     const vtkSmartPointer<vtkPolyData> poly = detail::read_polydata<Reader>(path);
-    return from_polydata(poly, path.string());
+    MeshData out = from_polydata(poly, path.string());
+    if (vtkFieldData* fd = poly->GetFieldData(); fd != nullptr) {
+        const auto* text =
+            vtkStringArray::SafeDownCast(fd->GetAbstractArray(detail::kProvenanceKey));
+        if (text != nullptr && text->GetNumberOfValues() > 0) out.provenance = text->GetValue(0);
+    }
+    return out;
+}
+
+// The text after `prefix` on its line, if a line of the file's first 1 MiB starts with it
+// before `stop` (a line that ends the header, or empty), else empty. Bounded: a hostile file
+// costs at most one 1 MiB read.
+std::string provenance_line(const fs::path& path, const std::string& prefix,
+                            const std::string& stop) {
+    constexpr std::size_t kMax = std::size_t{1} << 20;
+    std::ifstream in(path, std::ios::binary);
+    std::string head(kMax, '\0');
+    in.read(head.data(), static_cast<std::streamsize>(kMax));
+    head.resize(static_cast<std::size_t>(in.gcount()));
+    std::size_t line = 0;
+    while (line < head.size()) {
+        const std::size_t end = std::min(head.find('\n', line), head.size());
+        const std::string_view l = std::string_view(head).substr(line, end - line);
+        if (!stop.empty() && l.starts_with(stop)) break;
+        if (l.starts_with(prefix)) {
+            std::string_view rest = l.substr(prefix.size());
+            if (rest.ends_with('\r')) rest.remove_suffix(1);
+            return std::string(rest);
+        }
+        line = end + 1;
+    }
+    return {};
 }
 
 // ---------------------------------------------------------------- OFF, by hand
@@ -185,18 +218,23 @@ void write_mesh_file(const fs::path& path,
                      const mesh::Vertices& V,
                      const mesh::Faces& F,
                      const VertexScalars& vertex_scalars,
-                     const FaceScalars& face_scalars) {
+                     const FaceScalars& face_scalars,
+                     const std::string& provenance) {
     const MeshFormat format = mesh_format_from_extension(path);
     check_scalars(vertex_scalars, V.rows(), "vertex", "vertices");
     check_scalars(face_scalars, F.rows(), "face", "faces");
+    if (provenance.find_first_of("\r\n") != std::string::npos) {
+        throw UsageError("mesh provenance must be one line");
+    }
     const std::string dest = path.string();
     switch (format) {
         case MeshFormat::kOff:
-            write_file_atomically(dest, [&](std::ostream& out) { write_off(out, V, F); });
+            write_file_atomically(dest,
+                                  [&](std::ostream& out) { write_off(out, V, F, provenance); });
             return;
         case MeshFormat::kPly:
             write_file_atomically(dest, [&](std::ostream& out) {
-                detail::write_ply(out, V, F, vertex_scalars, face_scalars);
+                detail::write_ply(out, V, F, vertex_scalars, face_scalars, provenance);
             });
             return;
         case MeshFormat::kObj:
@@ -204,6 +242,11 @@ void write_mesh_file(const fs::path& path,
                 vtkNew<vtkOBJWriter> writer;
                 detail::write_polydata(writer.Get(), detail::to_polydata(V, F, {}, {}), tmp,
                                        dest);
+                if (provenance.empty()) return;
+                // A comment line at the end (VTK's writer has no comment of its own).
+                std::ofstream out(tmp, std::ios::app | std::ios::binary);
+                out << "# " << detail::kProvenanceKey << ' ' << provenance << '\n';
+                if (!out.flush()) throw OutputError(dest, "cannot write the provenance comment");
             });
             return;
         case MeshFormat::kStl:
@@ -217,9 +260,15 @@ void write_mesh_file(const fs::path& path,
         case MeshFormat::kVtp:
             write_path_atomically(dest, [&](const std::string& tmp) {
                 vtkNew<vtkXMLPolyDataWriter> writer;
-                detail::write_polydata(
-                    writer.Get(), detail::to_polydata(V, F, vertex_scalars, face_scalars), tmp,
-                    dest);
+                const vtkSmartPointer<vtkPolyData> poly =
+                    detail::to_polydata(V, F, vertex_scalars, face_scalars);
+                if (!provenance.empty()) {
+                    vtkNew<vtkStringArray> text;
+                    text->SetName(detail::kProvenanceKey);
+                    text->InsertNextValue(provenance);
+                    poly->GetFieldData()->AddArray(text);
+                }
+                detail::write_polydata(writer.Get(), poly, tmp, dest);
             });
             return;
     }
@@ -341,10 +390,17 @@ MeshData read_mesh(const fs::path& path) {
     switch (format) {
         case MeshFormat::kOff: {
             std::ifstream in(path, std::ios::binary);
-            return read_off(in, name);
+            MeshData out = read_off(in, name);
+            out.provenance =
+                provenance_line(path, std::string("# ") + detail::kProvenanceKey + ' ', "");
+            return out;
         }
-        case MeshFormat::kPly:
-            return read_with_vtk<vtkPLYReader>(path);
+        case MeshFormat::kPly: {
+            MeshData out = read_with_vtk<vtkPLYReader>(path);
+            out.provenance = provenance_line(
+                path, std::string("comment ") + detail::kProvenanceKey + ' ', "end_header");
+            return out;
+        }
         case MeshFormat::kObj:
             return read_with_vtk<vtkOBJReader>(path);
         case MeshFormat::kStl:
@@ -355,8 +411,11 @@ MeshData read_mesh(const fs::path& path) {
     throw InputError::unsupported(name, "unknown mesh format");
 }
 
-void write_off(std::ostream& out, const mesh::Vertices& V, const mesh::Faces& F) {
-    out << "OFF\n" << V.rows() << ' ' << F.rows() << " 0\n";
+void write_off(std::ostream& out, const mesh::Vertices& V, const mesh::Faces& F,
+               const std::string& provenance) {
+    out << "OFF\n";
+    if (!provenance.empty()) out << "# " << detail::kProvenanceKey << ' ' << provenance << '\n';
+    out << V.rows() << ' ' << F.rows() << " 0\n";
     out << std::setprecision(17);
     for (Eigen::Index i = 0; i < V.rows(); ++i) {
         out << V(i, 0) << ' ' << V(i, 1) << ' ' << V(i, 2) << '\n';
@@ -369,19 +428,21 @@ void write_off(std::ostream& out, const mesh::Vertices& V, const mesh::Faces& F)
 void write_mesh(const fs::path& path,
                 const mesh::Vertices& V,
                 const mesh::Faces& F,
-                const FaceScalars& scalars) {
-    write_mesh_file(path, V, F, {}, scalars);
+                const FaceScalars& scalars,
+                const std::string& provenance) {
+    write_mesh_file(path, V, F, {}, scalars, provenance);
 }
 
 void write_mesh_vertex_scalars(const fs::path& path,
                                const mesh::Vertices& V,
                                const mesh::Faces& F,
-                               const VertexScalars& scalars) {
+                               const VertexScalars& scalars,
+                               const std::string& provenance) {
     const MeshFormat format = mesh_format_from_extension(path);
     if (format != MeshFormat::kVtp && format != MeshFormat::kPly) {
         throw UsageError(path.string() + ": per-vertex scalars need .vtp or .ply");
     }
-    write_mesh_file(path, V, F, scalars, {});
+    write_mesh_file(path, V, F, scalars, {}, provenance);
 }
 
 // ---------------------------------------------------------------- shared helpers (detail)
@@ -438,8 +499,11 @@ void write_ply(std::ostream& out,
                const mesh::Vertices& V,
                const mesh::Faces& F,
                const VertexScalars& vertex_scalars,
-               const FaceScalars& face_scalars) {
-    out << "ply\nformat binary_little_endian 1.0\ncomment written by octshape\n"
+               const FaceScalars& face_scalars,
+               const std::string& provenance) {
+    out << "ply\nformat binary_little_endian 1.0\ncomment written by octshape\n";
+    if (!provenance.empty()) out << "comment " << kProvenanceKey << ' ' << provenance << '\n';
+    out
         << "element vertex " << V.rows() << "\nproperty double x\nproperty double y\n"
         << "property double z\n";
     for (const auto& s : vertex_scalars) out << "property double " << s.first << '\n';

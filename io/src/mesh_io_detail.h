@@ -79,11 +79,16 @@ void put_le(std::ostream& out, T value) {
 }
 
 // Binary little-endian PLY with double coordinates; vertex scalars as vertex properties, face
-// scalars as face properties. Empty F writes a point set.
+// scalars as face properties, the provenance (if not empty) as a header comment. Empty F
+// writes a point set.
 void write_ply(std::ostream& out,
                const mesh::Vertices& V,
                const mesh::Faces& F,
                const VertexScalars& vertex_scalars,
-               const FaceScalars& face_scalars);
+               const FaceScalars& face_scalars,
+               const std::string& provenance = {});
+
+// The comment keyword of the provenance line (PLY, OFF, OBJ) and the VTP array's name.
+inline constexpr const char* kProvenanceKey = "octshape_provenance";
 
 }  // namespace octshape::io::detail

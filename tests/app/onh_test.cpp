@@ -98,6 +98,9 @@ TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
     }
     const io::MeshData ilm = io::read_mesh(dir / "mesh" / "onh_ilm.vtp");
     EXPECT_EQ(ilm.F.rows(), 2 * 48 * 191);
+    const auto provenance = nlohmann::json::parse(ilm.provenance);
+    EXPECT_EQ(provenance.at("command"), "onh");
+    EXPECT_EQ(provenance.at("inputs")[0].at("sha256"), io::sha256_file(vol.string()));
     EXPECT_EQ(ilm.V.rows(), 49 * 192);
     const io::MeshData rpe = io::read_mesh(dir / "mesh" / "onh_rpe.vtp");
     EXPECT_EQ(rpe.V.rows(), 49 * 192);

@@ -13,6 +13,7 @@
 
 #include "octshape/io/mesh_io.h"
 #include "octshape/io/registration.h"
+#include "octshape/io/sha256.h"
 #include "fixtures/ilm_patch.h"
 #include "test_paths.h"
 
@@ -192,6 +193,11 @@ TEST(MeanShape, CommandWritesMeanWithSdAndReportsIcpResiduals) {
     EXPECT_LT(j.at("max_sd_mm").get<double>(), 1e-3);
     const io::MeshData mean = io::read_mesh(out);
     EXPECT_EQ(mean.V.rows(), ref.V.rows());
+    const auto provenance = nlohmann::json::parse(mean.provenance);
+    EXPECT_EQ(provenance.at("command"), "meanshape");
+    ASSERT_EQ(provenance.at("inputs").size(), 3u);
+    EXPECT_EQ(provenance.at("inputs")[1].at("sha256").get<std::string>(),
+              io::sha256_file((dir / "b.ply").string()));
     EXPECT_LT((mean.V - ref.V).cwiseAbs().maxCoeff(), 1e-3);
 
     // Fewer than two surfaces is a usage error (exit 64); a missing file exits 66.

@@ -60,6 +60,36 @@ TEST(MeshIo, RoundTripInEveryFormatKeepsVerticesAndFaces) {
     }
 }
 
+TEST(MeshIo, ProvenanceIsWrittenAndReadBack) {
+    // PLY, OFF and VTP carry the line and read_mesh returns it (with a JSON-like text: quotes,
+    // braces, spaces); OBJ carries it as a comment line (VTK's reader skips it); binary STL
+    // has no room for it. The geometry reads back as without it.
+    TempDir tmp;
+    const auto m = with_noise(icosphere(1), 0.01);
+    const std::string line = R"({"software": "octshape test", "inputs": [{"sha256": "ab"}]})";
+    for (const std::string ext : {".ply", ".off", ".vtp", ".obj", ".stl"}) {
+        const auto path = tmp / ("p" + ext);
+        io::write_mesh(path, m.V, m.F, {}, line);
+        const io::MeshData back = io::read_mesh(path);
+        EXPECT_EQ(back.F.rows(), m.F.rows()) << ext;
+        const bool carried = ext == ".ply" || ext == ".off" || ext == ".vtp";
+        EXPECT_EQ(back.provenance, carried ? line : std::string()) << ext;
+        if (ext == ".obj") {
+            EXPECT_NE(slurp(path).find("\n# octshape_provenance " + line + "\n"),
+                      std::string::npos);
+        }
+    }
+    // Without one, nothing is read back; a line break is refused before anything is written.
+    io::write_mesh(tmp / "none.ply", m.V, m.F);
+    EXPECT_EQ(io::read_mesh(tmp / "none.ply").provenance, "");
+    EXPECT_THROW(io::write_mesh(tmp / "two.ply", m.V, m.F, {}, "a\nb"), UsageError);
+    EXPECT_FALSE(std::filesystem::exists(tmp / "two.ply"));
+    // Per-vertex scalars take it too.
+    io::write_mesh_vertex_scalars(tmp / "v.vtp", m.V, m.F,
+                                  {{"sd_mm", Eigen::VectorXd::Zero(m.V.rows())}}, line);
+    EXPECT_EQ(io::read_mesh(tmp / "v.vtp").provenance, line);
+}
+
 TEST(MeshIo, FaceScalarsAreWrittenToVtpAndPly) {
     TempDir tmp;
     const auto m = cube(2);
@@ -190,7 +220,18 @@ TEST(MeshCommands, DenoiseThenMetricsAndFeatures) {
               64);
     r = run_octshape("features '" + out + "' -o '" + (tmp / "f.vtp").string() + "'");
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    EXPECT_TRUE(std::filesystem::exists(tmp / "f.vtp"));
+    {
+        // The output meshes name their command, inputs with SHA-256 and options.
+        const auto d = nlohmann::json::parse(io::read_mesh(out).provenance);
+        EXPECT_EQ(d.at("command"), "denoise");
+        EXPECT_EQ(d.at("inputs")[0].at("sha256").get<std::string>(), io::sha256_file(in));
+        EXPECT_EQ(d.at("options").at("method"), "rofi");
+        EXPECT_TRUE(d.at("options").at("parameters").contains("sigma_s"));
+        const auto f = nlohmann::json::parse(io::read_mesh(tmp / "f.vtp").provenance);
+        EXPECT_EQ(f.at("command"), "features");
+        EXPECT_EQ(f.at("inputs")[0].at("sha256").get<std::string>(), io::sha256_file(out));
+        EXPECT_GT(f.at("options").at("radius_mm").get<double>(), 0.0);
+    }
     // Errors map to the documented exit codes.
     EXPECT_EQ(run_octshape("denoise '" + (tmp / "none.off").string() + "' -o x.off").exit_code,
               66);

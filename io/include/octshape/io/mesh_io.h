@@ -9,6 +9,11 @@
 // Writing: the format comes from the extension. VTP (VTK's XML writer, double precision) and
 // PLY (written here so that per-face scalars can be stored as face properties, binary little
 // endian, double coordinates) carry per-face scalars; OBJ, STL (VTK writers) and OFF do not.
+// Provenance: one line of text (octshape writes JSON: version, command, the inputs' SHA-256,
+// every option) stored as a PLY header comment and an OFF/OBJ comment line, each starting
+// with "octshape_provenance ", and as the VTP field-data string array "octshape_provenance";
+// binary STL has no room for it (an 80-byte header). read_mesh returns it from PLY, OFF and
+// VTP.
 
 #include <filesystem>
 #include <iosfwd>
@@ -25,8 +30,9 @@ namespace octshape::io {
 enum class MeshFormat { kPly, kObj, kOff, kStl, kVtp };
 
 struct MeshData {
-    mesh::Vertices V;  // #V×3
-    mesh::Faces F;     // #F×3 (polygons fan-triangulated)
+    mesh::Vertices V;        // #V×3
+    mesh::Faces F;           // #F×3 (polygons fan-triangulated)
+    std::string provenance;  // as written by octshape (PLY, OFF, VTP), else empty
 };
 
 // One named per-face scalar (#F values), e.g. {"feature_strength", s_f}.
@@ -46,13 +52,16 @@ using FaceScalars = std::vector<std::pair<std::string, Eigen::VectorXd>>;
 // Writes (V, F) and, where the format holds them, the per-face scalars (each must have #F
 // values, else UsageError). The file is written to a temporary name beside `path` and renamed,
 // so a failed write never leaves a partial file. Throws OutputError if it cannot be written.
+// `provenance` (see above) must be one line (UsageError otherwise).
 void write_mesh(const std::filesystem::path& path,
                 const mesh::Vertices& V,
                 const mesh::Faces& F,
-                const FaceScalars& scalars = {});
+                const FaceScalars& scalars = {},
+                const std::string& provenance = {});
 
-// OFF text to a stream (full double precision).
-void write_off(std::ostream& out, const mesh::Vertices& V, const mesh::Faces& F);
+// OFF text to a stream (full double precision), with the provenance comment if not empty.
+void write_off(std::ostream& out, const mesh::Vertices& V, const mesh::Faces& F,
+               const std::string& provenance = {});
 
 // Per-vertex scalars (#V values each), e.g. {"sd_mm", sd}: written as VTP point data or PLY
 // vertex properties (the only formats that carry them; others give a UsageError). Same
@@ -61,6 +70,7 @@ using VertexScalars = std::vector<std::pair<std::string, Eigen::VectorXd>>;
 void write_mesh_vertex_scalars(const std::filesystem::path& path,
                                const mesh::Vertices& V,
                                const mesh::Faces& F,
-                               const VertexScalars& scalars);
+                               const VertexScalars& scalars,
+                               const std::string& provenance = {});
 
 }  // namespace octshape::io
