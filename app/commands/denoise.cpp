@@ -67,22 +67,27 @@ void run_pointset_denoise(const DenoiseOptions& o) {
     } catch (const std::invalid_argument& e) {
         throw InputError::corrupt(o.input, e.what());
     }
-    io::write_point_set(o.output, r.V, &r.normals);
+    const std::string input_sha = io::sha256_file(o.input);
+    const nlohmann::json parameters = {
+        {"tau", p.tau}, {"rho_rad", p.rho}, {"iterations", p.iterations},
+        {"damping", p.damping}, {"lambda", p.lambda}, {"radius_mm", r.radius},
+        {"epsilon_mm", r.epsilon},
+        {"normals", p.normals == mesh::NormalEstimator::kShifted ? "shifted" : "pca"},
+        {"snap_edges", p.snap_edges}};
+    io::write_point_set(o.output, r.V, &r.normals,
+                        mesh_provenance("denoise", {o.input}, {input_sha},
+                                        {{"method", o.method}, {"parameters", parameters},
+                                         {"threads", o.threads}}));
     spdlog::info("{}: {} iterations of pointset in {:.3f} s (+{:.3f} s set-up), written to {}",
                  o.input, r.iterations, r.seconds_iterations, r.seconds_setup, o.output);
     if (!o.json) return;
     const nlohmann::json j = {
         {"software", std::string("octshape ") + kVersion},
         {"input", o.input},
-        {"input_sha256", io::sha256_file(o.input)},
+        {"input_sha256", input_sha},
         {"output", o.output},
         {"method", o.method},
-        {"parameters", {{"tau", p.tau}, {"rho_rad", p.rho}, {"iterations", p.iterations},
-                        {"damping", p.damping}, {"lambda", p.lambda}, {"radius_mm", r.radius},
-                        {"epsilon_mm", r.epsilon},
-                        {"normals", p.normals == mesh::NormalEstimator::kShifted ? "shifted"
-                                                                                 : "pca"},
-                        {"snap_edges", p.snap_edges}}},
+        {"parameters", parameters},
         {"points", points.rows()},
         {"mean_spacing_mm", r.mean_spacing},
         {"mean_neighbourhood_points", r.mean_neighbourhood},

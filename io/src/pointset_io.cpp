@@ -171,13 +171,20 @@ void write_xyz(std::ostream& out, const mesh::Vertices& V, const mesh::Vertices*
     }
 }
 
-void write_point_set(const fs::path& path, const mesh::Vertices& V, const mesh::Vertices* normals) {
+void write_point_set(const fs::path& path, const mesh::Vertices& V, const mesh::Vertices* normals,
+                     const std::string& provenance) {
     const PointSetFormat format = point_set_format_from_extension(path);
     if (normals != nullptr && normals->rows() != V.rows()) {
         throw UsageError("normals have " + std::to_string(normals->rows()) + " rows for " +
                          std::to_string(V.rows()) + " points");
     }
+    if (provenance.find_first_of("\r\n") != std::string::npos) {
+        throw UsageError("point-set provenance must be one line");
+    }
     write_file_atomically(path.string(), [&](std::ostream& out) {
+        if (!provenance.empty() && format != PointSetFormat::kPly) {
+            out << "# " << detail::kProvenanceKey << ' ' << provenance << '\n';
+        }
         if (format == PointSetFormat::kXyz) {
             write_xyz(out, V, normals);
         } else if (format == PointSetFormat::kObj) {
@@ -196,7 +203,7 @@ void write_point_set(const fs::path& path, const mesh::Vertices& V, const mesh::
                     normal_scalars.emplace_back(std::string("n") + "xyz"[k], normals->col(k));
                 }
             }
-            detail::write_ply(out, V, mesh::Faces(0, 3), normal_scalars, {});
+            detail::write_ply(out, V, mesh::Faces(0, 3), normal_scalars, {}, provenance);
         }
     });
 }

@@ -1,6 +1,7 @@
 // Point-set files (io/pointset_io.h) and `octshape denoise --method pointset`.
 
 #include "octshape/io/pointset_io.h"
+#include "octshape/io/sha256.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -105,6 +106,20 @@ TEST(PointSetIo, DenoiseCommandRunsThePointSetMethod) {
     EXPECT_EQ(nlohmann::json::parse(shifted.out).at("parameters").at("normals"), "shifted");
     const mesh::Vertices S = io::read_point_set(dir / "shifted.xyz");
     ASSERT_EQ(S.rows(), 900);
+    // Both outputs carry their provenance (a PLY header comment, an XYZ comment line that the
+    // reader skips): the command, the input's SHA-256, the options.
+    for (const char* out : {"out.ply", "shifted.xyz"}) {
+        const std::string text = slurp(dir / out);
+        const std::string key = "octshape_provenance ";
+        const auto at = text.find(key);
+        ASSERT_NE(at, std::string::npos) << out;
+        const auto line = text.substr(at + key.size(), text.find('\n', at) - at - key.size());
+        const auto prov = nlohmann::json::parse(line);
+        EXPECT_EQ(prov.at("command"), "denoise") << out;
+        EXPECT_EQ(prov.at("inputs")[0].at("sha256").get<std::string>(),
+                  io::sha256_file((dir / "in.xyz").string()));
+        EXPECT_EQ(prov.at("options").at("parameters").at("iterations"), 10);
+    }
     EXPECT_LT(S.col(2).cwiseAbs().mean(), P.col(2).cwiseAbs().mean());
     // The edge snapping is on by default and reported; a plane has one face, so it moves no
     // point and --no-edge-snap gives the same output.

@@ -32,10 +32,13 @@ enum class PointSetFormat { kXyz, kPly, kObj };
 // XYZ text to a stream, full double precision; `normals` (if not null) must have #P rows.
 void write_xyz(std::ostream& out, const mesh::Vertices& V, const mesh::Vertices* normals = nullptr);
 
-// Writes a point set; UsageError for a bad extension or a normals array of the wrong size,
-// OutputError if the file cannot be written.
+// Writes a point set; UsageError for a bad extension, a normals array of the wrong size or a
+// provenance of more than one line, OutputError if the file cannot be written. `provenance`
+// (if not empty) is written as the comment "octshape_provenance <line>": a PLY header comment,
+// a "# " line first in XYZ and OBJ (both readers skip it), as for meshes (mesh_io.h).
 void write_point_set(const std::filesystem::path& path,
                      const mesh::Vertices& V,
-                     const mesh::Vertices* normals = nullptr);
+                     const mesh::Vertices* normals = nullptr,
+                     const std::string& provenance = {});
 
 }  // namespace octshape::io
