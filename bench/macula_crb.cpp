@@ -24,8 +24,10 @@
 // the disk area/diameter, pit-flat and mean formulas are restated here and checked against both
 // the phantom's truth and the analysis's output).
 //
-// Usage: macula_crb [SEEDS]   (default 36; noisy analyses per grid for the estimator's RMS,
-// seeds 7, 8, ... as bench/macula_accuracy; 0 = the bound only)
+// Usage: macula_crb [SEEDS [FIT_SEEDS]]   (SEEDS default 36: noisy analyses per grid for the
+// estimator's RMS, seeds 7, 8, ... as bench/macula_accuracy; 0 = the bound only. FIT_SEEDS
+// default 0: a joint least-squares fit of the model itself on that many seeds, ~1 s each at 193
+// B-scans, to see whether the bound is attained.)
 
 #include <algorithm>
 #include <array>
@@ -288,8 +290,11 @@ struct Bound {
     Eigen::VectorXd score;
 };
 
+// Fisher information at th over the nodes within R. `score` is sum grad T e / sigma^2 with e the
+// residual of the noise-free phantom (data == nullptr) or of a noisy thickness map, so that
+// J^-1 score is a Gauss-Newton step of the least-squares fit.
 Bound fisher(const Eigen::VectorXd& th, const Model& m, const MaculaPhantomParams& p,
-             const phantom::VolumeLayout& layout, double h) {
+             const phantom::VolumeLayout& layout, double h, const ThicknessMap* data = nullptr) {
     FisherAccumulator acc(m.size(), kSigmaUm * 1e-3);
     Bound b;
     double ss = 0.0;
@@ -344,7 +349,9 @@ Bound fisher(const Eigen::VectorXd& th, const Model& m, const MaculaPhantomParam
             }
             acc.add(idx, d);
             const double e_mm =
-                macula_thickness_mm(p, r, m.frame.anatomical_angle_deg(dv.x(), dv.y())) -
+                (data != nullptr
+                     ? data->at(row, a)
+                     : macula_thickness_mm(p, r, m.frame.anatomical_angle_deg(dv.x(), dv.y()))) -
                 surface(th, m, g);
             for (std::size_t j = 0; j < idx.size(); ++j) b.score(idx[j]) += d[j] * e_mm * inv_var;
             const double e = 1e3 * e_mm;
@@ -356,6 +363,19 @@ Bound fisher(const Eigen::VectorXd& th, const Model& m, const MaculaPhantomParam
     b.nodes = acc.observations();
     b.mismatch_rms_um = std::sqrt(ss / static_cast<double>(b.nodes));
     return b;
+}
+
+// The unknowns a joint fit keeps at their truth: the centre and every half-line's exterior
+// alpha_ext, P2 (on a crest that falls ~0.1 mm over [rim, R] these are nearly unidentified:
+// Gauss-Newton steps of several mm there leave the linear regime, so the fit checks the bound
+// of the model without them, and the bench prints that bound beside it).
+std::vector<int> fit_known(const Model& m) {
+    std::vector<int> k{m.centre_index(0), m.centre_index(1)};
+    for (int i = 0; i < m.n; ++i) {
+        for (const int q : {kAlphaExt, kP2x, kP2y}) k.push_back(m.line(i, q));
+    }
+    std::sort(k.begin(), k.end());
+    return k;
 }
 
 // CRB SDs of every derived parameter (centre known and centre estimated) and of CFT variants.
@@ -371,6 +391,7 @@ struct Crb {
     std::vector<double> sd_fourier_abwh;
     std::vector<double> sd_cft_known;  // CFT known (centre known): what an oracle CFT leaves
     std::vector<double> mismatch_bias;  // linearised bias from the angular interpolation
+    std::vector<double> sd_fit_model;   // the unknowns of fit_known known (the joint fit's model)
 };
 
 // theta = A phi: the per-line parameters in `smooth` replaced by Fourier coefficients of order
@@ -426,6 +447,7 @@ Crb crb(const Bound& b, const Eigen::VectorXd& th, const Model& m, double h) {
     const std::vector<int> centre_cft{0, m.centre_index(0), m.centre_index(1)};
     const Eigen::MatrixXd cov_cft = crb_covariance(without(b.info, centre_cft));
     const Eigen::VectorXd bias_theta = cov_free * b.score;
+    const Eigen::MatrixXd cov_fit = crb_covariance(without(b.info, fit_known(m)));
     Crb c;
     for (std::size_t k = 0; k < kParams.size(); ++k) {
         const Eigen::VectorXd grad = central_gradient(
@@ -439,6 +461,7 @@ Crb crb(const Bound& b, const Eigen::VectorXd& th, const Model& m, double h) {
             std::sqrt(crb_variance(cov_abwh, without(g_abwh, cc_abwh))));
         c.sd_cft_known.push_back(std::sqrt(crb_variance(cov_cft, without(grad, centre_cft))));
         c.mismatch_bias.push_back(grad.dot(bias_theta));
+        c.sd_fit_model.push_back(std::sqrt(crb_variance(cov_fit, without(grad, fit_known(m)))));
     }
     std::vector<int> ab = centre;
     for (int i = 0; i < m.n; ++i) {
@@ -450,10 +473,77 @@ Crb crb(const Bound& b, const Eigen::VectorXd& th, const Model& m, double h) {
     return c;
 }
 
+// Residual sum of squares (mm^2) of the model at th against the map's nodes within R.
+double residual_ss(const Eigen::VectorXd& th, const Model& m, const phantom::VolumeLayout& layout,
+                   const ThicknessMap& map) {
+    double ss = 0.0;
+    for (int row = 0; row < layout.num_bscans; ++row) {
+        for (int a = 0; a < layout.size_x; ++a) {
+            const V2 g(a * layout.scale_x_mm, row * layout.distance_mm);
+            if ((g - m.centre).norm() >= m.radius_mm - 1e-4) continue;
+            const double e = map.at(row, a) - surface(th, m, g);
+            ss += e * e;
+        }
+    }
+    return ss;
+}
+
+// The graph constraints of cube.cpp's fits on every half-line (both curves x-monotone).
+bool feasible(const Eigen::VectorXd& th, const Model& m) {
+    for (int i = 0; i < m.n; ++i) {
+        const Line l = line_of(th, m, i);
+        const auto& q = l.q;
+        if (q[kAlpha] < 0.0 || q[kBeta] < 0.0 || q[kAlpha] + q[kBeta] > q[kRimR]) return false;
+        if (q[kAlphaExt] < 0.0 || q[kRimR] + q[kAlphaExt] > q[kP2x] || q[kP2x] > m.radius_mm) {
+            return false;
+        }
+    }
+    return true;
+}
+
+// A joint least-squares fit of the model to every noisy node within R, the unknowns of
+// fit_known at their truth: Gauss-Newton from theta*, a step halved (to 1/64) until it keeps the
+// graph constraints and lowers the sum of squares; stops when the step's predicted decrease of
+// chi^2 (score^T J^-1 score) is below 1e-6, or after 20 steps. `steps`: steps taken.
+Eigen::VectorXd joint_fit(const Eigen::VectorXd& th0, const Model& m, const MaculaPhantomParams& p,
+                          const phantom::VolumeLayout& layout, const ThicknessMap& map, double h,
+                          int& steps) {
+    const std::vector<int> known = fit_known(m);
+    std::vector<int> free;
+    for (int k = 0; k < m.size(); ++k) {
+        if (!std::binary_search(known.begin(), known.end(), k)) free.push_back(k);
+    }
+    Eigen::VectorXd th = th0;
+    double ss = residual_ss(th, m, layout, map);
+    for (steps = 0; steps < 20; ++steps) {
+        const Bound b = fisher(th, m, p, layout, h, &map);
+        const Eigen::VectorXd score = without(b.score, known);
+        const Eigen::VectorXd step = crb_covariance(without(b.info, known)) * score;
+        if (step.dot(score) < 1e-6) break;
+        bool moved = false;
+        for (double lambda = 1.0; lambda >= 1.0 / 64 && !moved; lambda /= 2) {
+            Eigen::VectorXd cand = th;
+            for (std::size_t j = 0; j < free.size(); ++j) {
+                cand(free[j]) += lambda * step(static_cast<Eigen::Index>(j));
+            }
+            if (!feasible(cand, m)) continue;
+            const double cs = residual_ss(cand, m, layout, map);
+            if (cs < ss) {
+                th = cand;
+                ss = cs;
+                moved = true;
+            }
+        }
+        if (!moved) break;
+    }
+    return th;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
     const int seeds = argc > 1 ? std::max(0, std::atoi(argv[1])) : 36;
+    const int fit_seeds = argc > 2 ? std::max(0, std::atoi(argv[2])) : 0;
     std::printf("CuBe Cramer-Rao bound: Bezier phantom, thickness node noise SD %.4f um "
                 "(independent), model = %d half-line CuBe profiles linear in angle, R = 2 mm\n",
                 kSigmaUm, 24);
@@ -562,6 +652,42 @@ int main(int argc, char** argv) {
                     1e3 * c.cft_all_known);
         std::printf("time: bound %.1f s (two step sizes), %d noisy analyses %.1f s\n", bound_s,
                     seeds, seeds_s);
+        if (fit_seeds > 0) {
+            // Is the bound attained? The joint fit on the same seeds' nodes.
+            const auto t2 = std::chrono::steady_clock::now();
+            std::vector<double> fsum(kParams.size(), 0.0);
+            std::vector<double> fsq(kParams.size(), 0.0);
+            int max_steps = 0;
+            for (int s = 0; s < fit_seeds; ++s) {
+                MaculaPhantomParams q = p;
+                q.noise_um = kSigmaUm / std::sqrt(2.0);
+                q.seed = static_cast<std::uint64_t>(7 + s);
+                const MaculaPhantom ph = make_macula_phantom(q, topt);
+                int steps = 0;
+                const Eigen::VectorXd fit =
+                    joint_fit(th, m, p, layout, thickness_map(ph.scan), h, steps);
+                max_steps = std::max(max_steps, steps);
+                const std::vector<double> fv = derived(fit, m);
+                for (std::size_t k = 0; k < kParams.size(); ++k) {
+                    const double rel = fv[k] / tv[k] - 1.0;
+                    fsum[k] += rel;
+                    fsq[k] += rel * rel;
+                }
+            }
+            std::printf("joint least-squares fit, centre and exterior alpha_ext, P2 known, %d "
+                        "seeds (<= %d steps, %.1f s): RMS %% (mean %%) / its model's CRB %% / "
+                        "CRB %%\n",
+                        fit_seeds, max_steps,
+                        std::chrono::duration<double>(std::chrono::steady_clock::now() - t2)
+                            .count());
+            for (std::size_t k = 0; k < kParams.size(); ++k) {
+                const double rms = 100.0 * std::sqrt(fsq[k] / fit_seeds);
+                std::printf("  %-17s %7.3f (%+7.3f) / %6.3f / %6.3f\n", kParams[k].name, rms,
+                            100.0 * fsum[k] / fit_seeds,
+                            100.0 * c.sd_fit_model[k] / std::fabs(tv[k]),
+                            100.0 * c.sd_known[k] / std::fabs(tv[k]));
+            }
+        }
     }
     std::printf("\nCRB %%: SD bound / truth, centre known; CRBc %%: centre estimated too; "
                 "F_ab %%: alpha_i, beta_i an order-2 Fourier series in the angle (centre known); CFTk %%: "
