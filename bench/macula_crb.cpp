@@ -29,6 +29,8 @@
 // default 0: a joint least-squares fit of the model itself on that many seeds, ~1 s each at 193
 // B-scans, to see whether the bound is attained.)
 
+#include <Eigen/Core>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -38,9 +40,6 @@
 #include <numbers>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Eigenvalues>
 
 #include "fixtures/fisher.h"
 #include "octshape/retina/cube.h"
@@ -142,11 +141,21 @@ struct Param {
     double scale;  // mm -> unit
 };
 const std::vector<Param> kParams{
-    {"cft", "um", 1e3},           {"rim_height", "um", 1e3},    {"pit_depth", "um", 1e3},
-    {"rim_diameter", "um", 1e3},  {"rim_area", "mm2", 1.0},     {"max_slope", "deg", 1.0},
-    {"slope_diameter", "um", 1e3}, {"slope_area", "mm2", 1.0},  {"flat_diameter", "um", 1e3},
-    {"flat_area", "mm2", 1.0},    {"rim_volume", "mm3", 1.0},   {"inner_rim_volume", "mm3", 1.0},
-    {"pit_volume", "mm3", 1.0},   {"alpha_mean", "um", 1e3},    {"beta_mean", "um", 1e3},
+    {"cft", "um", 1e3},
+    {"rim_height", "um", 1e3},
+    {"pit_depth", "um", 1e3},
+    {"rim_diameter", "um", 1e3},
+    {"rim_area", "mm2", 1.0},
+    {"max_slope", "deg", 1.0},
+    {"slope_diameter", "um", 1e3},
+    {"slope_area", "mm2", 1.0},
+    {"flat_diameter", "um", 1e3},
+    {"flat_area", "mm2", 1.0},
+    {"rim_volume", "mm3", 1.0},
+    {"inner_rim_volume", "mm3", 1.0},
+    {"pit_volume", "mm3", 1.0},
+    {"alpha_mean", "um", 1e3},
+    {"beta_mean", "um", 1e3},
 };
 
 struct Disk {
@@ -205,8 +214,8 @@ std::vector<double> derived(const std::vector<Ctrl>& in, const Model& m) {
         }
         const double rf = bezier_point(q, 0.5 * (lo + hi)).x();
         flat += rf;
-        vr += bezier_volume_integral(q, 1.0);                                  // Eq. 7.27
-        vir += bezier_volume_integral(q, solve_x(q, m.inner_radius_mm));       // Eq. 7.28 (r_u < w)
+        vr += bezier_volume_integral(q, 1.0);                             // Eq. 7.27
+        vir += bezier_volume_integral(q, solve_x(q, m.inner_radius_mm));  // Eq. 7.28 (r_u < w)
         const V2& u = m.dir[static_cast<std::size_t>(i)];
         auto pt = [&](double r, double z) {
             return V3(m.centre.x() + r * u.x(), m.centre.y() + r * u.y(), z);
@@ -220,11 +229,21 @@ std::vector<double> derived(const std::vector<Ctrl>& in, const Model& m) {
     const Disk sd = disk(slope_pts);
     const Disk fd = disk(flat_pts);
     const double v_r = 2.0 * kPi * inv * vr;
-    return {cft,        rim_h * inv,  rim_h * inv - cft,       rd.diameter,
-            rd.area,    slope * inv,  sd.diameter,             sd.area,
-            2.0 * flat * inv,         fd.area,                 v_r,
-            2.0 * kPi * inv * vir,    rd.area * rim_h * inv - v_r,
-            am * inv,   bm * inv};
+    return {cft,
+            rim_h * inv,
+            rim_h * inv - cft,
+            rd.diameter,
+            rd.area,
+            slope * inv,
+            sd.diameter,
+            sd.area,
+            2.0 * flat * inv,
+            fd.area,
+            v_r,
+            2.0 * kPi * inv * vir,
+            rd.area * rim_h * inv - v_r,
+            am * inv,
+            bm * inv};
 }
 
 std::vector<double> derived(const Eigen::VectorXd& th, const Model& m) {
@@ -234,19 +253,39 @@ std::vector<double> derived(const Eigen::VectorXd& th, const Model& m) {
 }
 
 std::vector<double> truth_values(const MaculaTruth& t) {
-    return {t.cft_mm,           t.rim_height_mm,        t.pit_depth_mm,
-            t.rim.diameter_mm,  t.rim.area_mm2,         t.max_pit_slope_deg,
-            t.slope.diameter_mm, t.slope.area_mm2,      t.pit_flat_diameter_mm,
-            t.pit_flat.area_mm2, t.rim_volume_mm3,      t.inner_rim_volume_mm3,
-            t.pit_volume_mm3,   *t.alpha_mean_mm,       *t.beta_mean_mm};
+    return {t.cft_mm,
+            t.rim_height_mm,
+            t.pit_depth_mm,
+            t.rim.diameter_mm,
+            t.rim.area_mm2,
+            t.max_pit_slope_deg,
+            t.slope.diameter_mm,
+            t.slope.area_mm2,
+            t.pit_flat_diameter_mm,
+            t.pit_flat.area_mm2,
+            t.rim_volume_mm3,
+            t.inner_rim_volume_mm3,
+            t.pit_volume_mm3,
+            *t.alpha_mean_mm,
+            *t.beta_mean_mm};
 }
 
 std::vector<double> result_values(const CubeResult& r) {
-    return {r.cft_mm,           r.rim_height_mm,        r.pit_depth_mm,
-            r.rim.diameter_mm,  r.rim.area_mm2,         r.max_pit_slope_deg,
-            r.slope.diameter_mm, r.slope.area_mm2,      r.pit_flat_diameter_mm,
-            r.pit_flat.area_mm2, r.rim_volume_mm3,      r.inner_rim_volume_mm3,
-            r.pit_volume_mm3,   r.alpha_mean_mm,        r.beta_mean_mm};
+    return {r.cft_mm,
+            r.rim_height_mm,
+            r.pit_depth_mm,
+            r.rim.diameter_mm,
+            r.rim.area_mm2,
+            r.max_pit_slope_deg,
+            r.slope.diameter_mm,
+            r.slope.area_mm2,
+            r.pit_flat_diameter_mm,
+            r.pit_flat.area_mm2,
+            r.rim_volume_mm3,
+            r.inner_rim_volume_mm3,
+            r.pit_volume_mm3,
+            r.alpha_mean_mm,
+            r.beta_mean_mm};
 }
 
 MaculaPhantomParams phantom_params(int bscans) {
@@ -293,8 +332,12 @@ struct Bound {
 // Fisher information at th over the nodes within R. `score` is sum grad T e / sigma^2 with e the
 // residual of the noise-free phantom (data == nullptr) or of a noisy thickness map, so that
 // J^-1 score is a Gauss-Newton step of the least-squares fit.
-Bound fisher(const Eigen::VectorXd& th, const Model& m, const MaculaPhantomParams& p,
-             const phantom::VolumeLayout& layout, double h, const ThicknessMap* data = nullptr) {
+Bound fisher(const Eigen::VectorXd& th,
+             const Model& m,
+             const MaculaPhantomParams& p,
+             const phantom::VolumeLayout& layout,
+             double h,
+             const ThicknessMap* data = nullptr) {
     FisherAccumulator acc(m.size(), kSigmaUm * 1e-3);
     Bound b;
     double ss = 0.0;
@@ -323,8 +366,8 @@ Bound fisher(const Eigen::VectorXd& th, const Model& m, const MaculaPhantomParam
                     Line v = l;
                     u.cft += h;
                     v.cft -= h;
-                    d[0] += wt[side] *
-                            (profile(u, m.radius_mm, r) - profile(v, m.radius_mm, r)) / (2 * h);
+                    d[0] += wt[side] * (profile(u, m.radius_mm, r) - profile(v, m.radius_mm, r)) /
+                            (2 * h);
                 }
                 for (int k = 0; k < kLineParams; ++k) {
                     Line u = l;
@@ -333,8 +376,8 @@ Bound fisher(const Eigen::VectorXd& th, const Model& m, const MaculaPhantomParam
                     v.q[static_cast<std::size_t>(k)] -= h;
                     const std::size_t j = static_cast<std::size_t>(1 + side * kLineParams + k);
                     idx[j] = m.line(li[side], k);
-                    d[j] = wt[side] *
-                           (profile(u, m.radius_mm, r) - profile(v, m.radius_mm, r)) / (2 * h);
+                    d[j] = wt[side] * (profile(u, m.radius_mm, r) - profile(v, m.radius_mm, r)) /
+                           (2 * h);
                 }
             }
             for (int axis = 0; axis < 2; ++axis) {
@@ -389,7 +432,7 @@ struct Crb {
     // which the phantom's truth satisfies exactly (bezier_profile).
     std::vector<double> sd_fourier_ab;
     std::vector<double> sd_fourier_abwh;
-    std::vector<double> sd_cft_known;  // CFT known (centre known): what an oracle CFT leaves
+    std::vector<double> sd_cft_known;   // CFT known (centre known): what an oracle CFT leaves
     std::vector<double> mismatch_bias;  // linearised bias from the angular interpolation
     std::vector<double> sd_fit_model;   // the unknowns of fit_known known (the joint fit's model)
 };
@@ -397,7 +440,8 @@ struct Crb {
 // theta = A phi: the per-line parameters in `smooth` replaced by Fourier coefficients of order
 // 2 in the anatomical half-line angle; every other unknown is its own column. Centre columns
 // are returned in `centre_cols`.
-Eigen::MatrixXd fourier_map(const Model& m, const std::vector<int>& smooth,
+Eigen::MatrixXd fourier_map(const Model& m,
+                            const std::vector<int>& smooth,
                             std::vector<int>& centre_cols) {
     const int nf = 5;
     std::vector<std::vector<std::pair<int, double>>> rows(static_cast<std::size_t>(m.size()));
@@ -442,23 +486,22 @@ Crb crb(const Bound& b, const Eigen::VectorXd& th, const Model& m, double h) {
     const Eigen::MatrixXd a_abwh = fourier_map(m, {kAlpha, kBeta, kRimR, kRimH}, cc_abwh);
     const Eigen::MatrixXd cov_ab =
         crb_covariance(without(Eigen::MatrixXd(a_ab.transpose() * b.info * a_ab), cc_ab));
-    const Eigen::MatrixXd cov_abwh = crb_covariance(
-        without(Eigen::MatrixXd(a_abwh.transpose() * b.info * a_abwh), cc_abwh));
+    const Eigen::MatrixXd cov_abwh =
+        crb_covariance(without(Eigen::MatrixXd(a_abwh.transpose() * b.info * a_abwh), cc_abwh));
     const std::vector<int> centre_cft{0, m.centre_index(0), m.centre_index(1)};
     const Eigen::MatrixXd cov_cft = crb_covariance(without(b.info, centre_cft));
     const Eigen::VectorXd bias_theta = cov_free * b.score;
     const Eigen::MatrixXd cov_fit = crb_covariance(without(b.info, fit_known(m)));
     Crb c;
     for (std::size_t k = 0; k < kParams.size(); ++k) {
-        const Eigen::VectorXd grad = central_gradient(
-            [&](const Eigen::VectorXd& t) { return derived(t, m)[k]; }, th, steps);
+        const Eigen::VectorXd grad =
+            central_gradient([&](const Eigen::VectorXd& t) { return derived(t, m)[k]; }, th, steps);
         c.sd_free.push_back(std::sqrt(crb_variance(cov_free, grad)));
         c.sd_known.push_back(std::sqrt(crb_variance(cov_known, without(grad, centre))));
         const Eigen::VectorXd g_ab = a_ab.transpose() * grad;
         const Eigen::VectorXd g_abwh = a_abwh.transpose() * grad;
         c.sd_fourier_ab.push_back(std::sqrt(crb_variance(cov_ab, without(g_ab, cc_ab))));
-        c.sd_fourier_abwh.push_back(
-            std::sqrt(crb_variance(cov_abwh, without(g_abwh, cc_abwh))));
+        c.sd_fourier_abwh.push_back(std::sqrt(crb_variance(cov_abwh, without(g_abwh, cc_abwh))));
         c.sd_cft_known.push_back(std::sqrt(crb_variance(cov_cft, without(grad, centre_cft))));
         c.mismatch_bias.push_back(grad.dot(bias_theta));
         c.sd_fit_model.push_back(std::sqrt(crb_variance(cov_fit, without(grad, fit_known(m)))));
@@ -474,7 +517,9 @@ Crb crb(const Bound& b, const Eigen::VectorXd& th, const Model& m, double h) {
 }
 
 // Residual sum of squares (mm^2) of the model at th against the map's nodes within R.
-double residual_ss(const Eigen::VectorXd& th, const Model& m, const phantom::VolumeLayout& layout,
+double residual_ss(const Eigen::VectorXd& th,
+                   const Model& m,
+                   const phantom::VolumeLayout& layout,
                    const ThicknessMap& map) {
     double ss = 0.0;
     for (int row = 0; row < layout.num_bscans; ++row) {
@@ -505,8 +550,12 @@ bool feasible(const Eigen::VectorXd& th, const Model& m) {
 // fit_known at their truth: Gauss-Newton from theta*, a step halved (to 1/64) until it keeps the
 // graph constraints and lowers the sum of squares; stops when the step's predicted decrease of
 // chi^2 (score^T J^-1 score) is below 1e-6, or after 20 steps. `steps`: steps taken.
-Eigen::VectorXd joint_fit(const Eigen::VectorXd& th0, const Model& m, const MaculaPhantomParams& p,
-                          const phantom::VolumeLayout& layout, const ThicknessMap& map, double h,
+Eigen::VectorXd joint_fit(const Eigen::VectorXd& th0,
+                          const Model& m,
+                          const MaculaPhantomParams& p,
+                          const phantom::VolumeLayout& layout,
+                          const ThicknessMap& map,
+                          double h,
                           int& steps) {
     const std::vector<int> known = fit_known(m);
     std::vector<int> free;
@@ -544,9 +593,10 @@ Eigen::VectorXd joint_fit(const Eigen::VectorXd& th0, const Model& m, const Macu
 int main(int argc, char** argv) {
     const int seeds = argc > 1 ? std::max(0, std::atoi(argv[1])) : 36;
     const int fit_seeds = argc > 2 ? std::max(0, std::atoi(argv[2])) : 0;
-    std::printf("CuBe Cramer-Rao bound: Bezier phantom, thickness node noise SD %.4f um "
-                "(independent), model = %d half-line CuBe profiles linear in angle, R = 2 mm\n",
-                kSigmaUm, 24);
+    std::printf(
+        "CuBe Cramer-Rao bound: Bezier phantom, thickness node noise SD %.4f um "
+        "(independent), model = %d half-line CuBe profiles linear in angle, R = 2 mm\n",
+        kSigmaUm, 24);
     for (const int nb : {61, 97, 193}) {
         const auto t0 = std::chrono::steady_clock::now();
         const MaculaPhantomParams p = phantom_params(nb);
@@ -610,13 +660,15 @@ int main(int argc, char** argv) {
         const double seeds_s =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
 
-        std::printf("\n%d B-scans: %ld nodes within R, %d unknowns (CFT, 8 x %d per half-line, "
-                    "centre); model vs phantom at theta*: max %.3f um, RMS %.3f um\n",
-                    nb, b.nodes, m.size(), m.n, b.mismatch_max_um, b.mismatch_rms_um);
-        std::printf("checks: formulas at theta* vs phantom truth max rel dev %.1e; vs the "
-                    "analysis's outputs on its own fits %.1e; CRB step h -> h/2 max rel change "
-                    "%.1e\n",
-                    dev_truth, seeds > 0 ? dev_result : 0.0, dev_step);
+        std::printf(
+            "\n%d B-scans: %ld nodes within R, %d unknowns (CFT, 8 x %d per half-line, "
+            "centre); model vs phantom at theta*: max %.3f um, RMS %.3f um\n",
+            nb, b.nodes, m.size(), m.n, b.mismatch_max_um, b.mismatch_rms_um);
+        std::printf(
+            "checks: formulas at theta* vs phantom truth max rel dev %.1e; vs the "
+            "analysis's outputs on its own fits %.1e; CRB step h -> h/2 max rel change "
+            "%.1e\n",
+            dev_truth, seeds > 0 ? dev_result : 0.0, dev_step);
         std::printf("%-17s %-4s %11s %10s %8s %8s %8s %8s %8s %8s | %8s %8s %8s %6s\n", "parameter",
                     "unit", "truth", "CRB SD", "CRB %", "2CRB %", "CRBc %", "F_ab %", "CFTk %",
                     "bias %", "RMS %", "mean %", "RMS/CRBc", "eff");
@@ -643,13 +695,14 @@ int main(int argc, char** argv) {
             fourier_dev =
                 std::max(fourier_dev, std::fabs(c.sd_fourier_abwh[k] / c.sd_fourier_ab[k] - 1.0));
         }
-        std::printf("r_rim,i and h_rim,i an order-2 Fourier series too: every CRB within %.1f %% "
-                    "of F_ab\n",
-                    100.0 * fourier_dev);
-        std::printf("CFT CRB SD (um): all unknowns %.4f (centre known) / %.4f (estimated); "
-                    "alpha_i, beta_i known %.4f; everything else known %.4f\n",
-                    1e3 * c.sd_known[0], 1e3 * c.sd_free[0], 1e3 * c.cft_ab_known,
-                    1e3 * c.cft_all_known);
+        std::printf(
+            "r_rim,i and h_rim,i an order-2 Fourier series too: every CRB within %.1f %% "
+            "of F_ab\n",
+            100.0 * fourier_dev);
+        std::printf(
+            "CFT CRB SD (um): all unknowns %.4f (centre known) / %.4f (estimated); "
+            "alpha_i, beta_i known %.4f; everything else known %.4f\n",
+            1e3 * c.sd_known[0], 1e3 * c.sd_free[0], 1e3 * c.cft_ab_known, 1e3 * c.cft_all_known);
         std::printf("time: bound %.1f s (two step sizes), %d noisy analyses %.1f s\n", bound_s,
                     seeds, seeds_s);
         if (fit_seeds > 0) {
@@ -674,12 +727,12 @@ int main(int argc, char** argv) {
                     fsq[k] += rel * rel;
                 }
             }
-            std::printf("joint least-squares fit, centre and exterior alpha_ext, P2 known, %d "
-                        "seeds (<= %d steps, %.1f s): RMS %% (mean %%) / its model's CRB %% / "
-                        "CRB %%\n",
-                        fit_seeds, max_steps,
-                        std::chrono::duration<double>(std::chrono::steady_clock::now() - t2)
-                            .count());
+            std::printf(
+                "joint least-squares fit, centre and exterior alpha_ext, P2 known, %d "
+                "seeds (<= %d steps, %.1f s): RMS %% (mean %%) / its model's CRB %% / "
+                "CRB %%\n",
+                fit_seeds, max_steps,
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t2).count());
             for (std::size_t k = 0; k < kParams.size(); ++k) {
                 const double rms = 100.0 * std::sqrt(fsq[k] / fit_seeds);
                 std::printf("  %-17s %7.3f (%+7.3f) / %6.3f / %6.3f\n", kParams[k].name, rms,
@@ -689,10 +742,11 @@ int main(int argc, char** argv) {
             }
         }
     }
-    std::printf("\nCRB %%: SD bound / truth, centre known; CRBc %%: centre estimated too; "
-                "F_ab %%: alpha_i, beta_i an order-2 Fourier series in the angle (centre known); CFTk %%: "
-                "CFT known (centre known); bias %%: linearised bias of a joint fit to the "
-                "noise-free phantom (model mismatch between half-lines); RMS/mean %%: the analysis over the seeds (relative error); "
-                "eff = CRBc^2 / MSE.\n");
+    std::printf(
+        "\nCRB %%: SD bound / truth, centre known; CRBc %%: centre estimated too; "
+        "F_ab %%: alpha_i, beta_i an order-2 Fourier series in the angle (centre "
+        "known); CFTk %%: CFT known (centre known); bias %%: linearised bias of a joint "
+        "fit to the noise-free phantom (model mismatch between half-lines); RMS/mean "
+        "%%: the analysis over the seeds (relative error); eff = CRBc^2 / MSE.\n");
     return 0;
 }
