@@ -5,12 +5,13 @@ cd "$(dirname "$0")/.."
 cmake --preset release >/dev/null
 cmake --build --preset release -j 2 --target read_bench octshape_mesh_bench macula_bench octshape_shape_bench \
   macula_accuracy macula_rescan cohort_bench onh_bench onh_pipeline_bench onh_rescan \
-  mesh_realisations
+  mesh_realisations macula_crb
 ./build/release/bench/read_bench
 ./build/release/bench/octshape_mesh_bench
 ./build/release/bench/mesh_realisations
 ./build/release/bench/macula_bench
 ./build/release/bench/macula_accuracy
+./build/release/bench/macula_crb
 ./build/release/bench/macula_rescan
 ./build/release/bench/octshape_shape_bench
 ./build/release/bench/cohort_bench
