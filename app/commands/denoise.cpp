@@ -151,6 +151,8 @@ void run_denoise(const DenoiseOptions& o) {
             p.sigma_s = o.method == "bilateral" ? a.sigma_s / 2.2 : a.sigma_s;
             if (o.method == "rofi") p.lambda_i = a.lambda_i;
             p.iterations = a.iterations;
+            p.radius_factor = a.radius_factor;
+            p.sigma_c_factor = a.sigma_c_factor;
         }
         if (o.similarity == "gaussian") p.similarity = mesh::Similarity::kGaussian;
         if (o.similarity == "tukey") p.similarity = mesh::Similarity::kTukey;

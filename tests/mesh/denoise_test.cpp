@@ -58,5 +58,25 @@ TEST(AutoParams, MoreNoiseGivesWiderSimilarityAndMoreFidelity) {
     EXPECT_NO_THROW(el.validate());
 }
 
+TEST(AutoParams, DoNotDependOnTheMeshScale) {
+    // θ is an angle, σ̂_n is in edge lengths and the disk (r, σ_c) in units of c_a, so a mesh
+    // scaled by 1000 gets the same RoFi parameters (and its disk in mm scales with it). A rule
+    // written in absolute lengths would fail this.
+    const auto m = noisy_plane(0.3, 5);
+    const auto a = mesh::auto_rofi_params(mesh::estimate_noise(m.V, m.F));
+    const mesh::Vertices big = 1000.0 * m.V;
+    const auto b = mesh::auto_rofi_params(mesh::estimate_noise(big, m.F));
+    EXPECT_NEAR(a.sigma_s, b.sigma_s, 1e-9);
+    EXPECT_NEAR(a.lambda_i, b.lambda_i, 1e-9);
+    EXPECT_EQ(a.iterations, b.iterations);
+    EXPECT_EQ(a.radius_factor, b.radius_factor);
+    EXPECT_EQ(a.sigma_c_factor, b.sigma_c_factor);
+    // The automatic disk is wider and flatter than §5.2's (rofi.md, "Automatic parameters"),
+    // with the paper's ratio r = 2 σ_c.
+    EXPECT_GT(a.radius_factor, mesh::RofiParams{}.radius_factor);
+    EXPECT_GT(a.sigma_c_factor, mesh::RofiParams{}.sigma_c_factor);
+    EXPECT_EQ(a.radius_factor, 2.0 * a.sigma_c_factor);
+}
+
 }  // namespace
 }  // namespace octshape::test

@@ -194,7 +194,7 @@ TEST(Rofi, BoundaryVerticesStayFixed) {
 
 TEST(Rofi, NoisyPlaneBecomesAPlane) {
     // Noise only across the plane (σ = 0.25 h), boundary at z = 0 and fixed. A local filter
-    // over a disk of radius ~2 h removes the short wavelengths; of white noise on the grid,
+    // over a disk a few h wide (auto: r = 4 c_a) removes the short wavelengths; of white noise on the grid,
     // wavelengths longer than 4 h (|k| below half the Nyquist frequency in both axes) hold 1/4
     // of the height variance (RMS ½) and 1/16 of the slope variance (RMS ¼): bounds on what a
     // working filter leaves.
