@@ -180,7 +180,10 @@ void run(const Case& c) {
                 "flips %d; truth Q %.3f\n",
                 c.name.c_str(), static_cast<long>(c.noisy.rows()), static_cast<long>(c.F.rows()),
                 in.msae_deg, in.vertex_error, in.quality, in.flipped_faces, in.reference_quality);
-    om::RofiParams bilateral = rofi;
+    // Bilateral filtering and the 100-iteration row keep the paper's disk (r = 2 c_a, the rule
+    // before session 8), as `octshape denoise --method bilateral` does.
+    const om::RofiParams paper_disk = om::paper_disk_rofi_params(noise);
+    om::RofiParams bilateral = paper_disk;
     bilateral.similarity = om::Similarity::kGaussian;
     bilateral.sigma_s = 0.35;
     bilateral.lambda_i = 0.0;
@@ -192,9 +195,9 @@ void run(const Case& c) {
     om::RofiParams two = rofi;
     two.threads = 2;
     rows.push_back(timed("RoFi auto, 2 thr", [&] { return om::rofi_denoise(c.noisy, c.F, two); }));
-    om::RofiParams hundred = rofi;
+    om::RofiParams hundred = paper_disk;
     hundred.iterations = 100;
-    rows.push_back(timed("RoFi p=100, 1 thr", [&] {
+    rows.push_back(timed("RoFi r=2ca, p=100", [&] {
         return om::rofi_denoise(c.noisy, c.F, hundred);
     }));
     rows.push_back(timed("ENVT auto, 1 thr", [&] {

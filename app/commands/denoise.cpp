@@ -146,7 +146,10 @@ void run_denoise(const DenoiseOptions& o) {
             p.lambda_i = 0.0;
         }
         if (use_auto) {
-            const mesh::RofiParams a = mesh::auto_rofi_params(noise);
+            // Bilateral filtering, the classic method for comparison, keeps the paper's disk.
+            const mesh::RofiParams a = o.method == "bilateral"
+                                           ? mesh::paper_disk_rofi_params(noise)
+                                           : mesh::auto_rofi_params(noise);
             // A Gaussian of width σ weighs like a Tukey window of about 2.2 σ.
             p.sigma_s = o.method == "bilateral" ? a.sigma_s / 2.2 : a.sigma_s;
             if (o.method == "rofi") p.lambda_i = a.lambda_i;

@@ -95,6 +95,15 @@ RofiParams auto_rofi_params(const NoiseEstimate& noise) {
     return p;
 }
 
+RofiParams paper_disk_rofi_params(const NoiseEstimate& noise) {
+    RofiParams p = auto_rofi_params(noise);
+    p.radius_factor = RofiParams{}.radius_factor;
+    p.sigma_c_factor = RofiParams{}.sigma_c_factor;
+    p.sigma_s = std::clamp(1.7 * noise.normal_angle_deg * std::numbers::pi / 180.0, 0.1, 1.0);
+    p.iterations = 80;
+    return p;
+}
+
 EnvtParams auto_envt_params(const NoiseEstimate& noise) {
     EnvtParams p;
     // τ ∝ σ_n (§3.1.3: λ2, λ3 ∝ σ_n on planes); r = 4 c_a (≈ the thesis's r = 0.2 on Fandisk).

@@ -3,8 +3,6 @@
 
 #include <gtest/gtest.h>
 
-#include <algorithm>
-#include <numbers>
 #include <string>
 
 #include "octshape/io/mesh_io.h"
@@ -37,24 +35,14 @@ mesh::MeshComparison compare(const Pair& p, const mesh::DenoiseResult& r) {
     return c;
 }
 
-// The automatic rule before session 8 (the paper's disk r = 2 c_a, σ_c = c_a; σ_s = 1.7 θ,
-// p = 80; λ_I as now), written out here so that the wider disk of auto_rofi_params is
-// checked against it on every pair (docs/algorithms/rofi.md, "Automatic parameters").
-mesh::RofiParams paper_disk_auto(const mesh::NoiseEstimate& noise) {
-    mesh::RofiParams q = mesh::auto_rofi_params(noise);
-    q.sigma_s = std::clamp(1.7 * noise.normal_angle_deg * std::numbers::pi / 180.0, 0.1, 1.0);
-    q.iterations = 80;
-    q.radius_factor = 2.0;
-    q.sigma_c_factor = 1.0;
-    return q;
-}
-
-// RoFi with auto_rofi_params; also checks that it beats the paper-disk rule above on this
-// pair: a lower MSAE and no more flips created (flip_transitions against the noisy input).
+// RoFi with auto_rofi_params; also checks that it beats paper_disk_rofi_params (the rule before
+// session 8) on this pair: a lower MSAE and no more flips created (flip_transitions against the
+// noisy input).
 mesh::MeshComparison rofi_auto(const Pair& p) {
     const auto noise = mesh::estimate_noise(p.noisy.V, p.noisy.F);
     const auto r = mesh::rofi_denoise(p.noisy.V, p.noisy.F, mesh::auto_rofi_params(noise));
-    const auto before = mesh::rofi_denoise(p.noisy.V, p.noisy.F, paper_disk_auto(noise));
+    const auto before =
+        mesh::rofi_denoise(p.noisy.V, p.noisy.F, mesh::paper_disk_rofi_params(noise));
     const auto c = compare(p, r);
     const auto t = mesh::flip_transitions(r.V, p.noisy.V, p.truth.V, p.noisy.F);
     const auto t0 = mesh::flip_transitions(before.V, p.noisy.V, p.truth.V, p.noisy.F);
@@ -153,7 +141,7 @@ TEST(SharedMeshes, FoldRepairRemovesTheFlipsRofiCreatesOnTwelveAndBlock) {
         const Pair p = load(k.name);
         mesh::RofiParams params;
         if (k.automatic) {
-            params = paper_disk_auto(mesh::estimate_noise(p.noisy.V, p.noisy.F));
+            params = mesh::paper_disk_rofi_params(mesh::estimate_noise(p.noisy.V, p.noisy.F));
         } else {
             params.sigma_s = 0.6;
             params.lambda_i = 0.2;

@@ -62,4 +62,10 @@ struct RofiParams {
 // measurements behind it). `similarity` and `threads` are left at their defaults.
 [[nodiscard]] RofiParams auto_rofi_params(const NoiseEstimate& noise);
 
+// The automatic rule with the paper's disk (r = 2 c_a, σ_c = c_a; σ_s = clamp(1.7 θ, 0.1, 1),
+// p = 80, λ_I as auto_rofi_params): the automatic rule before session 8. `--method bilateral`
+// takes its σ_s and p (the classic filter for comparison keeps its disk), and the tests check
+// auto_rofi_params against it.
+[[nodiscard]] RofiParams paper_disk_rofi_params(const NoiseEstimate& noise);
+
 }  // namespace octshape::mesh
