@@ -158,37 +158,6 @@ const std::vector<Param> kParams{
     {"beta_mean", "um", 1e3},
 };
 
-struct Disk {
-    double area = 0.0;
-    double diameter = 0.0;
-};
-
-// cube.cpp's disk(): covariance normal, shoelace area / |n_z| (Eq. 7.16-7.17), mean distance of
-// opposite points (Eq. 7.18).
-Disk disk(const std::vector<V3>& pts) {
-    const auto n = pts.size();
-    V3 c = V3::Zero();
-    for (const auto& q : pts) c += q;
-    c /= static_cast<double>(n);
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (const auto& q : pts) cov += (q - c) * (q - c).transpose();
-    cov /= static_cast<double>(n);
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
-    const V3 normal = es.eigenvectors().col(0);
-    double a2 = 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
-        const V3& p = pts[i];
-        const V3& q = pts[(i + 1) % n];
-        a2 += p.x() * q.y() - q.x() * p.y();
-    }
-    Disk d;
-    d.area = std::fabs(0.5 * a2) / std::fabs(normal.z());
-    double sum = 0.0;
-    for (std::size_t i = 0; i < n / 2; ++i) sum += (pts[i] - pts[i + n / 2]).norm();
-    d.diameter = sum / static_cast<double>(n / 2);
-    return d;
-}
-
 // Every parameter of kParams (mm, mm2, mm3, deg) from the interior curves of the n half-lines.
 std::vector<double> derived(const std::vector<Ctrl>& in, const Model& m) {
     const int n = m.n;
@@ -225,23 +194,23 @@ std::vector<double> derived(const std::vector<Ctrl>& in, const Model& m) {
         flat_pts.push_back(pt(rf, cft + m.tau_mm));
     }
     const double inv = 1.0 / n;
-    const Disk rd = disk(rim_pts);
-    const Disk sd = disk(slope_pts);
-    const Disk fd = disk(flat_pts);
+    const CubeDisk rd = cube_disk(rim_pts);
+    const CubeDisk sd = cube_disk(slope_pts);
+    const CubeDisk fd = cube_disk(flat_pts);
     const double v_r = 2.0 * kPi * inv * vr;
     return {cft,
             rim_h * inv,
             rim_h * inv - cft,
-            rd.diameter,
-            rd.area,
+            rd.diameter_mm,
+            rd.area_mm2,
             slope * inv,
-            sd.diameter,
-            sd.area,
+            sd.diameter_mm,
+            sd.area_mm2,
             2.0 * flat * inv,
-            fd.area,
+            fd.area_mm2,
             v_r,
             2.0 * kPi * inv * vir,
-            rd.area * rim_h * inv - v_r,
+            rd.area_mm2 * rim_h * inv - v_r,
             am * inv,
             bm * inv};
 }

@@ -943,6 +943,8 @@ bool is_volume(const io::Scan& scan) {
 
 }  // namespace
 
+CubeDisk cube_disk(std::vector<Eigen::Vector3d> points) { return disk(std::move(points)); }
+
 double ThicknessMap::sample(double x_mm, double y_mm) const {
     if (cols < 2 || dx_mm <= 0.0) return kMissing;
     const double fa = x_mm / dx_mm;

@@ -204,6 +204,11 @@ struct CubeDisk {
     std::vector<Eigen::Vector3d> points;  // grid mm, in angular order
 };
 
+// The disk through points in angular order (rim, slope or pit-flat points, grid mm): covariance
+// eigen-analysis, shoelace area over |cos(normal, z)| and the opposite-point diameter
+// (Eq. 7.16-7.18). What analyse_macula reports; exposed for bench/macula_crb.
+[[nodiscard]] CubeDisk cube_disk(std::vector<Eigen::Vector3d> points);
+
 struct CubeResult {
     bool line_scan = false;     // 2-D parameters only (SPEC §4.8)
     std::string centre_source;  // "device thickness grid", "scan centre" or "given"
