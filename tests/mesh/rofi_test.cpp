@@ -194,10 +194,10 @@ TEST(Rofi, BoundaryVerticesStayFixed) {
 
 TEST(Rofi, NoisyPlaneBecomesAPlane) {
     // Noise only across the plane (σ = 0.25 h), boundary at z = 0 and fixed. A local filter
-    // over a disk a few h wide (auto: r = 4 c_a) removes the short wavelengths; of white noise on the grid,
-    // wavelengths longer than 4 h (|k| below half the Nyquist frequency in both axes) hold 1/4
-    // of the height variance (RMS ½) and 1/16 of the slope variance (RMS ¼): bounds on what a
-    // working filter leaves.
+    // over a disk a few h wide (auto: r = 4 c_a) removes the short wavelengths; of white noise
+    // on the grid, wavelengths longer than 4 h (|k| below half the Nyquist frequency in both
+    // axes) hold 1/4 of the height variance (RMS ½) and 1/16 of the slope variance (RMS ¼):
+    // bounds on what a working filter leaves.
     auto m = plane_grid(24);
     Gaussian g(11);
     const double sigma = 0.25 / 24;
