@@ -116,29 +116,31 @@ MeshData read_with_vtk(const fs::path& path) {
     return out;
 }
 
-// The text after `prefix` on its line, if a line of the file's first 1 MiB starts with it
-// before `stop` (a line that ends the header, or empty), else empty. Bounded: a hostile file
-// costs at most one 1 MiB read.
-std::string provenance_line(const fs::path& path, const std::string& prefix,
-                            const std::string& stop) {
-    constexpr std::size_t kMax = std::size_t{1} << 20;
-    std::ifstream in(path, std::ios::binary);
-    std::string head(kMax, '\0');
-    in.read(head.data(), static_cast<std::streamsize>(kMax));
-    head.resize(static_cast<std::size_t>(in.gcount()));
+// The text after `prefix` on the first line of `header` that starts with it, else empty.
+std::string provenance_in(std::string_view header, std::string_view prefix) {
     std::size_t line = 0;
-    while (line < head.size()) {
-        const std::size_t end = std::min(head.find('\n', line), head.size());
-        const std::string_view l = std::string_view(head).substr(line, end - line);
-        if (!stop.empty() && l.starts_with(stop)) break;
-        if (l.starts_with(prefix)) {
-            std::string_view rest = l.substr(prefix.size());
-            if (rest.ends_with('\r')) rest.remove_suffix(1);
-            return std::string(rest);
-        }
+    while (line < header.size()) {
+        const std::size_t end = std::min(header.find('\n', line), header.size());
+        std::string_view l = header.substr(line, end - line);
+        if (l.ends_with('\r')) l.remove_suffix(1);
+        if (l.starts_with(prefix)) return std::string(l.substr(prefix.size()));
         line = end + 1;
     }
     return {};
+}
+
+// A PLY file's header (through "end_header"), at most 1 MiB: a hostile file costs no more.
+std::string ply_header(const fs::path& path) {
+    constexpr std::size_t kMax = std::size_t{1} << 20;
+    std::ifstream in(path, std::ios::binary);
+    std::string header;
+    std::string line;
+    while (header.size() < kMax && std::getline(in, line)) {
+        header += line;
+        header += '\n';
+        if (line.starts_with("end_header")) break;
+    }
+    return header;
 }
 
 // ---------------------------------------------------------------- OFF, by hand
@@ -290,7 +292,18 @@ MeshFormat mesh_format_from_extension(const fs::path& path) {
 MeshData read_off(std::istream& in, const std::string& name) {
     std::ostringstream buffer;
     buffer << in.rdbuf();
-    OffParser p(buffer.str(), name);
+    std::string text = buffer.str();
+    // The provenance comment sits among the leading "OFF" and "#" lines (write_off).
+    std::size_t header_end = 0;
+    while (header_end < text.size() &&
+           (text.compare(header_end, 3, "OFF") == 0 || text[header_end] == '#')) {
+        const std::size_t eol = text.find('\n', header_end);
+        header_end = eol == std::string::npos ? text.size() : eol + 1;
+    }
+    const std::string provenance =
+        provenance_in(std::string_view(text).substr(0, header_end),
+                      std::string("# ") + detail::kProvenanceKey + ' ');
+    OffParser p(std::move(text), name);
     const std::string_view magic = p.token();
     if (magic != "OFF") throw InputError::corrupt(name, "does not start with 'OFF'", 0);
     const std::size_t counts_at = p.pos();
@@ -310,6 +323,7 @@ MeshData read_off(std::istream& in, const std::string& name) {
         throw InputError::unsupported(name, "more than 2^31 vertices", counts_at);
     }
     MeshData out;
+    out.provenance = provenance;
     out.V.resize(nv, 3);
     for (long long i = 0; i < nv; ++i) {
         for (int k = 0; k < 3; ++k) {
@@ -390,15 +404,12 @@ MeshData read_mesh(const fs::path& path) {
     switch (format) {
         case MeshFormat::kOff: {
             std::ifstream in(path, std::ios::binary);
-            MeshData out = read_off(in, name);
-            out.provenance =
-                provenance_line(path, std::string("# ") + detail::kProvenanceKey + ' ', "");
-            return out;
+            return read_off(in, name);
         }
         case MeshFormat::kPly: {
             MeshData out = read_with_vtk<vtkPLYReader>(path);
-            out.provenance = provenance_line(
-                path, std::string("comment ") + detail::kProvenanceKey + ' ', "end_header");
+            out.provenance = provenance_in(
+                ply_header(path), std::string("comment ") + detail::kProvenanceKey + ' ');
             return out;
         }
         case MeshFormat::kObj:
