@@ -38,6 +38,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -104,21 +105,9 @@ Ctrl exterior(const Line& l, double radius) {
             V2(radius, l.q[kP3y])};  // Eq. 7.6
 }
 
-// x(t) = x on a curve with monotone x: bisection to the last bit (as cube.cpp's solve_x).
-double solve_x(const Ctrl& c, double x) {
-    double lo = 0.0;
-    double hi = 1.0;
-    for (int it = 0; it < 200; ++it) {
-        const double mid = 0.5 * (lo + hi);
-        if (mid == lo || mid == hi) break;
-        (bezier_point(c, mid).x() < x ? lo : hi) = mid;
-    }
-    return 0.5 * (lo + hi);
-}
-
 double profile(const Line& l, double radius, double r) {
     const Ctrl c = r <= l.q[kRimR] ? interior(l) : exterior(l, radius);
-    return bezier_point(c, solve_x(c, r)).y();
+    return bezier_point(c, bezier_t_at_x(c, r)).y();
 }
 
 // The model surface at grid node g.
@@ -184,7 +173,8 @@ std::vector<double> derived(const std::vector<Ctrl>& in, const Model& m) {
         const double rf = bezier_point(q, 0.5 * (lo + hi)).x();
         flat += rf;
         vr += bezier_volume_integral(q, 1.0);                             // Eq. 7.27
-        vir += bezier_volume_integral(q, solve_x(q, m.inner_radius_mm));  // Eq. 7.28 (r_u < w)
+        // Eq. 7.28 (r_u < w)
+        vir += bezier_volume_integral(q, bezier_t_at_x(q, m.inner_radius_mm));
         const V2& u = m.dir[static_cast<std::size_t>(i)];
         auto pt = [&](double r, double z) {
             return V3(m.centre.x() + r * u.x(), m.centre.y() + r * u.y(), z);
@@ -221,7 +211,13 @@ std::vector<double> derived(const Eigen::VectorXd& th, const Model& m) {
     return derived(in, m);
 }
 
-std::vector<double> truth_values(const MaculaTruth& t) {
+double value(double v) { return v; }
+double value(const std::optional<double>& v) { return *v; }
+
+// kParams' values from the phantom's truth (MaculaTruth) or the analysis (CubeResult): the
+// same field names in both.
+template <class Parameters>
+std::vector<double> parameter_values(const Parameters& t) {
     return {t.cft_mm,
             t.rim_height_mm,
             t.pit_depth_mm,
@@ -235,26 +231,8 @@ std::vector<double> truth_values(const MaculaTruth& t) {
             t.rim_volume_mm3,
             t.inner_rim_volume_mm3,
             t.pit_volume_mm3,
-            *t.alpha_mean_mm,
-            *t.beta_mean_mm};
-}
-
-std::vector<double> result_values(const CubeResult& r) {
-    return {r.cft_mm,
-            r.rim_height_mm,
-            r.pit_depth_mm,
-            r.rim.diameter_mm,
-            r.rim.area_mm2,
-            r.max_pit_slope_deg,
-            r.slope.diameter_mm,
-            r.slope.area_mm2,
-            r.pit_flat_diameter_mm,
-            r.pit_flat.area_mm2,
-            r.rim_volume_mm3,
-            r.inner_rim_volume_mm3,
-            r.pit_volume_mm3,
-            r.alpha_mean_mm,
-            r.beta_mean_mm};
+            value(t.alpha_mean_mm),
+            value(t.beta_mean_mm)};
 }
 
 MaculaPhantomParams phantom_params(int bscans) {
@@ -581,7 +559,7 @@ int main(int argc, char** argv) {
         m.centre = macula_centre_mm(p);
         for (int i = 0; i < m.n; ++i) m.dir.push_back(m.frame.grid_direction(360.0 * i / m.n));
         const Eigen::VectorXd th = true_theta(truth, m);
-        const std::vector<double> tv = truth_values(truth);
+        const std::vector<double> tv = parameter_values(truth);
 
         // Check 1: the restated formulas at theta* against the phantom's own truth.
         const std::vector<double> g0 = derived(th, m);
@@ -614,7 +592,7 @@ int main(int argc, char** argv) {
             q.seed = static_cast<std::uint64_t>(7 + s);
             const MaculaPhantom ph = make_macula_phantom(q, topt);
             const CubeResult r = analyse_macula(ph.scan);
-            const std::vector<double> rv = result_values(r);
+            const std::vector<double> rv = parameter_values(r);
             std::vector<Ctrl> in;
             for (const auto& hl : r.half_lines) in.push_back(hl.interior.control);
             const std::vector<double> rg = derived(in, m);

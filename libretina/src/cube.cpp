@@ -945,6 +945,8 @@ bool is_volume(const io::Scan& scan) {
 
 CubeDisk cube_disk(std::vector<Eigen::Vector3d> points) { return disk(std::move(points)); }
 
+double bezier_t_at_x(const std::array<Eigen::Vector2d, 4>& p, double x) { return solve_x(p, x); }
+
 double ThicknessMap::sample(double x_mm, double y_mm) const {
     if (cols < 2 || dx_mm <= 0.0) return kMissing;
     const double fa = x_mm / dx_mm;

@@ -33,14 +33,7 @@ std::vector<V2> sample_by_x(const Ctrl& c, int n) {
     std::vector<V2> out;
     for (int k = 0; k <= n; ++k) {
         const double x = c[0].x() + (c[3].x() - c[0].x()) * k / n;
-        double lo = 0.0;
-        double hi = 1.0;
-        for (int i = 0; i < 200; ++i) {
-            const double mid = 0.5 * (lo + hi);
-            if (mid == lo || mid == hi) break;
-            (bezier_point(c, mid).x() < x ? lo : hi) = mid;
-        }
-        out.push_back(bezier_point(c, 0.5 * (lo + hi)));
+        out.push_back(bezier_point(c, bezier_t_at_x(c, x)));
     }
     return out;
 }

@@ -158,6 +158,9 @@ struct RimProfileFit {
 
 [[nodiscard]] Eigen::Vector2d bezier_point(const std::array<Eigen::Vector2d, 4>& p, double t);
 [[nodiscard]] Eigen::Vector2d bezier_derivative(const std::array<Eigen::Vector2d, 4>& p, double t);
+// The t in [0, 1] with bezier_point(p, t).x() = x on a curve whose x is monotone (bisection to
+// the last bit).
+[[nodiscard]] double bezier_t_at_x(const std::array<Eigen::Vector2d, 4>& p, double x);
 
 // Maximum slope of an interior CuBe curve (SPEC §4.6, replacing the misprinted Eq. 7.20):
 // s = dy / (sqrt(alpha beta) + w - alpha - beta) at t_m = sqrt(alpha) / (sqrt(alpha) +
