@@ -176,6 +176,9 @@ std::vector<std::string> cube_csv_header() {
     std::vector<std::string> h{"analysis", "centre_source"};
     for (const auto& c : columns()) h.emplace_back(c.name);
     h.emplace_back("qc_flags");
+    // Appended after qc_flags (columns are only ever appended): the map's node noise, the
+    // covariate the per-eye precision and bias depend on (docs/outputs.md, "How precise").
+    h.emplace_back("thickness_noise_sd_um");
     return h;
 }
 
@@ -189,6 +192,7 @@ std::vector<std::string> cube_csv_values(const CubeResult& r) {
     std::string flags;
     for (const auto& f : r.qc_flags) flags += (flags.empty() ? "" : ";") + f;
     v.push_back(flags);
+    v.push_back(csv_num(r.thickness_noise_sd_um));
     return v;
 }
 

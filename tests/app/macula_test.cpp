@@ -80,12 +80,18 @@ TEST(MaculaCli, BezierSampleMatchesItsTruth) {
     const auto hv = split_csv_line(h);
     const auto rv = split_csv_line(row);
     ASSERT_EQ(hv.size(), rv.size());
+    EXPECT_EQ(hv.back(), "thickness_noise_sd_um");
     for (std::size_t i = 0; i < hv.size(); ++i) {
         if (hv[i] == "cft_mm") {
             EXPECT_NEAR(std::stod(rv[i]), v["cft_mm"].get<double>(), 1e-9);
         }
         if (hv[i] == "eye") {
             EXPECT_EQ(rv[i], "OD");
+        }
+        if (hv[i] == "thickness_noise_sd_um") {  // appended last, the JSON's noise estimate
+            EXPECT_EQ(i + 1, hv.size());
+            EXPECT_NEAR(std::stod(rv[i]), j["noise"]["thickness_noise_sd_um"].get<double>(),
+                        1e-9);
         }
         if (hv[i].ends_with("_mm") || hv[i].ends_with("_mm2") || hv[i].ends_with("_mm3")) {
             EXPECT_NE(rv[i], "NA") << hv[i];

@@ -464,6 +464,32 @@ TEST(CubePhantom, ScheibeFlatPitsHitTheModelLimit) {
     // asserted for them rather than one fitted to the output.
 }
 
+TEST(CubeNoise, NodeNoiseEstimateRecoversThePhantomsNoise) {
+    // thickness_noise_sd: MAD of the second differences along the A-scans / sqrt(6). The
+    // phantom's thickness nodes carry independent N(0, sigma^2) (sigma / sqrt(2) on ILM and on
+    // BM). Tolerance 4 %: 61 x 766 = 46,726 second differences; the MAD's relative SD is
+    // 1.17 / sqrt(N) = 0.54 % for independent values, and neighbouring second differences share
+    // nodes (correlation -2/3 at lag 1, 1/6 at lag 2), which at most triples the variance: SD
+    // <= 1 %, so 4 % is 4 SDs. The surface's own second difference (|T''| dx^2 <= 0.06 um at
+    // dx = 11.7 um) adds < 1e-4 relative to sigma sqrt(6) >= 4.9 um. A wrong constant (the
+    // 1.4826 or the sqrt(6)) is off by 33 % or more.
+    for (const double sigma_um : {2.0, 3.8717, 8.0}) {
+        MaculaPhantomParams p;
+        p.num_bscans = 61;
+        p.pixels = false;
+        p.noise_um = sigma_um / std::sqrt(2.0);
+        p.seed = 11;
+        const MaculaPhantom ph = make_macula_phantom(p);
+        const double est_um = 1e3 * thickness_noise_sd(thickness_map(ph.scan));
+        EXPECT_NEAR(est_um / sigma_um, 1.0, 0.04) << "sigma " << sigma_um << " um";
+    }
+    // Noise-free: only the surface's second differences remain (docs: ~0.0002 um).
+    MaculaPhantomParams p;
+    p.num_bscans = 61;
+    p.pixels = false;
+    EXPECT_LT(1e3 * thickness_noise_sd(thickness_map(make_macula_phantom(p).scan)), 0.06);
+}
+
 TEST(CubePhantom, SegmentationNoiseGivesRmseOfTheNoiseLevel) {
     // 1 axial pixel of thickness noise: ILM and BM each carry sigma / sqrt(2) so that ILM - BM
     // has SD sigma = 3.87 um. A radial sample is a bilinear mix of 4 nodes with weights w:
