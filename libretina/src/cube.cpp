@@ -722,11 +722,47 @@ struct LocalFitWindow {
 // unbiased for cubic profiles too, where a local linear fit errs by T'' h^2 / 6. The sample
 // is a; a window with fewer than min_nodes nodes or a singular design keeps the bilinear value.
 // Samples that are missing under SPEC §4.3 (a missing bilinear neighbour) stay missing.
+// The sums of one sample's normal equations for T = a + b rho + c rho^2 + e tau (f = (1, rho,
+// rho^2, tau)): the 9 distinct entries of sum f f^T and the 4 of sum v f, added as scalars (the
+// same products as a rank-one update of the 4x4 matrix, at a third of its cost here).
+struct LocalFitSums {
+    double n = 0, r1 = 0, r2 = 0, r3 = 0, r4 = 0, t1 = 0, r1t = 0, r2t = 0, t2 = 0;
+    double v = 0, vr1 = 0, vr2 = 0, vt = 0;
+    int count = 0;
+    void add(double rho, double tau, double value) {
+        const double rho2 = rho * rho;
+        n += 1.0;
+        r1 += rho;
+        r2 += rho2;
+        r3 += rho2 * rho;
+        r4 += rho2 * rho2;
+        t1 += tau;
+        r1t += tau * rho;
+        r2t += tau * rho2;
+        t2 += tau * tau;
+        v += value;
+        vr1 += value * rho;
+        vr2 += value * rho2;
+        vt += value * tau;
+        ++count;
+    }
+    [[nodiscard]] Eigen::Matrix4d normal() const {
+        Eigen::Matrix4d a;
+        a << n, r1, r2, t1, r1, r2, r3, r1t, r2, r3, r4, r2t, t1, r1t, r2t, t2;
+        return a;
+    }
+    [[nodiscard]] Eigen::Vector4d rhs() const { return {v, vr1, vr2, vt}; }
+};
+
+// With `sector_nodes` (size n), also hands every valid node within `sector_radius` of the centre
+// to its own sector's list as (radius, thickness): the sector bins of the final fit.
 void local_fit_samples(const ThicknessMap& m,
                        const V2& c,
                        const Eigen::Matrix2d& grid_to_anatomical,
                        const LocalFitWindow& win,
-                       std::vector<CubeHalfLine>& lines) {
+                       std::vector<CubeHalfLine>& lines,
+                       std::vector<std::vector<V2>>* sector_nodes = nullptr,
+                       double sector_radius = 0.0) {
     if (lines.empty() || lines.front().r_mm.size() < 2) return;
     const std::vector<double>& radii = lines.front().r_mm;
     const std::size_t n = lines.size();
@@ -739,9 +775,7 @@ void local_fit_samples(const ThicknessMap& m,
         std::fabs(radii.back() - static_cast<double>(ns - 1) * s) < 1e-9 ? ns : ns - 1;
     using V4 = Eigen::Vector4d;
     using M4 = Eigen::Matrix4d;
-    std::vector<M4> normal(n * ns, M4::Zero());
-    std::vector<V4> rhs(n * ns, V4::Zero());
-    std::vector<int> count(n * ns, 0);
+    std::vector<LocalFitSums> sums(n * ns);
     std::vector<V2> dir(n);
     std::vector<V2> perp(n);
     for (std::size_t i = 0; i < n; ++i) {
@@ -773,6 +807,9 @@ void local_fit_samples(const ThicknessMap& m,
             double phi = std::atan2(pa.y(), pa.x());
             if (phi < 0.0) phi += 2.0 * kPi;
             const auto i0 = static_cast<long>(std::lround(phi / step));
+            if (sector_nodes != nullptr && r <= sector_radius) {
+                (*sector_nodes)[static_cast<std::size_t>(i0) % n].emplace_back(r, v);
+            }
             // Half-lines whose tangential band can hold the node (those more than 90 deg away
             // fail (p - c) . d_i > 0).
             const auto quarter = static_cast<long>(n / 4) + 1;
@@ -786,17 +823,14 @@ void local_fit_samples(const ThicknessMap& m,
                                                         static_cast<long>(n));
                 if (p.dot(dir[i]) <= 0.0) continue;
                 const double tau = p.dot(perp[i]);
-                const double dphi =
-                    std::fabs(std::remainder(phi - static_cast<double>(j) * step, 2.0 * kPi));
+                // |phi - j step| wrapped into [0, pi] (|j - i0| <= n / 4 + 1: one turn at most).
+                double dphi = std::fabs(phi - static_cast<double>(j) * step);
+                if (dphi > kPi) dphi = 2.0 * kPi - dphi;
                 const bool in_sector = dphi <= win.sector_half_rad;
                 if (!in_sector && std::fabs(tau) > w) continue;
+                const double tau_s = tau * tau_scale;
                 auto add = [&](std::size_t k) {
-                    const double rho = (r - radii[k]) * inv_h;
-                    const V4 f(1.0, rho, rho * rho, tau * tau_scale);
-                    const std::size_t q = i * ns + k;
-                    normal[q].selfadjointView<Eigen::Lower>().rankUpdate(f);
-                    rhs[q] += v * f;
-                    ++count[q];
+                    sums[i * ns + k].add((r - radii[k]) * inv_h, tau_s, v);
                 };
                 for (std::size_t k = k_lo; k <= k_hi; ++k) add(k);
                 if (last) add(ns - 1);
@@ -805,9 +839,9 @@ void local_fit_samples(const ThicknessMap& m,
     }
     for (std::size_t i = 0; i < n; ++i) {
         for (std::size_t k = 1; k < ns; ++k) {
-            const std::size_t q = i * ns + k;
-            if (std::isnan(lines[i].h_mm[k]) || count[q] < win.min_nodes) continue;
-            const Eigen::LDLT<M4> ldlt(normal[q].selfadjointView<Eigen::Lower>());
+            const LocalFitSums& q = sums[i * ns + k];
+            if (std::isnan(lines[i].h_mm[k]) || q.count < win.min_nodes) continue;
+            const Eigen::LDLT<M4> ldlt(q.normal());
             const auto d = ldlt.vectorD();
             if (ldlt.info() != Eigen::Success || !(d.minCoeff() > 1e-9 * d.maxCoeff())) continue;
             // Noise of the fit's value: sigma^2 (N^-1)_00; the bilinear sample's: sigma^2 sum w^2
@@ -820,10 +854,110 @@ void local_fit_samples(const ThicknessMap& m,
             const double var_bilinear =
                 ((1.0 - u) * (1.0 - u) + u * u) * ((1.0 - t) * (1.0 - t) + t * t);
             if (!(var_fit < var_bilinear)) continue;
-            const V4 z = ldlt.solve(rhs[q]);
+            const V4 z = ldlt.solve(q.rhs());
             if (std::isfinite(z(0))) lines[i].h_mm[k] = z(0);
         }
     }
+}
+
+// ---- the final fit's samples under noise: sector bins (docs/algorithms/cube.md "Radial
+// samples under noise") -------------------------------------------------------------------------
+// Every valid node p with 0 < |p - c| <= R belongs to the half-line nearest to its anatomical
+// angle (sectors of +-180 deg / n: they tile the disk, every node serves exactly one half-line;
+// local_fit_samples hands them over). A half-line's nodes, ordered by radius, are cut into runs of k consecutive nodes, k =
+// round(count / K) >= 1 with K the number of regular samples of a half-line, and each run is one
+// sample: the mean thickness of its nodes at the root-mean-square radius of its nodes. Equal
+// runs give every sample the same noise (sigma^2 / k), so the unweighted fit weighs them alike;
+// no node serves twice and nothing is smoothed across the radius. The RMS radius makes a run's
+// mean exact for T = a + b r^2 (the pit floor, where a sector is narrow and a run spans up to
+// ~0.15 mm: the mean radius would put the mean ~1 um too high there); where a run spans a few
+// um, as elsewhere, the two radii differ by < 0.02 um. The last run takes the remainder (k to
+// 2k - 1 nodes). A half-line with fewer than kMinSectorNodes nodes keeps its samples. Sample 0
+// stays the centre.
+constexpr std::size_t kMinSectorNodes = 16;
+
+void sector_bin_samples(std::vector<std::vector<V2>>& nodes, std::vector<CubeHalfLine>& lines) {
+    const std::size_t n = lines.size();
+    if (n == 0 || nodes.size() != n || lines.front().r_mm.size() < 2) return;
+    const std::size_t regular = lines.front().r_mm.size() - 1;
+    for (std::size_t i = 0; i < n; ++i) {
+        std::vector<V2>& d = nodes[i];
+        if (d.size() < kMinSectorNodes) continue;
+        // By radius; equal radii by thickness, so that the runs do not depend on the scan order.
+        std::sort(d.begin(), d.end(), [](const V2& x, const V2& y) {
+            return x.x() < y.x() || (x.x() == y.x() && x.y() < y.y());
+        });
+        const std::size_t k = std::max<std::size_t>(
+            1, static_cast<std::size_t>(std::lround(static_cast<double>(d.size()) /
+                                                    static_cast<double>(regular))));
+        const std::size_t runs = d.size() / k;
+        CubeHalfLine& h = lines[i];
+        h.r_mm.resize(1);
+        h.h_mm.resize(1);
+        for (std::size_t j = 0; j < runs; ++j) {
+            const std::size_t first = j * k;
+            const std::size_t last = j + 1 == runs ? d.size() : first + k;
+            double sum_h = 0.0;
+            double sum_r2 = 0.0;
+            for (std::size_t q = first; q < last; ++q) {
+                sum_h += d[q].y();
+                sum_r2 += d[q].x() * d[q].x();
+            }
+            const auto count = static_cast<double>(last - first);
+            h.r_mm.push_back(std::sqrt(sum_r2 / count));
+            h.h_mm.push_back(sum_h / count);
+        }
+    }
+}
+
+// The bilinear samples of a half-line at the regular radii (SPEC §4.3), kept beside the sector
+// bins for the RMSE and the count of missing values in the pit.
+struct BilinearSamples {
+    const std::vector<double>& r_mm;
+    const std::vector<double>& h_mm;
+};
+
+// Start parameters on the curve c for the samples d (ordered by radius): interpolated in the
+// curve's own x at the parameters t_fit of another sample set fitted to it (its foot points).
+std::vector<double> start_parameters(std::span<const V2> d,
+                                     const Ctrl& c,
+                                     std::span<const double> t_fit) {
+    std::vector<double> xs{c[0].x()};
+    std::vector<double> ts{0.0};
+    for (const double t : t_fit) {
+        const double x = bezier_point(c, t).x();
+        if (t > ts.back() && x > xs.back()) {
+            xs.push_back(x);
+            ts.push_back(t);
+        }
+    }
+    if (ts.back() < 1.0 && c[3].x() > xs.back()) {
+        xs.push_back(c[3].x());
+        ts.push_back(1.0);
+    }
+    std::vector<double> t(d.size());
+    for (std::size_t k = 0; k < d.size(); ++k) {
+        const double x = d[k].x();
+        const auto it = std::upper_bound(xs.begin(), xs.end(), x);
+        if (it == xs.begin()) {
+            t[k] = ts.front();
+        } else if (it == xs.end()) {
+            t[k] = ts.back();
+        } else {
+            const auto j = static_cast<std::size_t>(it - xs.begin());
+            const double f = (x - xs[j - 1]) / (xs[j] - xs[j - 1]);
+            t[k] = ts[j - 1] + f * (ts[j] - ts[j - 1]);
+        }
+    }
+    return t;
+}
+
+// Sum of squared orthogonal distances of d to the curve c (foot points refined as the fit
+// refines its own, from start_parameters).
+double distances_to_curve(std::span<const V2> d, const Ctrl& c, std::span<const double> t_fit) {
+    if (d.empty()) return 0.0;
+    std::vector<double> t = start_parameters(d, c, t_fit);
+    return update_foot_points(d, c, t, 0, d.size());
 }
 
 void fit_half_line(CubeHalfLine& h,
@@ -831,7 +965,7 @@ void fit_half_line(CubeHalfLine& h,
                    const CubeParams& p,
                    const FitSettings& fs,
                    const CubeHalfLine* start = nullptr,
-                   const std::vector<double>* bilinear = nullptr) {
+                   const BilinearSamples* bilinear = nullptr) {
     // Valid samples; sample 0 is the centre (thickness CFT).
     std::vector<V2> pts;
     std::vector<int> idx;
@@ -856,8 +990,10 @@ void fit_half_line(CubeHalfLine& h,
         h.problem = "no rim inside the radius: thickness still rising at its end";
         return;
     }
-    for (int k = 0; k < idx[rim]; ++k) {
-        if (std::isnan(h.h_mm[static_cast<std::size_t>(k)])) ++h.num_missing_interior;
+    if (bilinear == nullptr) {
+        for (int k = 0; k < idx[rim]; ++k) {
+            if (std::isnan(h.h_mm[static_cast<std::size_t>(k)])) ++h.num_missing_interior;
+        }
     }
     // The rim height is the joint fit's estimate (docs/algorithms/cube.md "Rim point").
     RimProfileFit warm;
@@ -865,6 +1001,26 @@ void fit_half_line(CubeHalfLine& h,
     if (has_start) {
         warm.interior = start->interior;
         warm.exterior = start->exterior;
+        if (warm.interior.t.size() + warm.exterior.t.size() != pts.size()) {
+            // The start was fitted to other samples (the CFT pass's local fits): its foot points
+            // on these — the samples up to its rim radius on its interior, the rest on its
+            // exterior, whose end is the last sample (t = 1).
+            const double split_x = warm.interior.control[3].x();
+            std::size_t split = 0;
+            while (split < pts.size() && pts[split].x() <= split_x) ++split;
+            split = std::clamp<std::size_t>(split, 2, pts.size() - 2);
+            const std::span<const V2> all(pts);
+            const auto in = all.subspan(0, split);
+            const auto ex = all.subspan(split);
+            std::vector<double> ti = start_parameters(in, warm.interior.control, warm.interior.t);
+            std::vector<double> te = start_parameters(ex, warm.exterior.control, warm.exterior.t);
+            update_foot_points(in, warm.interior.control, ti, 1, in.size());
+            update_foot_points(ex, warm.exterior.control, te, 0, ex.size() - 1);
+            ti.front() = 0.0;
+            te.back() = 1.0;
+            warm.interior.t = std::move(ti);
+            warm.exterior.t = std::move(te);
+        }
     }
     RimProfileFit pf = fit_rim_profile(pts, static_cast<int>(rim), fs, has_start ? &warm : nullptr);
     if (fs.free_start_height) {  // CFT estimation pass: P0.y is used, the fit is a start
@@ -911,25 +1067,33 @@ void fit_half_line(CubeHalfLine& h,
         const double te = ru >= qe[3].x() ? 1.0 : solve_x(qe, ru);
         h.inner_rim_volume_mm3 = h.rim_volume_mm3 + bezier_volume_integral(qe, te);
     }
-    const double n = static_cast<double>(h.interior.num_samples + h.exterior.num_samples);
+    double n = static_cast<double>(h.interior.num_samples + h.exterior.num_samples);
     double sse = h.interior.sse_mm2 + h.exterior.sse_mm2;
     if (bilinear != nullptr) {
-        // The fit used local-regression samples: its RMSE is measured against the bilinear
-        // samples (SPEC §4.3) as before, i.e. the map's deviation from the model (each sample's
-        // orthogonal distance to its segment, foot points from the fit's).
-        std::vector<V2> raw(pts.size());
-        for (std::size_t j = 0; j < pts.size(); ++j) {
-            raw[j] = V2(pts[j].x(), j == 0 ? cft : (*bilinear)[static_cast<std::size_t>(idx[j])]);
+        // The fit used sector bins: its RMSE is measured against the bilinear samples (SPEC
+        // §4.3) as before, i.e. the map's deviation from the model: each sample's orthogonal
+        // distance to its segment (the interior up to the rim radius, the exterior beyond it up
+        // to its end; the first sample is the centre at CFT). The bilinear samples missing
+        // inside the rim are the pit's missing values.
+        const Ctrl& ce = h.exterior.control;
+        std::vector<V2> rin;
+        std::vector<V2> rex;
+        for (std::size_t k = 0; k < bilinear->r_mm.size(); ++k) {
+            const double r = bilinear->r_mm[k];
+            const double v = k == 0 ? cft : bilinear->h_mm[k];
+            if (std::isnan(v)) {
+                if (r < qi[3].x()) ++h.num_missing_interior;
+                continue;
+            }
+            if (r <= qi[3].x()) {
+                rin.emplace_back(r, v);
+            } else if (r <= ce[3].x()) {
+                rex.emplace_back(r, v);
+            }
         }
-        const std::size_t split = h.interior.t.size();
-        const std::span<const V2> rin(raw.data(), split);
-        const std::span<const V2> rex(raw.data() + split, raw.size() - split);
-        std::vector<double> ti = h.interior.t;
-        std::vector<double> te = h.exterior.t;
-        sse = (raw[0] - h.interior.control[0]).squaredNorm() +
-              update_foot_points(rin, h.interior.control, ti, 1, rin.size()) +
-              update_foot_points(rex, h.exterior.control, te, 0, rex.size() - 1) +
-              (raw.back() - h.exterior.control[3]).squaredNorm();
+        sse = distances_to_curve(rin, qi, h.interior.t) +
+              distances_to_curve(rex, ce, h.exterior.t);
+        n = static_cast<double>(rin.size() + rex.size());
     }
     h.rmse_um = 1000.0 * std::sqrt(sse / n);
     h.valid = true;
@@ -1162,6 +1326,9 @@ BezierFit fit_exterior(std::span<const V2> d, const FitSettings& s) {
     return alternate(d, s, solve);
 }
 
+// Successive steps of the joint rounds this close in direction (cosine) are a creep.
+constexpr double kCreepCosine = 0.95;
+
 RimProfileFit fit_rim_profile(std::span<const V2> d,
                               int rim_index,
                               const FitSettings& s,
@@ -1207,6 +1374,17 @@ RimProfileFit fit_rim_profile(std::span<const V2> d,
         cur.t = fi.t;
         cur.t.insert(cur.t.end(), fe.t.begin() + 1, fe.t.end());
     }
+    if (geo.free_rim && (cur.q(6) < r_lo || cur.q(6) > r_hi)) {
+        // A start fitted to other samples may put its rim outside this crest: the nearest end
+        // of the crest, the other unknowns moved into the graph constraints (the rounds need a
+        // feasible start).
+        cur.q(6) = std::clamp(cur.q(6), r_lo, r_hi);
+        const double w = cur.q(6) - geo.p0.x();
+        cur.q(1) = std::clamp(cur.q(1), 0.0, w);
+        cur.q(0) = std::clamp(cur.q(0), 0.0, w - cur.q(1));
+        cur.q(3) = std::clamp(cur.q(3), 0.0, geo.p3.x() - cur.q(6));
+        cur.q(4) = std::clamp(cur.q(4), cur.q(6) + cur.q(3), geo.p3.x());
+    }
     cur.energy = joint_energy(d, geo, cur);
     VJ last_step = VJ::Zero();
     for (int round = 1; round <= s.max_rounds; ++round) {
@@ -1236,6 +1414,29 @@ RimProfileFit fit_rim_profile(std::span<const V2> d,
             if (mid.energy < next.energy) next = std::move(mid);
         }
         if (next.energy > cur.energy) next = joint_round(d, geo, cur, 1.0);
+        // A step along the previous one is the slow creep of a flat valley (under noise most
+        // often the exterior's handles, which the data hardly fix, drifting toward a bound by
+        // ~1e-6 mm a round): doubled steps along it, while they stay inside the graph
+        // constraints and lower the energy further, cover that creep in a few rounds instead of
+        // running into max_rounds.
+        if (next.energy <= cur.energy && last_step.squaredNorm() > 0.0) {
+            const VJ dq = next.q - cur.q;
+            const double norms = dq.norm() * last_step.norm();
+            if (norms > 0.0 && dq.dot(last_step) > kCreepCosine * norms) {
+                CJ C;
+                BJ b;
+                joint_constraints(geo, C, b);
+                for (double f = 2.0; f <= 64.0; f *= 2.0) {
+                    JointState far;
+                    far.active = next.active;
+                    far.q = cur.q + f * dq;
+                    if (!((C * far.q - b).array() <= 0.0).all()) break;
+                    project_joint(d, geo, cur, far);
+                    if (!(far.energy < next.energy)) break;
+                    next = std::move(far);
+                }
+            }
+        }
         if (next.energy > cur.energy) {  // no step lowers the energy: at the minimum
             out.converged = true;
             break;
@@ -1492,14 +1693,16 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
     // (docs/algorithms/cube.md "Radial samples under noise"); the bilinear ones are kept for
     // the RMSE.
     std::vector<std::vector<double>> bilinear;
+    std::vector<std::vector<V2>> sector_nodes(noisy ? res.half_lines.size() : 0);
     if (noisy) {
         for (const auto& h : res.half_lines) bilinear.push_back(h.h_mm);
         LocalFitWindow win;
         win.radial_half_mm = kLocalFitRadialSteps * std::max(spacing, m.dx_mm);
         win.sector_half_rad = kPi / n;
         win.tangential_min_mm = kLocalFitTangentialBscans * m.dy_mm;
-        local_fit_samples(m, res.centre_mm, geo.grid_to_anatomical(), win, res.half_lines);
-        res.local_fit_samples = true;
+        local_fit_samples(m, res.centre_mm, geo.grid_to_anatomical(), win, res.half_lines,
+                          &sector_nodes, params.radius_mm);
+        res.noise_adaptive_samples = true;
     }
     // CFT as a model estimate (docs/algorithms/cube.md "CFT"): every interior fitted with its
     // start height free; CFT = the mean of those heights (the shared P0.y of Eq. 7.5); then
@@ -1530,12 +1733,18 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
         }
         if (count > 0) res.cft_mm = sum / count;
     }
+    // Under noise the final fit uses the sector bins (docs/algorithms/cube.md "Radial samples
+    // under noise"), started from the CFT pass's curves.
+    if (noisy) sector_bin_samples(sector_nodes, res.half_lines);
     for (std::size_t i = 0; i < res.half_lines.size(); ++i) {
         CubeHalfLine& h = res.half_lines[i];
         h.h_mm[0] = res.cft_mm;
+        const std::optional<BilinearSamples> regular =
+            bilinear.empty() ? std::nullopt
+                             : std::optional<BilinearSamples>(BilinearSamples{radii, bilinear[i]});
         fit_half_line(h, res.cft_mm, params,
                       {params.max_rounds, params.energy_tolerance, false, params.rim_point, crest_mm},
-                      &free_pass[i], bilinear.empty() ? nullptr : &bilinear[i]);
+                      &free_pass[i], regular ? &*regular : nullptr);
     }
 
     // ---- parameters (SPEC §4.6) --------------------------------------------------------------

@@ -140,7 +140,8 @@ J cube_json(const CubeResult& r, const CubeParams& p) {
     noise["thickness_noise_sd_um"] = num(r.thickness_noise_sd_um);
     noise["crest_tolerance_um"] =
         p.rim_point == RimPoint::kCrest ? num(3.0 * r.thickness_noise_sd_um) : J(nullptr);
-    noise["radial_samples"] = r.local_fit_samples ? "local fit" : "bilinear";
+    noise["radial_samples"] =
+        r.noise_adaptive_samples ? "local fit (CFT pass), sector bins (final fit)" : "bilinear";
     noise["centre_fit_radius_mm"] = num(r.centre_fit_radius_mm);
     j["noise"] = noise;
     J hl = J::array();

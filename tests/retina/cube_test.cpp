@@ -529,7 +529,7 @@ TEST(CubePhantom, SegmentationNoiseGivesRmseOfTheNoiseLevel) {
         // 0.50 / 1.18 %, max slope 0.67 / 1.67 %, V_p 0.56 / 1.25 %, rim diameter 0.86 / 2.06 %:
         // 2 % is >= 3.0 RMS for the first three (a 1-in-370 event for a normal error) and 2.3 RMS
         // for the rim diameter (1 of the 36 seeds exceeded it by 0.06 %).
-        EXPECT_TRUE(r.local_fit_samples);
+        EXPECT_TRUE(r.noise_adaptive_samples);
         EXPECT_LE(std::fabs(r.pit_depth_mm / t.pit_depth_mm - 1.0), 0.02);
         EXPECT_LE(e.slope_deg, 0.02 * t.max_pit_slope_deg);
         EXPECT_LE(e.vp_rel, 0.02);
@@ -564,11 +564,11 @@ TEST(CubePhantom, LocalFitSamplesOfANoiseFreeMapStayWithinTheSamplingBounds) {
         SCOPED_TRACE(nb);
         const MaculaPhantomParams p = volume_params(MaculaFamily::kBezier, nb);
         const MaculaPhantom ph = make_macula_phantom(p);
-        EXPECT_FALSE(analyse_macula(ph.scan).local_fit_samples);
+        EXPECT_FALSE(analyse_macula(ph.scan).noise_adaptive_samples);
         CubeParams forced;
         forced.local_fit_min_noise_um = 0.0;
         const CubeResult r = analyse_macula(ph.scan, forced);
-        EXPECT_TRUE(r.local_fit_samples);
+        EXPECT_TRUE(r.noise_adaptive_samples);
         const Errors e = errors(r, ph);
         record("bezier_local_fit_" + std::to_string(nb), e);
         const SamplingBounds sb = sampling_bounds(p, ph.scan.meta.scale_x_mm,

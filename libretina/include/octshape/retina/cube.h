@@ -235,10 +235,11 @@ struct CubeResult {
     double beta_mean_mm = kMissing;
     double rmse_um = kMissing;  // over every sample of every valid half-line
     double thickness_noise_sd_um = kMissing;  // thickness_noise_sd of the map (sets the crest)
-    // The noise-adaptive estimators (CubeParams::local_fit_min_noise_um): whether the radial
-    // samples are local fits (else bilinear), and the half-width of the window whose quadratic
-    // vertex placed the centre (NaN when the centre is given or not refined).
-    bool local_fit_samples = false;
+    // The noise-adaptive estimators (CubeParams::local_fit_min_noise_um): whether they were
+    // used (the CFT pass on local-fit samples, the final fit on sector bins; else bilinear
+    // samples), and the half-width of the window whose quadratic vertex placed the centre (NaN
+    // when the centre is given or not refined).
+    bool noise_adaptive_samples = false;
     double centre_fit_radius_mm = kMissing;
     std::vector<CubeHalfLine> half_lines;
     std::vector<std::string> qc_flags;  // short, stable phrases
