@@ -522,18 +522,23 @@ TEST(CubePhantom, SegmentationNoiseGivesRmseOfTheNoiseLevel) {
         EXPECT_LE(e.cft, 0.02 * t.cft_mm);
         EXPECT_LE(e.rim_height, 0.02 * t.rim_height_mm);
         EXPECT_LE(e.vir_rel, 0.02);
-        // The radial samples are local fits over every node of their sector (the noise is far
-        // above CubeParams::local_fit_min_noise_um = 0.5 um): the parameters that bilinear
-        // samples left above 2 % but that average many samples now meet it. Their errors over
-        // 36 seeds (7-42, docs/algorithms/cube.md "Accuracy", session 7), RMS / worst: pit depth
-        // 0.50 / 1.18 %, max slope 0.67 / 1.67 %, V_p 0.56 / 1.25 %, rim diameter 0.86 / 2.06 %:
-        // 2 % is >= 3.0 RMS for the first three (a 1-in-370 event for a normal error) and 2.3 RMS
-        // for the rim diameter (1 of the 36 seeds exceeded it by 0.06 %).
+        // The noise is far above CubeParams::local_fit_min_noise_um = 0.5 um: the CFT pass runs
+        // on local fits and the final fit on sector bins, each over every node of its sector
+        // (docs/algorithms/cube.md "Radial samples under noise"). The parameters that bilinear
+        // samples left above 2 % but that average many samples meet it. Their errors over 36
+        // seeds (7-42, docs/algorithms/cube.md "Accuracy", session 9), RMS / worst: pit depth
+        // 0.51 / 1.19 %, max slope 0.47 / 1.05 %, V_p 0.52 / 1.21 %, rim diameter 0.65 / 1.46 %:
+        // 2 % is >= 3.0 RMS (a 1-in-370 event for a normal error). Rim area and V_r (the rim
+        // radius squared: 1.28 / 2.89 % and 1.39 / 3.17 %) meet it on these seeds at 1.6 and
+        // 1.4 RMS (a seed misses with probability ~0.12 and ~0.15): asserted because the issue
+        // asks for 2 %, and a regression of the rim radius fails them first.
         EXPECT_TRUE(r.noise_adaptive_samples);
         EXPECT_LE(std::fabs(r.pit_depth_mm / t.pit_depth_mm - 1.0), 0.02);
         EXPECT_LE(e.slope_deg, 0.02 * t.max_pit_slope_deg);
         EXPECT_LE(e.vp_rel, 0.02);
         EXPECT_LE(e.rim_diameter, 0.02 * t.rim.diameter_mm);
+        EXPECT_LE(e.rim_area_rel, 0.02);
+        EXPECT_LE(e.vr_rel, 0.02);
         // The rim at the maximum sample (the thesis's split) is pushed outward by the noise:
         // on a crest that falls ~5 um over 0.2 mm the largest of the ~40 samples within the
         // noise of the top is most often one of the outer ones, for every half-line alike, so

@@ -88,13 +88,14 @@ struct CubeParams {
     double energy_tolerance = 1e-10;   // stop on relative energy change below this
     double rmse_warning_um = 10.0;     // QC "fit RMSE high" above this (thesis: 1.0-7.1 um)
     RimPoint rim_point = RimPoint::kCrest;
-    // Radial samples under segmentation noise (docs/algorithms/cube.md "Radial samples under
-    // noise"): when the map's node noise SD (thickness_noise_sd) is at least this, a volume's
-    // radial sample is the value at the sample of a local regression (quadratic in the radius,
-    // linear across) over every valid node of its half-line's angular sector within a radial
-    // window, instead of the bilinear mix of 4 nodes; the reported RMSE stays that of the
-    // bilinear samples. Below it (noise-free maps, the device's smooth lines) and for line scans
-    // the samples are SPEC §4.3's bilinear ones. +inf = always bilinear.
+    // Samples under segmentation noise (docs/algorithms/cube.md "Radial samples under noise"):
+    // when the map's node noise SD (thickness_noise_sd) is at least this, a volume's CFT pass
+    // fits local regressions (quadratic in the radius, linear across, over every valid node of
+    // the half-line's angular sector within a radial window) and its final fit fits sector bins
+    // (the sector's nodes in runs of equal count, each at its RMS radius), instead of the
+    // bilinear mixes of 4 nodes; the reported RMSE stays that of the bilinear samples. Below it
+    // (noise-free maps, the device's smooth lines) and for line scans the samples are SPEC
+    // §4.3's bilinear ones. +inf = always bilinear.
     double local_fit_min_noise_um = 0.5;
     // Forces the centre (grid mm) instead of searching: validation from a known centre.
     std::optional<Eigen::Vector2d> centre_mm;
