@@ -558,12 +558,16 @@ TEST(CubePhantom, SegmentationNoiseGivesRmseOfTheNoiseLevel) {
     }
 }
 
-TEST(CubePhantom, LocalFitSamplesOfANoiseFreeMapStayWithinTheSamplingBounds) {
-    // The local fits forced on (threshold 0) on the noise-free Bezier phantoms: quadratic in
-    // the radius and linear across, they reproduce a rotationally symmetric map up to its
-    // quartic radial terms, so they must stay within the sampling bounds that the bilinear
-    // samples are held to (BezierErrorsWithinSamplingBoundsAndShrinkWithBScans). By default
-    // (threshold 0.5 um) these maps keep their bilinear samples.
+TEST(CubePhantom, NoiseAdaptiveSamplesOfANoiseFreeMapStayWithinTheSamplingBounds) {
+    // The noise-adaptive samples forced on (threshold 0) on the noise-free Bezier phantoms. The
+    // local fits of the CFT pass, quadratic in the radius and linear across, reproduce a
+    // rotationally symmetric map up to its quartic radial terms; the sector bins of the final
+    // fit are means of nodes at their RMS radius, exact for a + b r^2 (the pit floor's leading
+    // term) and, where a run spans a few um, within |T''| var(r) / 2 < 1e-4 um of the profile
+    // elsewhere. So both must stay within
+    // the sampling bounds that the bilinear samples are held to
+    // (BezierErrorsWithinSamplingBoundsAndShrinkWithBScans). By default (threshold 0.5 um)
+    // these maps keep their bilinear samples.
     const double s2 = 0.5 * 0.01169;
     for (const int nb : {61, 193}) {
         SCOPED_TRACE(nb);
@@ -575,7 +579,7 @@ TEST(CubePhantom, LocalFitSamplesOfANoiseFreeMapStayWithinTheSamplingBounds) {
         const CubeResult r = analyse_macula(ph.scan, forced);
         EXPECT_TRUE(r.noise_adaptive_samples);
         const Errors e = errors(r, ph);
-        record("bezier_local_fit_" + std::to_string(nb), e);
+        record("bezier_noise_adaptive_" + std::to_string(nb), e);
         const SamplingBounds sb = sampling_bounds(p, ph.scan.meta.scale_x_mm,
                                                   ph.scan.meta.distance_mm,
                                                   CubeParams{}.tie_tolerance_mm);
