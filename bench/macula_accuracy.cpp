@@ -4,6 +4,8 @@
 // Bezier family at 193 B-scans with 1 axial pixel of segmentation noise (several seeds).
 // Usage: macula_accuracy [NOISE_SEEDS]   (default 5)
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -54,6 +56,57 @@ std::vector<Row> errors(const CubeResult& r, const MaculaTruth& t) {
     return rows;
 }
 
+// Every half-line's rim radius error over the noisy seeds, and how it depends on whether the
+// fitted exterior rests on a bound of its graph constraints (docs/algorithms/cube.md, "Bias
+// under noise"): alpha_ext = 0, P2.x = P1.x, P2.x = P3.x (= R), or none.
+class RimErrors {
+  public:
+    void add(const CubeResult& r, const MaculaTruth& t) {
+        for (std::size_t i = 0; i < r.half_lines.size() && i < t.half_lines.size(); ++i) {
+            const CubeHalfLine& h = r.half_lines[i];
+            if (!h.valid) continue;
+            const double e = 1e3 * (h.rim_radius_mm - t.half_lines[i].rim_radius_mm);
+            const auto& c = h.exterior.control;
+            constexpr double kAt = 1e-9;  // mm: on the bound
+            const int group = c[1].x() - c[0].x() < kAt   ? 1
+                              : c[2].x() - c[1].x() < kAt ? 2
+                              : c[3].x() - c[2].x() < kAt ? 3
+                                                          : 0;
+            errors_.push_back(e);
+            sum_[group] += e;
+            ++count_[group];
+        }
+    }
+    void print() const {
+        if (errors_.empty()) return;
+        std::vector<double> e = errors_;
+        std::sort(e.begin(), e.end());
+        const auto n = static_cast<double>(e.size());
+        double mean = 0.0;
+        for (const double x : e) mean += x / n;
+        double m2 = 0.0;
+        double m3 = 0.0;
+        for (const double x : e) {
+            m2 += (x - mean) * (x - mean) / n;
+            m3 += (x - mean) * (x - mean) * (x - mean) / n;
+        }
+        std::printf("\nrim radius per half-line (um), %zu half-lines: mean %+.2f, median %+.2f, SD "
+                    "%.2f, skewness %.2f\n",
+                    e.size(), mean, e[e.size() / 2], std::sqrt(m2), m3 / std::pow(m2, 1.5));
+        static const char* const names[4] = {"exterior free", "alpha_ext = 0", "P2.x = P1.x",
+                                             "P2.x = R"};
+        for (int g = 0; g < 4; ++g) {
+            std::printf("  %-14s %4d half-lines, mean rim radius error %+.2f um\n", names[g],
+                        count_[g], count_[g] > 0 ? sum_[g] / count_[g] : 0.0);
+        }
+    }
+
+  private:
+    std::vector<double> errors_;
+    std::array<double, 4> sum_{};
+    std::array<int, 4> count_{};
+};
+
 MaculaPhantomParams volume(MaculaFamily f, int bscans) {
     MaculaPhantomParams p;
     p.family = f;
@@ -96,12 +149,15 @@ int main(int argc, char** argv) {
     std::vector<Row> mean;
     std::vector<double> sum;     // of the signed relative errors
     std::vector<double> sum_sq;  // of the relative errors squared
+    RimErrors rims;
     for (int s = 0; s < seeds; ++s) {
         MaculaPhantomParams p = volume(MaculaFamily::kBezier, 193);
         p.noise_um = 3.8717 / std::sqrt(2.0);
         p.seed = static_cast<std::uint64_t>(7 + s);
         const MaculaPhantom ph = make_macula_phantom(p);
-        const auto e = errors(analyse_macula(ph.scan), ph.truth);
+        const CubeResult r = analyse_macula(ph.scan);
+        const auto e = errors(r, ph.truth);
+        rims.add(r, ph.truth);
         if (mean.empty()) {
             mean = e;
             for (auto& m : mean) m.error = m.rel = 0.0;
@@ -129,5 +185,6 @@ int main(int argc, char** argv) {
         std::printf("%-18s %12.3f %12.3f %12.3f\n", mean[i].name, sum[i] / seeds,
                     std::sqrt(sum_sq[i] / seeds), mean[i].rel);
     }
+    rims.print();
     return 0;
 }
