@@ -14,6 +14,7 @@
 
 #include "octshape/retina/cube.h"
 #include "octshape/retina/phantom_macula.h"
+#include "octshape/retina/stats.h"
 
 namespace {
 
@@ -78,21 +79,16 @@ class RimErrors {
         }
     }
     void print() const {
-        if (errors_.empty()) return;
+        if (errors_.size() < 2) return;
+        const Summary st = summarise(errors_);
         std::vector<double> e = errors_;
-        std::sort(e.begin(), e.end());
-        const auto n = static_cast<double>(e.size());
-        double mean = 0.0;
-        for (const double x : e) mean += x / n;
-        double m2 = 0.0;
-        double m3 = 0.0;
-        for (const double x : e) {
-            m2 += (x - mean) * (x - mean) / n;
-            m3 += (x - mean) * (x - mean) * (x - mean) / n;
-        }
+        const auto mid = e.begin() + static_cast<std::ptrdiff_t>(e.size() / 2);
+        std::nth_element(e.begin(), mid, e.end());
+        double m3 = 0.0;  // third central moment, for the skewness
+        for (const double x : errors_) m3 += std::pow(x - st.mean, 3) / static_cast<double>(st.n);
         std::printf("\nrim radius per half-line (um), %zu half-lines: mean %+.2f, median %+.2f, SD "
                     "%.2f, skewness %.2f\n",
-                    e.size(), mean, e[e.size() / 2], std::sqrt(m2), m3 / std::pow(m2, 1.5));
+                    st.n, st.mean, *mid, st.sd, m3 / std::pow(st.sd, 3));
         static const char* const names[4] = {"exterior free", "alpha_ext = 0", "P2.x = P1.x",
                                              "P2.x = R"};
         for (int g = 0; g < 4; ++g) {
