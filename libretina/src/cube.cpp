@@ -1387,6 +1387,9 @@ RimProfileFit fit_rim_profile(std::span<const V2> d,
     }
     cur.energy = joint_energy(d, geo, cur);
     VJ last_step = VJ::Zero();
+    CJ C;  // the graph constraints, for the creep's doubled steps
+    BJ b;
+    joint_constraints(geo, C, b);
     for (int round = 1; round <= s.max_rounds; ++round) {
         out.rounds = round;
         if (cur.energy <= 1e-30) {
@@ -1423,9 +1426,6 @@ RimProfileFit fit_rim_profile(std::span<const V2> d,
             const VJ dq = next.q - cur.q;
             const double norms = dq.norm() * last_step.norm();
             if (norms > 0.0 && dq.dot(last_step) > kCreepCosine * norms) {
-                CJ C;
-                BJ b;
-                joint_constraints(geo, C, b);
                 for (double f = 2.0; f <= 64.0; f *= 2.0) {
                     JointState far;
                     far.active = next.active;
@@ -1739,12 +1739,10 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
     for (std::size_t i = 0; i < res.half_lines.size(); ++i) {
         CubeHalfLine& h = res.half_lines[i];
         h.h_mm[0] = res.cft_mm;
-        const std::optional<BilinearSamples> regular =
-            bilinear.empty() ? std::nullopt
-                             : std::optional<BilinearSamples>(BilinearSamples{radii, bilinear[i]});
+        const BilinearSamples regular{radii, bilinear.empty() ? h.h_mm : bilinear[i]};
         fit_half_line(h, res.cft_mm, params,
                       {params.max_rounds, params.energy_tolerance, false, params.rim_point, crest_mm},
-                      &free_pass[i], regular ? &*regular : nullptr);
+                      &free_pass[i], bilinear.empty() ? nullptr : &regular);
     }
 
     // ---- parameters (SPEC §4.6) --------------------------------------------------------------
