@@ -12,7 +12,7 @@
 #include <spdlog/spdlog.h>
 
 #include "commands/command.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/version.h"
 
 namespace {
@@ -26,7 +26,8 @@ constexpr const char* kExitCodes = R"(Exit codes:
   69  analysis not possible on this input (wrong scan pattern, segmentation missing)
   70  internal error in octshape (please report it)
   73  output cannot be written
-  100-127 command-line parse errors reported by CLI11)";
+Every mistake on the command line (an unknown command or option, a missing or bad value)
+exits 64, whether CLI11 or octshape finds it.)";
 
 void configure_logging(bool quiet, int verbose) {
     auto logger = spdlog::stderr_color_mt("octshape");
@@ -79,7 +80,11 @@ int main(int argc, char** argv) {
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        return app.exit(e);
+        // CLI11 prints the help or the error; its own codes (105 for a value outside a set,
+        // 106 for a conversion, ...) become the one usage code, as for the checks octshape
+        // makes itself (UsageError).
+        const int code = app.exit(e);
+        return code == 0 ? 0 : static_cast<int>(octshape::ExitCode::kUsage);
     } catch (const octshape::Error& e) {
         std::cerr << "octshape: error: " << e.what() << '\n';
         return static_cast<int>(e.exit_code());

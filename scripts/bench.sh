@@ -1,20 +1,10 @@
 #!/usr/bin/env bash
-# Builds Release and runs every benchmark in bench/ (each prints its own tables).
+# Builds Release and runs every benchmark in bench/ (each prints its own tables). The list of
+# benchmarks and their order are bench/CMakeLists.txt's (octshape_bench), written to benches.txt.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cmake --preset release >/dev/null
-cmake --build --preset release -j 2 --target read_bench octshape_mesh_bench macula_bench octshape_shape_bench \
-  macula_accuracy macula_rescan cohort_bench onh_bench onh_pipeline_bench onh_rescan \
-  mesh_realisations macula_crb
-./build/release/bench/read_bench
-./build/release/bench/octshape_mesh_bench
-./build/release/bench/mesh_realisations
-./build/release/bench/macula_bench
-./build/release/bench/macula_accuracy
-./build/release/bench/macula_crb
-./build/release/bench/macula_rescan
-./build/release/bench/octshape_shape_bench
-./build/release/bench/cohort_bench
-./build/release/bench/onh_bench
-./build/release/bench/onh_pipeline_bench
-./build/release/bench/onh_rescan
+cmake --build --preset release -j 2 --target octshape_benches
+while read -r bench; do
+  [ -n "$bench" ] && "./build/release/bench/$bench"
+done < build/release/bench/benches.txt

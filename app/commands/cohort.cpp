@@ -32,7 +32,7 @@
 #include "commands/macula_eye.h"
 #include "commands/onh_eye.h"
 #include "octshape/io/atomic_file.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/io/sha256.h"
 #include "octshape/retina/report_util.h"

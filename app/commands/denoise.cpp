@@ -58,13 +58,13 @@ void run_pointset_denoise(const DenoiseOptions& o) {
     if (o.iterations) p.iterations = *o.iterations;
     p.snap_edges = !o.no_edge_snap;
     p.threads = o.threads;
-    validate_options(p);
+    p.validate();
     const mesh::Vertices points = io::read_point_set(o.input);
     (void)io::point_set_format_from_extension(o.output);
     mesh::PointSetResult r;
     try {
         r = mesh::pointset_denoise(points, p);
-    } catch (const std::invalid_argument& e) {
+    } catch (const DataError& e) {
         throw InputError::corrupt(o.input, e.what());
     }
     const std::string input_sha = io::sha256_file(o.input);
@@ -166,7 +166,7 @@ void run_denoise(const DenoiseOptions& o) {
         if (o.sigma_c_factor) p.sigma_c_factor = *o.sigma_c_factor;
         p.threads = o.threads;
         p.repair_folds = !o.no_fold_repair;
-        validate_options(p);
+        p.validate();
         params = {{"sigma_s", p.sigma_s},
                   {"lambda_i", p.lambda_i},
                   {"iterations", p.iterations},
@@ -184,7 +184,7 @@ void run_denoise(const DenoiseOptions& o) {
         if (o.iterations) p.iterations = *o.iterations;
         p.threads = o.threads;
         if (o.no_fold_repair) p.fold_repair_interval = 0;
-        validate_options(p);
+        p.validate();
         params = {{"tau", p.tau}, {"iterations", p.iterations}, {"rho_rad", p.rho},
                   {"damping", p.damping}, {"fold_repair_interval", p.fold_repair_interval}};
         result = mesh::envt_denoise(in.V, in.F, p);

@@ -9,7 +9,8 @@
 #include <fstream>
 #include <sstream>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
+#include "octshape/io/csv.h"
 #include "octshape/io/sha256.h"
 #include "octshape/retina/cube_report.h"
 #include "octshape/retina/onh_report.h"
@@ -370,18 +371,10 @@ std::string eyes_csv(const std::vector<nlohmann::json>& eyes,
     std::stable_sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) {
         return std::tie(a[0], a[1], a[2], a[4]) < std::tie(b[0], b[1], b[2], b[4]);
     });
-    auto line = [](const std::vector<std::string>& fields) {
-        std::string s;
-        for (std::size_t i = 0; i < fields.size(); ++i) {
-            if (i > 0) s += ',';
-            s += retina::csv_field(fields[i]);
-        }
-        return s + '\n';
-    };
     std::vector<std::string> header = eyes_common_header();
     header.insert(header.end(), type_cols.begin(), type_cols.end());
-    std::string out = line(header);
-    for (const auto& r : rows) out += line(r);
+    std::string out = io::csv_line(header);
+    for (const auto& r : rows) out += io::csv_line(r);
     return out;
 }
 

@@ -29,7 +29,7 @@ void run_features(const FeaturesOptions& o) {
     mesh::FeatureParams p;
     p.radius = o.radius_mm;
     p.threads = o.threads;
-    validate_options(p);
+    p.validate();
     const io::MeshData in = read_valid_mesh(o.input);
     const mesh::FaceFeatures f = mesh::face_features(in.V, in.F, p);
     io::write_mesh(o.output, in.V, in.F,

@@ -7,7 +7,7 @@
 
 #include "commands/eye_output.h"
 #include "commands/macula_qc.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/retina/cube_report.h"
 #include "octshape/retina/scan_summary.h"

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "commands/qc_draw.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 
 namespace octshape::app {
 namespace {

@@ -41,7 +41,7 @@ void run_meanshape(const MeanShapeOptions& o) {
     io::IcpParams icp;
     icp.max_iterations = o.max_iterations;
     icp.refine_iterations = o.refine_iterations;
-    validate_options(icp);
+    icp.validate();
     const io::MeshData first = read_valid_mesh(o.inputs[0]);
     const mesh::Surface reference{first.V, first.F};
     std::vector<mesh::Surface> aligned;
@@ -75,11 +75,11 @@ void run_meanshape(const MeanShapeOptions& o) {
     }
     mesh::MeanShapeParams params;
     params.threads = o.threads;
-    validate_options(params);
+    params.validate();
     mesh::MeanShapeResult result;
     try {
         result = mesh::mean_shape(reference, aligned, params);
-    } catch (const std::invalid_argument& e) {
+    } catch (const DataError& e) {
         throw AnalysisError(std::string("mean shape: ") + e.what());
     }
     for (std::size_t s = 0; s < surfaces.size(); ++s) {

@@ -10,7 +10,7 @@
 #include "commands/command.h"
 #include "commands/eye_record.h"
 #include "octshape/io/atomic_file.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 
 namespace octshape::app {
 namespace {

@@ -1,16 +1,15 @@
 #pragma once
-// Shared by the mesh commands (denoise, metrics, features, meanshape): reading a mesh with
-// libmesh's std::invalid_argument mapped to the user-facing error types, and the provenance
-// line written into their output meshes.
+// Shared by the mesh commands (denoise, metrics, features, meanshape): reading a mesh (an
+// invalid one is an InputError naming the file), and the provenance line written into their
+// output meshes.
 
 #include <filesystem>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/mesh_io.h"
 #include "octshape/io/sha256.h"
 #include "octshape/mesh/mesh.h"
@@ -23,7 +22,7 @@ inline io::MeshData read_valid_mesh(const std::filesystem::path& path) {
     io::MeshData mesh = io::read_mesh(path);
     try {
         mesh::validate_mesh(mesh.V, mesh.F);
-    } catch (const std::invalid_argument& e) {
+    } catch (const DataError& e) {
         throw InputError::corrupt(path.string(), e.what());
     }
     return mesh;
@@ -45,16 +44,6 @@ inline std::string mesh_provenance(const std::string& command,
                           {"inputs", in},
                           {"options", options}}
         .dump();
-}
-
-// Runs `validate` and turns libmesh's std::invalid_argument into a UsageError.
-template <class Params>
-void validate_options(const Params& params) {
-    try {
-        params.validate();
-    } catch (const std::invalid_argument& e) {
-        throw UsageError(e.what());
-    }
 }
 
 }  // namespace octshape::app

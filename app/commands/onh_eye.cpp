@@ -10,7 +10,7 @@
 #include "commands/eye_output.h"
 #include "commands/mesh_common.h"
 #include "commands/onh_qc.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/mesh_io.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/retina/bmo.h"

@@ -18,7 +18,7 @@
 
 #include "commands/command.h"
 #include "octshape/io/atomic_file.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/vol.h"
 
 namespace octshape::app {

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "octshape/io/atomic_file.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/image.h"
 
 namespace octshape::app {

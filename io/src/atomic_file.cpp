@@ -9,7 +9,7 @@
 #include <fstream>
 #include <random>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 
 namespace octshape::io {
 namespace {

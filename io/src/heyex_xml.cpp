@@ -8,7 +8,7 @@
 #include <limits>
 #include <set>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/image.h"
 #include "xml_dom.h"
 

@@ -10,7 +10,7 @@
 #include <memory>
 #include <stdexcept>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 
 namespace octshape::io {
 namespace {
@@ -67,7 +67,7 @@ std::string encode_png(int width, int height, int channels, std::span<const std:
     if (width <= 0 || height <= 0 || (channels != 1 && channels != 3) ||
         pixels.size() != static_cast<std::size_t>(width) * static_cast<std::size_t>(height) *
                              static_cast<std::size_t>(channels)) {
-        throw std::invalid_argument("encode_png: the pixels do not match width x height x channels");
+        throw Error("encode_png: the pixels do not match width x height x channels");
     }
     const std::size_t row = static_cast<std::size_t>(width) * static_cast<std::size_t>(channels);
     const auto bpp = static_cast<std::size_t>(channels);

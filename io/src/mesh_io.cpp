@@ -37,7 +37,7 @@
 
 #include "mesh_io_detail.h"
 #include "octshape/io/atomic_file.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 
 namespace octshape::io {
 namespace {

@@ -15,7 +15,7 @@
 #include <ostream>
 #include <string>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/mesh_io.h"
 
 namespace octshape::io::detail {

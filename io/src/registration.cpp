@@ -18,6 +18,7 @@
 #include <vtkSmartPointer.h>
 
 #include "mesh_io_detail.h"
+#include "octshape/error.h"
 #include "octshape/mesh/closest_point.h"
 
 namespace octshape::io {
@@ -98,11 +99,11 @@ int refine_point_to_plane(const mesh::Vertices& source_V,
 }  // namespace
 
 void IcpParams::validate() const {
-    if (max_iterations < 1) throw std::invalid_argument("max_iterations must be >= 1");
-    if (max_landmarks < 0) throw std::invalid_argument("max_landmarks must be >= 0");
-    if (refine_iterations < 0) throw std::invalid_argument("refine_iterations must be >= 0");
+    if (max_iterations < 1) throw UsageError("max_iterations must be >= 1");
+    if (max_landmarks < 0) throw UsageError("max_landmarks must be >= 0");
+    if (refine_iterations < 0) throw UsageError("refine_iterations must be >= 0");
     if (!(tolerance > 0.0) || !std::isfinite(tolerance)) {
-        throw std::invalid_argument("tolerance must be > 0");
+        throw UsageError("tolerance must be > 0");
     }
 }
 
@@ -118,7 +119,7 @@ IcpResult icp_rigid(const mesh::Vertices& source_V,
                     const IcpParams& params) {
     params.validate();
     if (source_V.rows() == 0 || !source_V.allFinite()) {
-        throw std::invalid_argument("source: no vertex or a non-finite vertex");
+        throw DataError("source: no vertex or a non-finite vertex");
     }
     const mesh::TriangleTree tree(target_V, target_F);  // validates the target
     const auto source = detail::to_polydata(source_V, mesh::Faces(0, 3), {}, {});

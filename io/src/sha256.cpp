@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 
 namespace octshape::io {
 namespace {

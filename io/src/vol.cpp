@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "octshape/io/atomic_file.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 
 // Layout, version branches and every validation rule below are documented in docs/formats.md;
 // keep the two in step.
@@ -90,9 +90,27 @@ constexpr std::size_t kVersion = 0, kHdrSize = 12, kStartX = 16, kStartY = 24, k
                       kIvTrafo = 64, kBmoLeft = 88, kBmoRight = 100;
 }  // namespace bh
 
-constexpr std::size_t kCircularGridSize = 132;
-constexpr std::size_t kRectGridHeaderSize = 40;
+// Thickness grid field offsets, from the start of the grid (the reader, its checks and the
+// writer all use these). Circular (ETDRS, types 1-3): type, three diameters, the centre on the
+// SLO, central/min/max thickness, total volume, then 9 cells of (thickness, volume).
+// Rectangular (types 8-10): type, rows, cols, cell size, tilt, centre, then rows x cols cells.
+namespace gh {
+constexpr std::size_t kType = 0;
+constexpr std::size_t kDiameters = 4;  // 3 x f64
+constexpr std::size_t kCentreX = 28, kCentreY = 36;
+constexpr std::size_t kCentralThickness = 44, kMinCentralThickness = 48,
+                      kMaxCentralThickness = 52, kTotalVolume = 56;
+constexpr std::size_t kCircularCells = 60;  // 9 x (f32 thickness, f32 volume)
+constexpr std::size_t kRows = 4, kCols = 8, kCellWidth = 12, kCellHeight = 16, kTilt = 20,
+                      kRectCentreX = 24, kRectCentreY = 32;
+constexpr std::size_t kRectCells = 40;  // rows x cols x (f32 thickness, f32 volume)
+constexpr std::size_t kCellBytes = 8, kCellVolume = 4;  // one cell; its volume after the thickness
+}  // namespace gh
+
 constexpr std::size_t kCircularGridCells = 9;
+constexpr std::size_t kCircularGridSize = gh::kCircularCells + kCircularGridCells * gh::kCellBytes;
+constexpr std::size_t kRectGridHeaderSize = gh::kRectCells;
+static_assert(kCircularGridSize == 132 && kRectGridHeaderSize == 40);
 
 // ---- little-endian access -------------------------------------------------------------------
 
@@ -307,38 +325,40 @@ std::optional<Problem> check_grid(const ThicknessGrid& g) {
     if (g.is_circular()) {
         for (std::size_t i = 0; i < 3; ++i) {
             if (auto p = check_range(g.diameters_mm[i], 0.0, kMaxGridDiameterMm, true,
-                                     "grid diameter", 4 + 8 * i, "mm")) {
+                                     "grid diameter", gh::kDiameters + 8 * i, "mm")) {
                 return p;
             }
         }
         if (auto p = check_range(g.centre_x_slo_mm, -kMaxPositionMm, kMaxPositionMm, true,
-                                 "grid CenterPos X", 28, "mm")) {
+                                 "grid CenterPos X", gh::kCentreX, "mm")) {
             return p;
         }
         if (auto p = check_range(g.centre_y_slo_mm, -kMaxPositionMm, kMaxPositionMm, true,
-                                 "grid CenterPos Y", 36, "mm")) {
+                                 "grid CenterPos Y", gh::kCentreY, "mm")) {
             return p;
         }
         return std::nullopt;
     }
     if (g.is_rectangular()) {
-        if (auto p = check_count<std::int32_t>(g.rows, 1, kMaxGridSide, "grid rows", 4)) return p;
-        if (auto p = check_count<std::int32_t>(g.cols, 1, kMaxGridSide, "grid cols", 8)) return p;
+        if (auto p = check_count<std::int32_t>(g.rows, 1, kMaxGridSide, "grid rows", gh::kRows))
+            return p;
+        if (auto p = check_count<std::int32_t>(g.cols, 1, kMaxGridSide, "grid cols", gh::kCols))
+            return p;
         if (auto p = check_range(g.cell_width_mm, 0.0, kMaxGridDiameterMm, true, "grid cell width",
-                                 12, "mm")) {
+                                 gh::kCellWidth, "mm")) {
             return p;
         }
         if (auto p = check_range(g.cell_height_mm, 0.0, kMaxGridDiameterMm, true,
-                                 "grid cell height", 16, "mm")) {
+                                 "grid cell height", gh::kCellHeight, "mm")) {
             return p;
         }
-        if (!std::isfinite(g.tilt)) return Problem{"grid tilt is not finite", 20};
+        if (!std::isfinite(g.tilt)) return Problem{"grid tilt is not finite", gh::kTilt};
         if (auto p = check_range(g.centre_x_slo_mm, -kMaxPositionMm, kMaxPositionMm, true,
-                                 "grid centre X", 24, "mm")) {
+                                 "grid centre X", gh::kRectCentreX, "mm")) {
             return p;
         }
         if (auto p = check_range(g.centre_y_slo_mm, -kMaxPositionMm, kMaxPositionMm, true,
-                                 "grid centre Y", 32, "mm")) {
+                                 "grid centre Y", gh::kRectCentreY, "mm")) {
             return p;
         }
         return std::nullopt;
@@ -352,7 +372,7 @@ std::optional<Problem> check_grid(const ThicknessGrid& g) {
 std::uint64_t grid_byte_size(const ThicknessGrid& g) {
     if (g.is_circular()) return kCircularGridSize;
     return kRectGridHeaderSize +
-           static_cast<std::uint64_t>(g.rows) * static_cast<std::uint64_t>(g.cols) * 8U;
+           static_cast<std::uint64_t>(g.rows) * static_cast<std::uint64_t>(g.cols) * gh::kCellBytes;
 }
 
 float invalid_to_nan(float v) {
@@ -697,7 +717,7 @@ std::optional<ThicknessGrid> VolReader::read_grid(std::uint64_t offset,
     std::array<Byte, kCircularGridSize> buf{};
     read_at(offset, buf.data(), head_len, what);
     const Byte* p = buf.data();
-    const std::int32_t own_type = load_i32(p);
+    const std::int32_t own_type = load_i32(p + gh::kType);
     if (own_type != expected_type) {
         if (from_header) {
             throw InputError::corrupt(
@@ -708,26 +728,28 @@ std::optional<ThicknessGrid> VolReader::read_grid(std::uint64_t offset,
         return std::nullopt;
     }
     if (circular) {
-        for (std::size_t i = 0; i < 3; ++i) g.diameters_mm[i] = load_f64(p + 4 + 8 * i);
-        g.centre_x_slo_mm = load_f64(p + 28);
-        g.centre_y_slo_mm = load_f64(p + 36);
-        g.central_thickness_mm = invalid_to_nan(load_f32(p + 44));
-        g.min_central_thickness_mm = invalid_to_nan(load_f32(p + 48));
-        g.max_central_thickness_mm = invalid_to_nan(load_f32(p + 52));
-        g.total_volume_mm3 = invalid_to_nan(load_f32(p + 56));
+        for (std::size_t i = 0; i < 3; ++i)
+            g.diameters_mm[i] = load_f64(p + gh::kDiameters + 8 * i);
+        g.centre_x_slo_mm = load_f64(p + gh::kCentreX);
+        g.centre_y_slo_mm = load_f64(p + gh::kCentreY);
+        g.central_thickness_mm = invalid_to_nan(load_f32(p + gh::kCentralThickness));
+        g.min_central_thickness_mm = invalid_to_nan(load_f32(p + gh::kMinCentralThickness));
+        g.max_central_thickness_mm = invalid_to_nan(load_f32(p + gh::kMaxCentralThickness));
+        g.total_volume_mm3 = invalid_to_nan(load_f32(p + gh::kTotalVolume));
         g.cells.resize(kCircularGridCells);
         for (std::size_t i = 0; i < kCircularGridCells; ++i) {
-            g.cells[i].thickness_mm = invalid_to_nan(load_f32(p + 60 + 8 * i));
-            g.cells[i].volume_mm3 = invalid_to_nan(load_f32(p + 64 + 8 * i));
+            const Byte* cell = p + gh::kCircularCells + gh::kCellBytes * i;
+            g.cells[i].thickness_mm = invalid_to_nan(load_f32(cell));
+            g.cells[i].volume_mm3 = invalid_to_nan(load_f32(cell + gh::kCellVolume));
         }
     } else {
-        g.rows = load_i32(p + 4);
-        g.cols = load_i32(p + 8);
-        g.cell_width_mm = load_f32(p + 12);
-        g.cell_height_mm = load_f32(p + 16);
-        g.tilt = load_f32(p + 20);
-        g.centre_x_slo_mm = load_f64(p + 24);
-        g.centre_y_slo_mm = load_f64(p + 32);
+        g.rows = load_i32(p + gh::kRows);
+        g.cols = load_i32(p + gh::kCols);
+        g.cell_width_mm = load_f32(p + gh::kCellWidth);
+        g.cell_height_mm = load_f32(p + gh::kCellHeight);
+        g.tilt = load_f32(p + gh::kTilt);
+        g.centre_x_slo_mm = load_f64(p + gh::kRectCentreX);
+        g.centre_y_slo_mm = load_f64(p + gh::kRectCentreY);
     }
     if (auto prob = check_grid(g)) {
         if (from_header) {
@@ -742,10 +764,11 @@ std::optional<ThicknessGrid> VolReader::read_grid(std::uint64_t offset,
         const std::uint64_t n_cells =
             static_cast<std::uint64_t>(g.rows) * static_cast<std::uint64_t>(g.cols);
         const std::uint64_t cells_at = offset + kRectGridHeaderSize;
-        if (size_ - cells_at < n_cells * 8) {
+        if (size_ - cells_at < n_cells * gh::kCellBytes) {
             if (from_header) {
                 throw InputError::truncated(name_,
-                                            what + " cells need " + std::to_string(n_cells * 8) +
+                                            what + " cells need " +
+                                                std::to_string(n_cells * gh::kCellBytes) +
                                                 " bytes but the file "
                                                 "ends at byte " +
                                                 std::to_string(size_),
@@ -754,12 +777,13 @@ std::optional<ThicknessGrid> VolReader::read_grid(std::uint64_t offset,
             why_not = "too short for its cells";
             return std::nullopt;
         }
-        std::vector<Byte> cells(n_cells * 8);
+        std::vector<Byte> cells(n_cells * gh::kCellBytes);
         read_at(cells_at, cells.data(), cells.size(), what + " cells");
         g.cells.resize(n_cells);
         for (std::size_t i = 0; i < n_cells; ++i) {
-            g.cells[i].thickness_mm = invalid_to_nan(load_f32(&cells[8 * i]));
-            g.cells[i].volume_mm3 = invalid_to_nan(load_f32(&cells[8 * i + 4]));
+            const Byte* cell = &cells[gh::kCellBytes * i];
+            g.cells[i].thickness_mm = invalid_to_nan(load_f32(cell));
+            g.cells[i].volume_mm3 = invalid_to_nan(load_f32(cell + gh::kCellVolume));
         }
     }
     return g;
@@ -983,31 +1007,34 @@ WritePlan plan_write(const Scan& scan) {
 std::vector<Byte> encode_grid(const ThicknessGrid& g) {
     std::vector<Byte> out(static_cast<std::size_t>(grid_byte_size(g)), 0);
     Byte* p = out.data();
-    store_i32(p, g.type);
+    store_i32(p + gh::kType, g.type);
     if (g.is_circular()) {
-        for (std::size_t i = 0; i < 3; ++i) store_f64(p + 4 + 8 * i, g.diameters_mm[i]);
-        store_f64(p + 28, g.centre_x_slo_mm);
-        store_f64(p + 36, g.centre_y_slo_mm);
-        store_f32(p + 44, nan_to_invalid(g.central_thickness_mm));
-        store_f32(p + 48, nan_to_invalid(g.min_central_thickness_mm));
-        store_f32(p + 52, nan_to_invalid(g.max_central_thickness_mm));
-        store_f32(p + 56, nan_to_invalid(g.total_volume_mm3));
+        for (std::size_t i = 0; i < 3; ++i)
+            store_f64(p + gh::kDiameters + 8 * i, g.diameters_mm[i]);
+        store_f64(p + gh::kCentreX, g.centre_x_slo_mm);
+        store_f64(p + gh::kCentreY, g.centre_y_slo_mm);
+        store_f32(p + gh::kCentralThickness, nan_to_invalid(g.central_thickness_mm));
+        store_f32(p + gh::kMinCentralThickness, nan_to_invalid(g.min_central_thickness_mm));
+        store_f32(p + gh::kMaxCentralThickness, nan_to_invalid(g.max_central_thickness_mm));
+        store_f32(p + gh::kTotalVolume, nan_to_invalid(g.total_volume_mm3));
         for (std::size_t i = 0; i < kCircularGridCells; ++i) {
-            store_f32(p + 60 + 8 * i, nan_to_invalid(g.cells[i].thickness_mm));
-            store_f32(p + 64 + 8 * i, nan_to_invalid(g.cells[i].volume_mm3));
+            Byte* cell = p + gh::kCircularCells + gh::kCellBytes * i;
+            store_f32(cell, nan_to_invalid(g.cells[i].thickness_mm));
+            store_f32(cell + gh::kCellVolume, nan_to_invalid(g.cells[i].volume_mm3));
         }
         return out;
     }
-    store_i32(p + 4, g.rows);
-    store_i32(p + 8, g.cols);
-    store_f32(p + 12, g.cell_width_mm);
-    store_f32(p + 16, g.cell_height_mm);
-    store_f32(p + 20, g.tilt);
-    store_f64(p + 24, g.centre_x_slo_mm);
-    store_f64(p + 32, g.centre_y_slo_mm);
+    store_i32(p + gh::kRows, g.rows);
+    store_i32(p + gh::kCols, g.cols);
+    store_f32(p + gh::kCellWidth, g.cell_width_mm);
+    store_f32(p + gh::kCellHeight, g.cell_height_mm);
+    store_f32(p + gh::kTilt, g.tilt);
+    store_f64(p + gh::kRectCentreX, g.centre_x_slo_mm);
+    store_f64(p + gh::kRectCentreY, g.centre_y_slo_mm);
     for (std::size_t i = 0; i < g.cells.size(); ++i) {
-        store_f32(p + 40 + 8 * i, nan_to_invalid(g.cells[i].thickness_mm));
-        store_f32(p + 44 + 8 * i, nan_to_invalid(g.cells[i].volume_mm3));
+        Byte* cell = p + gh::kRectCells + gh::kCellBytes * i;
+        store_f32(cell, nan_to_invalid(g.cells[i].thickness_mm));
+        store_f32(cell + gh::kCellVolume, nan_to_invalid(g.cells[i].volume_mm3));
     }
     return out;
 }

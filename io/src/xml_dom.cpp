@@ -3,7 +3,7 @@
 #include <cctype>
 #include <cstdint>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 
 namespace octshape::io::detail {
 namespace {

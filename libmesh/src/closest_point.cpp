@@ -5,6 +5,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "octshape/error.h"
+
 namespace octshape::mesh {
 
 Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p,
@@ -65,7 +67,7 @@ Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p,
 
 TriangleTree::TriangleTree(const Vertices& V, const Faces& F) : V_(V), F_(F) {
     validate_mesh(V_, F_);
-    if (F_.rows() == 0) throw std::invalid_argument("F: the reference surface has no triangle");
+    if (F_.rows() == 0) throw DataError("F: the reference surface has no triangle");
     const auto m = static_cast<int>(F_.rows());
     order_.resize(static_cast<std::size_t>(m));
     std::vector<Eigen::Vector3d> centres(static_cast<std::size_t>(m));

@@ -1,5 +1,6 @@
 #include "octshape/mesh/envt.h"
 
+#include "octshape/error.h"
 #include "octshape/mesh/simd_exp.h"
 #include "octshape/mesh/folds.h"
 
@@ -25,7 +26,7 @@ double seconds_since(Clock::time_point t0) {
 
 void require(bool ok, const std::string& where, const std::string& rule, double value) {
     if (!ok) {
-        throw std::invalid_argument(where + " must be " + rule + ", got " +
+        throw UsageError(where + " must be " + rule + ", got " +
                                     std::to_string(value));
     }
 }

@@ -4,6 +4,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "octshape/error.h"
+
 namespace octshape::mesh {
 namespace {
 
@@ -46,11 +48,11 @@ void for_each_fold(const FaceGeometry& geo, const Faces& F, const Csr& vertex_fa
 
 void FoldRepairParams::validate() const {
     if (!(std::isfinite(cos_fold) && cos_fold > 0.0 && cos_fold <= 1.0)) {
-        throw std::invalid_argument("FoldRepairParams.cos_fold must be in (0, 1], got " +
+        throw UsageError("FoldRepairParams.cos_fold must be in (0, 1], got " +
                                     std::to_string(cos_fold));
     }
     if (max_rounds < 0) {
-        throw std::invalid_argument("FoldRepairParams.max_rounds must be >= 0, got " +
+        throw UsageError("FoldRepairParams.max_rounds must be >= 0, got " +
                                     std::to_string(max_rounds));
     }
 }
@@ -79,11 +81,11 @@ FoldRepairResult repair_folds(Vertices& V,
                               const FoldRepairParams& params) {
     params.validate();
     if (!fixed.empty() && fixed.size() != static_cast<std::size_t>(V.rows())) {
-        throw std::invalid_argument("fixed: " + std::to_string(fixed.size()) +
+        throw Error("fixed: " + std::to_string(fixed.size()) +
                                     " entries for " + std::to_string(V.rows()) + " vertices");
     }
     if (adj.vertex_faces.rows() != V.rows() || adj.vertex_vertices.rows() != V.rows()) {
-        throw std::invalid_argument("adjacency: not built for these " +
+        throw Error("adjacency: not built for these " +
                                     std::to_string(V.rows()) + " vertices");
     }
     FoldRepairResult out;

@@ -4,13 +4,14 @@
 #include <stdexcept>
 #include <string>
 
+#include "octshape/error.h"
 #include "octshape/mesh/closest_point.h"
 #include "parallel.h"
 
 namespace octshape::mesh {
 
 void MeanShapeParams::validate() const {
-    if (threads < 1) throw std::invalid_argument("threads must be >= 1");
+    if (threads < 1) throw UsageError("threads must be >= 1");
 }
 
 MeanShapeResult mean_shape(const Surface& reference,
@@ -25,7 +26,7 @@ MeanShapeResult mean_shape(const Surface& reference,
     C.reserve(others.size());
     for (std::size_t s = 0; s < others.size(); ++s) {
         if (others[s].F.rows() == 0) {
-            throw std::invalid_argument("surface " + std::to_string(s + 1) + " has no face");
+            throw DataError("surface " + std::to_string(s + 1) + " has no face");
         }
         const TriangleTree tree(others[s].V, others[s].F);  // validates the mesh
         Vertices c(nv, 3);

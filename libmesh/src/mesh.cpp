@@ -8,6 +8,8 @@
 
 #include "parallel.h"
 
+#include "octshape/error.h"
+
 namespace octshape::mesh {
 namespace {
 
@@ -46,7 +48,7 @@ Csr csr_from_pairs(const std::vector<std::pair<int, int>>& pairs, int rows) {
 void validate_mesh(const Vertices& V, const Faces& F) {
     for (Eigen::Index i = 0; i < V.rows(); ++i) {
         if (!V.row(i).allFinite()) {
-            throw std::invalid_argument("vertex " + std::to_string(i) + " is not finite");
+            throw DataError("vertex " + std::to_string(i) + " is not finite");
         }
     }
     const auto n = static_cast<int>(V.rows());
@@ -54,12 +56,12 @@ void validate_mesh(const Vertices& V, const Faces& F) {
         for (int k = 0; k < 3; ++k) {
             const int v = F(f, k);
             if (v < 0 || v >= n) {
-                throw std::invalid_argument("face " + std::to_string(f) + " refers to vertex " +
+                throw DataError("face " + std::to_string(f) + " refers to vertex " +
                                             std::to_string(v) + " of " + std::to_string(n));
             }
         }
         if (F(f, 0) == F(f, 1) || F(f, 1) == F(f, 2) || F(f, 2) == F(f, 0)) {
-            throw std::invalid_argument("face " + std::to_string(f) + " repeats a vertex");
+            throw DataError("face " + std::to_string(f) + " repeats a vertex");
         }
     }
 }
@@ -92,7 +94,7 @@ Adjacency build_adjacency(const Faces& F, int num_vertices) {
     for (int f = 0; f < m; ++f) {
         for (int k = 0; k < 3; ++k) {
             if (F(f, k) < 0 || F(f, k) >= num_vertices) {
-                throw std::invalid_argument("face " + std::to_string(f) + " refers to vertex " +
+                throw DataError("face " + std::to_string(f) + " refers to vertex " +
                                             std::to_string(F(f, k)) + " of " +
                                             std::to_string(num_vertices));
             }
@@ -206,7 +208,7 @@ Csr disk_neighbourhoods(const Faces& F,
                         double radius,
                         int threads) {
     if (!(radius >= 0.0) || !std::isfinite(radius)) {
-        throw std::invalid_argument("radius must be finite and >= 0, got " +
+        throw UsageError("radius must be finite and >= 0, got " +
                                     std::to_string(radius));
     }
     const auto m = static_cast<int>(F.rows());

@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "octshape/error.h"
+
 namespace octshape::mesh {
 namespace {
 
@@ -15,7 +17,7 @@ void require_same_triangulation(const Vertices& V,
                                 const Vertices& reference_V,
                                 const Faces& reference_F) {
     if (F.rows() != reference_F.rows() || V.rows() != reference_V.rows() || F != reference_F) {
-        throw std::invalid_argument(
+        throw DataError(
             "reference_F: the mesh and the reference must share the triangulation (" +
             std::to_string(V.rows()) + "/" + std::to_string(F.rows()) + " vs " +
             std::to_string(reference_V.rows()) + "/" + std::to_string(reference_F.rows()) +

@@ -17,6 +17,8 @@
 
 #include "parallel.h"
 
+#include "octshape/error.h"
+
 namespace octshape::mesh {
 namespace {
 
@@ -130,7 +132,7 @@ struct Sym3 {
 // ---------------------------------------------------------------- k-d tree
 
 KdTree::KdTree(const Vertices& points) : P_(points) {
-    if (!P_.allFinite()) throw std::invalid_argument("points: a coordinate is not finite");
+    if (!P_.allFinite()) throw DataError("points: a coordinate is not finite");
     const int n = static_cast<int>(P_.rows());
     order_.resize(static_cast<std::size_t>(n));
     std::iota(order_.begin(), order_.end(), 0);
@@ -407,7 +409,7 @@ Vertices shifted_normals(const Vertices& points,
                            double inlier_sigmas,
                            int threads) {
     if (!(inlier_sigmas > 0.0 && std::isfinite(inlier_sigmas))) {
-        throw std::invalid_argument("inlier_sigmas must be finite and > 0");
+        throw UsageError("inlier_sigmas must be finite and > 0");
     }
     const int n = static_cast<int>(points.rows());
     Vertices N(n, 3);
@@ -566,7 +568,7 @@ bool nearest_on_faces(const Eigen::Vector3d& v, const std::vector<FacePlane>& pl
 // ---------------------------------------------------------------- denoiser
 
 void PointSetParams::validate() const {
-    const auto bad = [](const std::string& what) { throw std::invalid_argument(what); };
+    const auto bad = [](const std::string& what) { throw UsageError(what); };
     if (!(tau > 0.0 && tau < 1.0)) bad("tau must be in (0, 1)");
     if (!(rho > 0.0 && rho <= M_PI)) bad("rho must be in (0, pi] radians");
     if (iterations < 0) bad("iterations must be >= 0");
@@ -595,15 +597,15 @@ void PointSetParams::validate() const {
 PointSetResult pointset_denoise(const Vertices& points, const PointSetParams& params) {
     params.validate();
     const int n = static_cast<int>(points.rows());
-    if (n < 8) throw std::invalid_argument("points: at least 8 are needed");
-    if (!points.allFinite()) throw std::invalid_argument("points: a coordinate is not finite");
+    if (n < 8) throw AnalysisError("points: at least 8 are needed");
+    if (!points.allFinite()) throw DataError("points: a coordinate is not finite");
 
     PointSetResult out;
     const auto t_setup = std::chrono::steady_clock::now();
     const KdTree tree(points);
     out.mean_spacing = mean_point_spacing(points, tree, params.threads);
     out.radius = params.radius ? *params.radius : 2.0 * out.mean_spacing;  // §4.2.1
-    if (!(out.radius > 0.0)) throw std::invalid_argument("points: all points coincide");
+    if (!(out.radius > 0.0)) throw AnalysisError("points: all points coincide");
     out.epsilon = params.epsilon ? *params.epsilon : out.radius;
     const Csr nb = point_neighbourhoods(points, tree, out.radius, params.min_neighbours,
                                         params.threads);

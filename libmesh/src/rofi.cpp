@@ -1,5 +1,6 @@
 #include "octshape/mesh/rofi.h"
 
+#include "octshape/error.h"
 #include "octshape/mesh/simd_exp.h"
 #include "octshape/mesh/folds.h"
 
@@ -461,13 +462,13 @@ void exp_baseline(const double* x, double* out, std::size_t n) {
 }
 
 // The path that runs for `requested`: kBest becomes the best this CPU has. A forced path the
-// CPU lacks throws std::invalid_argument naming `who`.
+// CPU lacks throws UsageError naming `who`.
 SimdPath run_path(SimdPath requested, const char* who) {
     if (requested == SimdPath::kAvx2 && !simd_avx2_available()) {
-        throw std::invalid_argument(std::string(who) + " is kAvx2 but this CPU has no AVX2");
+        throw UsageError(std::string(who) + " is kAvx2 but this CPU has no AVX2");
     }
     if (requested == SimdPath::kAvx512 && !simd_avx512_available()) {
-        throw std::invalid_argument(std::string(who) +
+        throw UsageError(std::string(who) +
                                     " is kAvx512 but this CPU has no AVX-512");
     }
     if (requested != SimdPath::kBest) return requested;
@@ -477,7 +478,7 @@ SimdPath run_path(SimdPath requested, const char* who) {
 
 void require(bool ok, const std::string& field, const std::string& rule, double value) {
     if (!ok) {
-        throw std::invalid_argument("RofiParams." + field + " must be " + rule + ", got " +
+        throw UsageError("RofiParams." + field + " must be " + rule + ", got " +
                                     std::to_string(value));
     }
 }

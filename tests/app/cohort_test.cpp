@@ -26,6 +26,7 @@
 #include "octshape/retina/cube_report.h"
 #include "octshape/retina/phantom_macula.h"
 #include "test_paths.h"
+#include "slow_test.h"
 
 extern char** environ;
 
@@ -372,7 +373,8 @@ int wait_exit(pid_t pid) {
     return WIFEXITED(status) ? WEXITSTATUS(status) : -WTERMSIG(status);
 }
 
-TEST(CohortKill, SigkillAtRandomMomentsThenRerunGivesTheUninterruptedTables) {
+// Slow: runs a batch ~13 times (tens of seconds under the sanitizers).
+SLOW_TEST(CohortKill, SigkillAtRandomMomentsThenRerunGivesTheUninterruptedTables) {
     test::TempDir dir;
     const fs::path in = dir / "in";
     fs::create_directories(in);

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "test_paths.h"
+#include "slow_test.h"
 
 namespace octshape::test {
 namespace {
@@ -113,7 +114,8 @@ TEST(GalleryBrowser, DetectsConsoleErrorsOnABrokenPage) {
     EXPECT_FALSE(console_lines(b.log).empty()) << b.log;
 }
 
-TEST(Gallery, PageInHeadlessChromium) {
+// Slow: analyses two phantoms and starts headless Chromium twice (~7 s alone).
+SLOW_TEST(Gallery, PageInHeadlessChromium) {
     TempDir dir;
     const fs::path out = dir / "out";
     ASSERT_NO_FATAL_FAILURE(make_outdir(out));

@@ -10,7 +10,7 @@
 #include <sstream>
 #include <string>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/vol.h"
 
 namespace {

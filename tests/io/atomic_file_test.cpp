@@ -7,7 +7,7 @@
 
 #include <gtest/gtest.h>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "test_paths.h"
 
 namespace octshape::io {

@@ -10,7 +10,7 @@
 #include <string>
 
 #include "io/vol_test_util.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/io/sha256.h"
 #include "test_paths.h"

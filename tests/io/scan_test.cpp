@@ -6,7 +6,7 @@
 
 #include <gtest/gtest.h>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 
 namespace octshape::io {
 namespace {

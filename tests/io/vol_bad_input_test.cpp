@@ -17,7 +17,7 @@
 
 #include "io/alloc_probe.h"
 #include "io/vol_test_util.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/vol.h"
 #include "test_paths.h"
 

@@ -16,7 +16,7 @@
 #include <string>
 
 #include "io/vol_test_util.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "test_paths.h"
 
 namespace octshape::test {

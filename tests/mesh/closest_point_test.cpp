@@ -1,5 +1,6 @@
 // Closest points on triangles and the AABB tree, against independent brute force.
 
+#include "octshape/error.h"
 #include "octshape/mesh/closest_point.h"
 
 #include <gtest/gtest.h>
@@ -83,10 +84,10 @@ TEST(ClosestPoint, TreeMatchesBruteForceOverAllTriangles) {
 
 TEST(ClosestPoint, EmptyOrInvalidReferenceIsRejected) {
     EXPECT_THROW(mesh::TriangleTree(mesh::Vertices(0, 3), mesh::Faces(0, 3)),
-                 std::invalid_argument);
+                 octshape::DataError);
     mesh::Faces bad(1, 3);
     bad << 0, 1, 5;
-    EXPECT_THROW(mesh::TriangleTree(plane_grid(1).V, bad), std::invalid_argument);
+    EXPECT_THROW(mesh::TriangleTree(plane_grid(1).V, bad), octshape::DataError);
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // ENVT denoising (§3.1) and feature analysis (§2.4–2.5).
 
+#include "octshape/error.h"
 #include "octshape/mesh/envt.h"
 
 #include <gtest/gtest.h>
@@ -137,21 +138,21 @@ TEST(Envt, StrongNoiseFlipsAreUndoneByTheFoldRepair) {
 TEST(Envt, ValidateNamesTheBadField) {
     mesh::EnvtParams p;
     p.tau = 0.0;
-    EXPECT_THROW(p.validate(), std::invalid_argument);
+    EXPECT_THROW(p.validate(), octshape::UsageError);
     p = {};
     p.radius = -1.0;
     try {
         p.validate();
         FAIL();
-    } catch (const std::invalid_argument& e) {
+    } catch (const octshape::UsageError& e) {
         EXPECT_NE(std::string(e.what()).find("radius"), std::string::npos);
     }
     p = {};
     p.rho = 4.0;
-    EXPECT_THROW(p.validate(), std::invalid_argument);
+    EXPECT_THROW(p.validate(), octshape::UsageError);
     p = {};
     p.fold_repair_interval = -1;
-    EXPECT_THROW(p.validate(), std::invalid_argument);
+    EXPECT_THROW(p.validate(), octshape::UsageError);
 }
 
 TEST(Features, PlaneHasOneEigenvalueNoStrengthNoCurvature) {

@@ -1,5 +1,6 @@
 // Fold-over repair (folds.h): what counts as a fold, what the repair moves and what it keeps.
 
+#include "octshape/error.h"
 #include "octshape/mesh/folds.h"
 
 #include <gtest/gtest.h>
@@ -116,12 +117,12 @@ TEST(Folds, BadParametersAndSizesThrow) {
     mesh::Vertices V = m.V;
     mesh::FoldRepairParams p;
     p.cos_fold = 0.0;
-    EXPECT_THROW((void)mesh::repair_folds(V, m.F, {}, p), std::invalid_argument);
+    EXPECT_THROW((void)mesh::repair_folds(V, m.F, {}, p), octshape::UsageError);
     p = {};
     p.max_rounds = -1;
-    EXPECT_THROW((void)mesh::repair_folds(V, m.F, {}, p), std::invalid_argument);
+    EXPECT_THROW((void)mesh::repair_folds(V, m.F, {}, p), octshape::UsageError);
     EXPECT_THROW((void)mesh::repair_folds(V, m.F, std::vector<std::uint8_t>(2, 0)),
-                 std::invalid_argument);
+                 octshape::Error);
 }
 
 }  // namespace

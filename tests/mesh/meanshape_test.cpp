@@ -16,6 +16,7 @@
 #include "octshape/io/sha256.h"
 #include "fixtures/ilm_patch.h"
 #include "test_paths.h"
+#include "slow_test.h"
 
 namespace octshape::test {
 namespace {
@@ -45,7 +46,8 @@ double rotation_error_deg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b
     return Eigen::AngleAxisd(a.linear() * b.linear().transpose()).angle() * 180.0 / M_PI;
 }
 
-TEST(Icp, RecoversKnownRotations) {
+// Slow: VTK's ICP runs hundreds of iterations per registration.
+SLOW_TEST(Icp, RecoversKnownRotations) {
     const mesh::Surface ref = ilm_patch(30);
     const std::vector<Eigen::Isometry3d> moves{
         rigid(2.0, {0, 0, 1}, {0.05, -0.02, 0.01}), rigid(5.0, {1, 0.3, 0}, {-0.1, 0.0, 0.05}),
@@ -103,7 +105,8 @@ TEST(Icp, PointToPlaneRefinementConvergesWherePointToPointStalls) {
     EXPECT_GT(b.refine_iterations, 0);
 }
 
-TEST(MeanShape, RigidCopiesGiveTheOriginalWithZeroSd) {
+// Slow: VTK's ICP runs hundreds of iterations per registration.
+SLOW_TEST(MeanShape, RigidCopiesGiveTheOriginalWithZeroSd) {
     const mesh::Surface ref = ilm_patch(30);
     std::vector<mesh::Surface> others;
     for (const auto& T : {rigid(4.0, {0, 0, 1}, {0.1, 0, 0}), rigid(7.0, {1, 1, 0}, {0, 0.1, 0}),
@@ -171,7 +174,8 @@ TEST(MeanShape, NoisyCopiesGiveTheExpectedSd) {
     }
 }
 
-TEST(MeanShape, CommandWritesMeanWithSdAndReportsIcpResiduals) {
+// Slow: VTK's ICP runs hundreds of iterations per registration.
+SLOW_TEST(MeanShape, CommandWritesMeanWithSdAndReportsIcpResiduals) {
     const TempDir dir;
     const mesh::Surface ref = ilm_patch(24);
     io::write_mesh(dir / "a.ply", ref.V, ref.F);

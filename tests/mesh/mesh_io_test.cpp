@@ -10,7 +10,7 @@
 #include <sstream>
 
 #include "mesh/mesh_fixtures.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/mesh/metrics.h"
 #include "test_paths.h"
 

@@ -1,5 +1,6 @@
 // libmesh core: face geometry, adjacency, boundary, c_a, disk neighbourhoods.
 
+#include "octshape/error.h"
 #include "octshape/mesh/mesh.h"
 
 #include <gtest/gtest.h>
@@ -224,20 +225,20 @@ TEST(MeshValidate, NamesTheBadFaceOrVertex) {
     V << 0, 0, 0, 1, 0, 0, 0, 1, 0;
     mesh::Faces F(1, 3);
     F << 0, 1, 3;
-    EXPECT_THROW(mesh::validate_mesh(V, F), std::invalid_argument);
+    EXPECT_THROW(mesh::validate_mesh(V, F), octshape::DataError);
     F << 0, 1, 1;
-    EXPECT_THROW(mesh::validate_mesh(V, F), std::invalid_argument);
+    EXPECT_THROW(mesh::validate_mesh(V, F), octshape::DataError);
     F << 0, 1, 2;
     EXPECT_NO_THROW(mesh::validate_mesh(V, F));
     V(1, 2) = std::nan("");
     try {
         mesh::validate_mesh(V, F);
         FAIL() << "NaN vertex accepted";
-    } catch (const std::invalid_argument& e) {
+    } catch (const octshape::DataError& e) {
         EXPECT_NE(std::string(e.what()).find("vertex 1"), std::string::npos) << e.what();
     }
     EXPECT_THROW((void)mesh::disk_neighbourhoods(F, face_geometry(V, F), Adjacency{}, -1.0),
-                 std::invalid_argument);
+                 octshape::UsageError);
 }
 
 }  // namespace

@@ -11,7 +11,7 @@
 #include <random>
 #include <sstream>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "test_paths.h"
 
 namespace octshape::test {

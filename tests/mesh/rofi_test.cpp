@@ -1,5 +1,6 @@
 // RoFi (thesis §5.1): properties over a family of meshes and known answers.
 
+#include "octshape/error.h"
 #include "octshape/mesh/rofi.h"
 
 #include <gtest/gtest.h>
@@ -93,7 +94,7 @@ TEST(Rofi, BaselineAvx2AndAvx512KernelsGiveTheSameBits) {
                                            ? mesh::simd_avx2_available()
                                            : mesh::simd_avx512_available();
                 if (!available) {
-                    EXPECT_THROW(p.validate(), std::invalid_argument);
+                    EXPECT_THROW(p.validate(), octshape::UsageError);
                     continue;
                 }
                 EXPECT_EQ(mesh::rofi_denoise(m.V, m.F, p).V, baseline.V) << m.name;
@@ -126,7 +127,7 @@ TEST(Rofi, VectorisedExpMatchesStdExpOverTheRangeUsed) {
     } else {
         std::vector<double> out(1);
         EXPECT_THROW(mesh::simd_exp_nonpositive(x.data(), out.data(), 1, mesh::SimdPath::kAvx2),
-                     std::invalid_argument);
+                     octshape::UsageError);
     }
     if (mesh::simd_avx512_available()) {
         paths.push_back(mesh::SimdPath::kAvx512);
@@ -134,7 +135,7 @@ TEST(Rofi, VectorisedExpMatchesStdExpOverTheRangeUsed) {
         std::vector<double> out(1);
         EXPECT_THROW(
             mesh::simd_exp_nonpositive(x.data(), out.data(), 1, mesh::SimdPath::kAvx512),
-            std::invalid_argument);
+            octshape::UsageError);
     }
     std::vector<double> first;
     for (const auto path : paths) {
@@ -366,7 +367,7 @@ TEST(Rofi, ValidateNamesTheBadField) {
         try {
             p.validate();
             FAIL() << field << " accepted";
-        } catch (const std::invalid_argument& e) {
+        } catch (const octshape::UsageError& e) {
             EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
         }
     };

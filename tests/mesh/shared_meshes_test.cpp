@@ -10,6 +10,7 @@
 #include "octshape/mesh/metrics.h"
 #include "octshape/mesh/rofi.h"
 #include "test_paths.h"
+#include "slow_test.h"
 
 namespace octshape::test {
 namespace {
@@ -53,7 +54,8 @@ mesh::MeshComparison rofi_auto(const Pair& p) {
 
 // Targets: the guided filter's MSAE (README), Q no worse than the truth's + 0.05, and no
 // flipped face beyond those the noisy input already has.
-TEST(SharedMeshes, RofiAutoFandisk) {
+// Slow: denoises a mesh of ../shared/meshes (seconds).
+SLOW_TEST(SharedMeshes, RofiAutoFandisk) {
     const Pair p = load("Fandisk0.3");
     const auto c = rofi_auto(p);
     EXPECT_LE(c.msae_deg, 2.93);
@@ -61,7 +63,8 @@ TEST(SharedMeshes, RofiAutoFandisk) {
     EXPECT_EQ(c.flipped_faces, 0);
 }
 
-TEST(SharedMeshes, RofiAutoBlock) {
+// Slow: denoises a mesh of ../shared/meshes (seconds).
+SLOW_TEST(SharedMeshes, RofiAutoBlock) {
     const Pair p = load("Block0.4");
     const auto c = rofi_auto(p);
     EXPECT_LE(c.msae_deg, 4.09);
@@ -69,7 +72,8 @@ TEST(SharedMeshes, RofiAutoBlock) {
     EXPECT_EQ(c.flipped_faces, 0);
 }
 
-TEST(SharedMeshes, RofiAutoTwelveImpulsive) {
+// Slow: denoises a mesh of ../shared/meshes (seconds).
+SLOW_TEST(SharedMeshes, RofiAutoTwelveImpulsive) {
     const Pair p = load("Twelve0.5Impulsive");
     const auto c = rofi_auto(p);
     EXPECT_LE(c.msae_deg, 3.84);
@@ -77,7 +81,8 @@ TEST(SharedMeshes, RofiAutoTwelveImpulsive) {
     EXPECT_EQ(c.flipped_faces, 0);  // the input's 7 all fixed, none created
 }
 
-TEST(SharedMeshes, RofiAutoSharpSphere) {
+// Slow: denoises a mesh of ../shared/meshes (seconds).
+SLOW_TEST(SharedMeshes, RofiAutoSharpSphere) {
     // The creases are the hard case: the input has 201 flipped faces there. The MSAE target
     // holds; the flip count stays below the input's (README: a faithful RoFi keeps ~160–200;
     // the flips it creates are faces thinner than its vertex error, rofi.md).
@@ -88,7 +93,8 @@ TEST(SharedMeshes, RofiAutoSharpSphere) {
     EXPECT_LE(c.flipped_faces, p.input.flipped_faces);
 }
 
-TEST(SharedMeshes, RofiTunedFandisk) {
+// Slow: denoises a mesh of ../shared/meshes (seconds).
+SLOW_TEST(SharedMeshes, RofiTunedFandisk) {
     // Issue target ≤ 2.2° (thesis Table 5.1, tuned parameters). Tuned over the thesis's own
     // (σ_s, λ_I, p), with σ_c = c_a and r = 2 c_a fixed as in §5.2, the best found is ≈ 2.37°:
     // asserted better than the faithful RoFi at the paper's parameters on this mesh (README:
@@ -116,7 +122,8 @@ TEST(SharedMeshes, RofiTunedFandisk) {
     }
 }
 
-TEST(SharedMeshes, RofiTunedSharpSphere) {
+// Slow: denoises a mesh of ../shared/meshes (seconds).
+SLOW_TEST(SharedMeshes, RofiTunedSharpSphere) {
     const Pair p = load("SharpSphere0.3");
     mesh::RofiParams params;
     params.sigma_s = 0.75;
@@ -165,7 +172,8 @@ TEST(SharedMeshes, FoldRepairRemovesTheFlipsRofiCreatesOnTwelveAndBlock) {
     }
 }
 
-TEST(SharedMeshes, EnvtAutoFandisk) {
+// Slow: denoises a mesh of ../shared/meshes (seconds).
+SLOW_TEST(SharedMeshes, EnvtAutoFandisk) {
     // Thesis Table 3.1: ENVT 2.692° on Fandisk.
     const Pair p = load("Fandisk0.3");
     const auto params = mesh::auto_envt_params(mesh::estimate_noise(p.noisy.V, p.noisy.F));
@@ -175,7 +183,8 @@ TEST(SharedMeshes, EnvtAutoFandisk) {
     EXPECT_EQ(c.flipped_faces, 0);
 }
 
-TEST(SharedMeshes, BilateralFandisk) {
+// Slow: denoises a mesh of ../shared/meshes (seconds).
+SLOW_TEST(SharedMeshes, BilateralFandisk) {
     // Classic bilateral normal filtering (Gaussian similarity, λ_I = 0): at least as good as
     // the published bilateral implementation's 3.49° (README).
     const Pair p = load("Fandisk0.3");

@@ -10,7 +10,7 @@
 #include <limits>
 #include <numbers>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "test_paths.h"
 
 namespace octshape::retina {

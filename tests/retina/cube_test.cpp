@@ -11,11 +11,12 @@
 #include <limits>
 #include <numbers>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/retina/phantom_macula.h"
 #include "retina/macula_bounds.h"
 #include "test_paths.h"
+#include "slow_test.h"
 
 namespace octshape::retina {
 namespace {
@@ -300,7 +301,8 @@ void record(const std::string& tag, const Errors& e) {
             std::to_string(e.vp_rel * 100) + " %, rmse " + std::to_string(e.rmse_um) + " um");
 }
 
-TEST(CubePhantom, BezierIdealSamplingFitsExactly) {
+// Slow: full-size phantom volumes (up to 401 x 768): seconds under the sanitizers.
+SLOW_TEST(CubePhantom, BezierIdealSamplingFitsExactly) {
     // Ideal sampling: an isotropic grid (Distance = ScaleX = 11.69 um, 401 B-scans over
     // 4.68 mm) and the analysis started from the true centre. Bilinear interpolation then errs
     // by <= (2 dx^2) max|T''| / 8 = 0.06 um (max |T''| ~ 1.8 /mm in the pit), the only error
@@ -373,7 +375,8 @@ std::array<Errors, 3> run_family(MaculaFamily f,
     return out;
 }
 
-TEST(CubePhantom, BezierErrorsWithinSamplingBoundsAndShrinkWithBScans) {
+// Slow: full-size phantom volumes (up to 401 x 768): seconds under the sanitizers.
+SLOW_TEST(CubePhantom, BezierErrorsWithinSamplingBoundsAndShrinkWithBScans) {
     std::array<SamplingBounds, 3> sb;
     const auto e = run_family(MaculaFamily::kBezier, false, &sb);
     const double s2 = 0.5 * 0.01169;  // half a radial sample
@@ -416,7 +419,8 @@ TEST(CubePhantom, BezierErrorsWithinSamplingBoundsAndShrinkWithBScans) {
     }
 }
 
-TEST(CubePhantom, ScheibeWithinOnePercentAt193) {
+// Slow: full-size phantom volumes (up to 401 x 768): seconds under the sanitizers.
+SLOW_TEST(CubePhantom, ScheibeWithinOnePercentAt193) {
     std::array<MaculaPhantom, 3> ph;
     const auto e = run_family(MaculaFamily::kScheibe, false, nullptr, &ph);
     const Errors& x = e[2];
@@ -439,7 +443,8 @@ TEST(CubePhantom, ScheibeWithinOnePercentAt193) {
     EXPECT_LE(x.rmse_um, 1.2);
 }
 
-TEST(CubePhantom, ScheibeFlatPitsHitTheModelLimit) {
+// Slow: full-size phantom volumes (up to 401 x 768): seconds under the sanitizers.
+SLOW_TEST(CubePhantom, ScheibeFlatPitsHitTheModelLimit) {
     // Flat Scheibe pits (gamma 3.2): the documented model limit. Measured from the true centre
     // so that sampling plays no part: what remains is the model's own error.
     // SPEC §4.7's statement is for the rim at the maximum sample (RimPoint::kMaximum, SPEC
@@ -490,7 +495,8 @@ TEST(CubeNoise, NodeNoiseEstimateRecoversThePhantomsNoise) {
     EXPECT_LT(1e3 * thickness_noise_sd(thickness_map(make_macula_phantom(p).scan)), 0.06);
 }
 
-TEST(CubePhantom, SegmentationNoiseGivesRmseOfTheNoiseLevel) {
+// Slow: full-size phantom volumes (up to 401 x 768): seconds under the sanitizers.
+SLOW_TEST(CubePhantom, SegmentationNoiseGivesRmseOfTheNoiseLevel) {
     // 1 axial pixel of thickness noise: ILM and BM each carry sigma / sqrt(2) so that ILM - BM
     // has SD sigma = 3.87 um. A radial sample is a bilinear mix of 4 nodes with weights w:
     // its noise SD is sigma sqrt(sum w^2), sqrt(4/9) = 0.67 sigma on average over positions,

@@ -7,7 +7,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 
 namespace octshape::retina {
 namespace {

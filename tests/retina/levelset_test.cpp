@@ -9,9 +9,10 @@
 
 #include <gtest/gtest.h>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/mesh/closest_point.h"
 #include "octshape/retina/phantom_onh.h"
+#include "slow_test.h"
 
 namespace octshape::retina {
 namespace {
@@ -328,7 +329,8 @@ void expect_follows_overhang(const Case& c) {
 // difference at ~0.5 px). Asserted: at least 0.1 ScaleZ (0.39 µm) closer with band means. The
 // mean signed offset over ~30 k vertices with a per-vertex SD of ~1.1 µm, correlated over
 // patches of a few hundred vertices, has a standard error of ~0.1 µm: the margin is ~4 SE.
-TEST(LevelSetPhantom, BandMeansMoveTheSurfaceOntoTheEdge) {
+// Slow: an ONH phantom through the whole level-set pipeline (minutes under the sanitizers).
+SLOW_TEST(LevelSetPhantom, BandMeansMoveTheSurfaceOntoTheEdge) {
     const Case& c = get_case(OnhShape::kSwollen);
     LevelSetParams window;
     window.region_means = LevelSetParams::RegionMeans::kWindow;
@@ -354,12 +356,16 @@ void check_shape(OnhShape shape) {
     if (shape == OnhShape::kOverhang) expect_follows_overhang(c);
 }
 
-TEST(LevelSetPhantom, Cupped) { check_shape(OnhShape::kCupped); }
-TEST(LevelSetPhantom, Swollen) { check_shape(OnhShape::kSwollen); }
-TEST(LevelSetPhantom, Overhang) { check_shape(OnhShape::kOverhang); }
+// Slow: an ONH phantom through the whole level-set pipeline (minutes under the sanitizers).
+SLOW_TEST(LevelSetPhantom, Cupped) { check_shape(OnhShape::kCupped); }
+// Slow: an ONH phantom through the whole level-set pipeline (minutes under the sanitizers).
+SLOW_TEST(LevelSetPhantom, Swollen) { check_shape(OnhShape::kSwollen); }
+// Slow: an ONH phantom through the whole level-set pipeline (minutes under the sanitizers).
+SLOW_TEST(LevelSetPhantom, Overhang) { check_shape(OnhShape::kOverhang); }
 
 // The same at the full 145 × 384 × 496 size (ctest label "slow").
-TEST(LevelSetOverhangFullSize, FollowsTheIlmUnderTheRimLip) {
+// Slow: an ONH phantom through the whole level-set pipeline (minutes under the sanitizers).
+SLOW_TEST(LevelSetOverhangFullSize, FollowsTheIlmUnderTheRimLip) {
     Case c;
     c.params = onh_phantom_preset(OnhShape::kOverhang);
     c.geometry = std::make_unique<OnhPhantomGeometry>(c.params);
@@ -372,7 +378,8 @@ TEST(LevelSetOverhangFullSize, FollowsTheIlmUnderTheRimLip) {
 // Missing device ILM values (a block of A-scans and a whole B-scan): φ0 is filled from the
 // neighbours, the evolution still converges to the true ILM, and the surface over the columns
 // without a device value is clipped away.
-TEST(LevelSet, MissingDeviceIlmIsFilledAndClipped) {
+// Slow: an ONH phantom through the whole level-set pipeline (minutes under the sanitizers).
+SLOW_TEST(LevelSet, MissingDeviceIlmIsFilledAndClipped) {
     OnhPhantomParams p = reduced(OnhShape::kCupped);
     io::Scan scan = render_onh_scan(p);
     const float nan = std::numeric_limits<float>::quiet_NaN();

@@ -10,7 +10,7 @@
 #include <cmath>
 #include <limits>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 
 namespace octshape::retina {
 namespace {

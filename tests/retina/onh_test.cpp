@@ -30,8 +30,9 @@
 #include <numbers>
 #include <tuple>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/retina/phantom_onh.h"
+#include "slow_test.h"
 
 namespace octshape::retina {
 namespace {
@@ -298,7 +299,8 @@ void expect_common(const Case& c, const std::string& name) {
     EXPECT_TRUE(r.qc_flags.empty()) << name;
 }
 
-TEST(OnhPhantomTruth, CuppedWithDeviceIlm) {
+// Slow: a full-size ONH phantom (145 x 384 x 496): seconds, ~10x under the sanitizers.
+SLOW_TEST(OnhPhantomTruth, CuppedWithDeviceIlm) {
     const Case c = run_full(OnhShape::kCupped);
     expect_common(c, "cupped");
     const OnhTruth& t = c.ph.truth;
@@ -313,7 +315,8 @@ TEST(OnhPhantomTruth, CuppedWithDeviceIlm) {
     EXPECT_NEAR(r.mrw_mean_mm, t.mrw_mean_mm, 0.003);
 }
 
-TEST(OnhPhantomTruth, SwollenWithDeviceIlm) {
+// Slow: a full-size ONH phantom (145 x 384 x 496): seconds, ~10x under the sanitizers.
+SLOW_TEST(OnhPhantomTruth, SwollenWithDeviceIlm) {
     const Case c = run_full(OnhShape::kSwollen);
     expect_common(c, "swollen");
     const OnhTruth& t = c.ph.truth;
@@ -325,7 +328,8 @@ TEST(OnhPhantomTruth, SwollenWithDeviceIlm) {
     EXPECT_NEAR(r.mrw_mean_mm, t.mrw_mean_mm, 0.003);
 }
 
-TEST(OnhPhantomTruth, OverhangWithDeviceIlmIsBlindToTheCavity) {
+// Slow: a full-size ONH phantom (145 x 384 x 496): seconds, ~10x under the sanitizers.
+SLOW_TEST(OnhPhantomTruth, OverhangWithDeviceIlmIsBlindToTheCavity) {
     const Case c = run_full(OnhShape::kOverhang);
     expect_common(c, "overhang");
     const OnhTruth& t = c.ph.truth;
@@ -402,12 +406,14 @@ void expect_levelset_targets(const LevelSetCase& c, const std::string& name) {
     }
 }
 
-TEST(OnhPhantomTruth, CuppedWithLevelSetIlm) {
+// Slow: a full-size ONH phantom (145 x 384 x 496): seconds, ~10x under the sanitizers.
+SLOW_TEST(OnhPhantomTruth, CuppedWithLevelSetIlm) {
     const LevelSetCase c = run_both(OnhShape::kCupped);
     expect_levelset_targets(c, "cupped");
 }
 
-TEST(OnhPhantomTruth, SwollenWithLevelSetIlm) {
+// Slow: a full-size ONH phantom (145 x 384 x 496): seconds, ~10x under the sanitizers.
+SLOW_TEST(OnhPhantomTruth, SwollenWithLevelSetIlm) {
     const LevelSetCase c = run_both(OnhShape::kSwollen);
     expect_levelset_targets(c, "swollen");
 }
@@ -415,7 +421,8 @@ TEST(OnhPhantomTruth, SwollenWithLevelSetIlm) {
 // The point of the 3-D ILM: under the rim lip the level set follows the cavity the device
 // graph cannot see, so inside the BMO it is closer to the truth in every parameter the cavity
 // touches.
-TEST(OnhPhantomTruth, OverhangLevelSetIsCloserToTheTruthThanTheDeviceGraph) {
+// Slow: a full-size ONH phantom (145 x 384 x 496): seconds, ~10x under the sanitizers.
+SLOW_TEST(OnhPhantomTruth, OverhangLevelSetIsCloserToTheTruthThanTheDeviceGraph) {
     const LevelSetCase c = run_both(OnhShape::kOverhang);
     expect_levelset_targets(c, "overhang");
     const OnhTruth& t = c.ph.truth;

@@ -9,7 +9,7 @@
 #include <map>
 #include <set>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/retina/phantom_macula.h"
 
 namespace octshape::retina {

@@ -12,7 +12,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/vol.h"
 #include "test_paths.h"
 

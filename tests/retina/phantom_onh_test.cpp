@@ -9,7 +9,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/vol.h"
 #include "octshape/version.h"
 #include "test_paths.h"

@@ -9,7 +9,7 @@
 
 #include "octshape/io/scan_reader.h"
 #include "octshape/retina/phantom_macula.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/retina/scan_type.h"
 #include "test_paths.h"
 

@@ -11,7 +11,7 @@
 #include <random>
 #include <stdexcept>
 
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 
 namespace octshape::retina {
 namespace {
@@ -241,11 +241,11 @@ TEST(Icc21, RecoversThePopulationIccOfALargeSample) {
 }
 
 TEST(Icc21, RejectsBadInput) {
-    EXPECT_THROW((void)icc_2_1(Eigen::MatrixXd::Zero(1, 3)), std::invalid_argument);
-    EXPECT_THROW((void)icc_2_1(Eigen::MatrixXd::Zero(3, 1)), std::invalid_argument);
+    EXPECT_THROW((void)icc_2_1(Eigen::MatrixXd::Zero(1, 3)), octshape::DataError);
+    EXPECT_THROW((void)icc_2_1(Eigen::MatrixXd::Zero(3, 1)), octshape::DataError);
     Eigen::MatrixXd m = shrout_fleiss();
     m(2, 1) = std::nan("");
-    EXPECT_THROW((void)icc_2_1(m), std::invalid_argument);
+    EXPECT_THROW((void)icc_2_1(m), octshape::DataError);
     IccParams p;
     p.confidence = 1.0;
     EXPECT_THROW((void)icc_2_1(shrout_fleiss(), p), UsageError);

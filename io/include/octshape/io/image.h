@@ -12,7 +12,7 @@ namespace octshape::io {
 
 // PNG file bytes of a `width` x `height` image, row-major, `channels` = 1 (grey) or 3 (RGB)
 // bytes per pixel; each row filtered by the usual minimum-sum-of-differences choice among the
-// five PNG filters, zlib level 6. std::invalid_argument on a size mismatch.
+// five PNG filters, zlib level 6. Error (an internal error: the caller's sizes disagree) on a size mismatch.
 [[nodiscard]] std::string encode_png(int width,
                                      int height,
                                      int channels,

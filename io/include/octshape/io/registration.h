@@ -30,7 +30,7 @@ struct IcpParams {
     // early when a step moves every source vertex by less than 1e-12 × the target's diagonal.
     int refine_iterations = 50;
 
-    // Throws std::invalid_argument naming the first bad field.
+    // Throws UsageError naming the first bad field.
     void validate() const;
 };
 
@@ -46,8 +46,8 @@ struct IcpResult {
     double max_distance = 0;     // maximum (length unit)
 };
 
-// Registers `source` to `target`. Throws std::invalid_argument for invalid meshes (validate_mesh)
-// or parameters.
+// Registers `source` to `target`. Throws DataError for invalid meshes (validate_mesh),
+// UsageError for bad parameters.
 [[nodiscard]] IcpResult icp_rigid(const mesh::Vertices& source_V,
                                   const mesh::Vertices& target_V,
                                   const mesh::Faces& target_F,

@@ -22,13 +22,13 @@ struct HashedScan {
     std::string sha256;  // lower-case hex of the input file's bytes
 };
 
-// read_scan and the file's SHA-256 from ONE reading of the file: a .vol is mapped into memory
-// once, hashed and parsed from the same bytes, so the hash always describes the bytes that were
-// analysed (a file replaced between two readings cannot give a result under a wrong hash) and
-// the 100-300 MB of a volume pass through memory once. An XML export is read from its files and
-// its XML file hashed. If another process truncates the file while it is mapped, the process
-// stops with a one-line message naming the file and exit code 65 (the kernel's SIGBUS, caught).
-// Throws InputError as read_scan.
+// read_scan and the SHA-256 of the same bytes: the file is hashed, then parsed (the second
+// reading comes from the page cache), and its version (device, inode, size, modification and
+// change times) is compared before and after. A file that changes in between, or while either
+// reading runs, is refused with InputError (corrupt: "the file changed while it was being
+// read"), so the hash always describes the bytes that were analysed. Nothing is mapped: a file
+// truncated under the reader is a short read and the usual "file truncated" error, never a
+// signal. Safe to call from several threads at once. Throws InputError as read_scan.
 [[nodiscard]] HashedScan read_scan_hashed(const std::string& path, const ReadOptions& options = {});
 
 }  // namespace octshape::io

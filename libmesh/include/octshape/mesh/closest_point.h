@@ -28,7 +28,7 @@ struct SurfaceHit {
 // O(log #F) on typical meshes. Keeps its own copy of the mesh. Thread-safe for queries.
 class TriangleTree {
 public:
-    // Throws std::invalid_argument if the mesh is invalid (validate_mesh) or has no face.
+    // Throws DataError if the mesh is invalid (validate_mesh) or has no face.
     TriangleTree(const Vertices& V, const Faces& F);
 
     // The closest point of the whole surface to p.

@@ -32,7 +32,7 @@ struct EnvtParams {
     int fold_repair_interval = 10;
     int threads = 1;                // std::threads; results do not depend on it; ≥ 1
 
-    // Throws std::invalid_argument naming the first bad field.
+    // Throws UsageError naming the first bad field.
     void validate() const;
 };
 
@@ -48,7 +48,7 @@ struct FeatureParams {
     std::optional<double> radius;  // disk radius r of Ω_i (length unit); unset: 2 c_a
     int threads = 1;               // ≥ 1
 
-    // Throws std::invalid_argument naming the first bad field.
+    // Throws UsageError naming the first bad field.
     void validate() const;
 };
 

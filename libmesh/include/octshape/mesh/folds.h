@@ -18,7 +18,7 @@ struct FoldRepairParams {
     double cos_fold = 0.9;
     int max_rounds = 10;  // repair rounds; ≥ 0 (0 = only count)
 
-    // Throws std::invalid_argument naming the first bad field.
+    // Throws UsageError naming the first bad field.
     void validate() const;
 };
 

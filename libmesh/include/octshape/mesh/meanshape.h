@@ -21,7 +21,7 @@ struct Surface {
 struct MeanShapeParams {
     int threads = 1;  // std::threads for the closest-point queries; results do not depend on it
 
-    // Throws std::invalid_argument naming the first bad field.
+    // Throws UsageError naming the first bad field.
     void validate() const;
 };
 
@@ -42,7 +42,7 @@ struct MeanShapeResult {
 };
 
 // `reference` is surface 0; `others` are surfaces 1 … n_s−1, aligned to it. Throws
-// std::invalid_argument for an invalid mesh (validate_mesh) or a surface without faces.
+// DataError for an invalid mesh (validate_mesh) or a surface without faces.
 [[nodiscard]] MeanShapeResult mean_shape(const Surface& reference,
                                          const std::vector<Surface>& others,
                                          const MeanShapeParams& params = {});

@@ -17,8 +17,10 @@
 // - Boundary: an edge used by exactly one face is a boundary edge; an edge used by three or
 //   more faces is non-manifold. Vertices on either are "boundary vertices" (the denoisers keep
 //   them fixed).
-// - Errors: functions throw std::invalid_argument naming the bad field or index; libmesh knows
-//   nothing of files or exit codes (the callers in io/ and app/ map them).
+// - Errors: functions throw the project's error types (octshape/error.h): UsageError for a
+//   parameter out of its range (naming the field), DataError for impossible data (naming the
+//   face or vertex), AnalysisError when the data cannot support the method. libmesh knows
+//   nothing of files: a caller that knows the file rethrows DataError as InputError naming it.
 
 #include <cstdint>
 #include <vector>
@@ -34,7 +36,7 @@ using Vertices = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 using Faces = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
 // Checks that F indexes only rows of V, that no triangle repeats a vertex and that V is
-// finite. Throws std::invalid_argument naming the first bad face or vertex.
+// finite. Throws DataError naming the first bad face or vertex.
 void validate_mesh(const Vertices& V, const Faces& F);
 
 // Per-face geometry of the current vertex positions.

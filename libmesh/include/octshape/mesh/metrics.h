@@ -14,7 +14,7 @@ namespace octshape::mesh {
 
 // MSAE (§3.2.3): mean angle in degrees between the normals of corresponding faces (face f of
 // F against face f of reference_F; the two meshes must share the triangulation, i.e. F ==
-// reference_F). Throws std::invalid_argument otherwise.
+// reference_F). Throws DataError otherwise.
 [[nodiscard]] double mean_angle_error_deg(const Vertices& V,
                                           const Faces& F,
                                           const Vertices& reference_V,
@@ -43,7 +43,7 @@ struct FlipTransitions {
     int fixed = 0;    // flipped in the input only; input = kept + fixed
 };
 
-// Throws std::invalid_argument if the triangulations differ or a mesh is invalid.
+// Throws DataError if the triangulations differ or a mesh is invalid.
 [[nodiscard]] FlipTransitions flip_transitions(const Vertices& output_V,
                                                const Vertices& input_V,
                                                const Vertices& reference_V,
@@ -66,7 +66,7 @@ struct MeshComparison {
     bool closed = false;              // the mesh has no boundary or non-manifold edge
 };
 
-// Throws std::invalid_argument if either mesh is invalid or the triangulations differ.
+// Throws DataError if either mesh is invalid or the triangulations differ.
 [[nodiscard]] MeshComparison compare_meshes(const Vertices& V,
                                             const Faces& F,
                                             const Vertices& reference_V,

@@ -21,7 +21,7 @@ namespace octshape::mesh {
 // O(#P log #P). Leaves hold at most 8 points. Queries are thread-safe.
 class KdTree {
 public:
-    // Throws std::invalid_argument if a coordinate is not finite.
+    // Throws DataError if a coordinate is not finite.
     explicit KdTree(const Vertices& points);
 
     // The k nearest points to p (fewer if the tree holds fewer), nearest first; ties broken by
@@ -87,7 +87,7 @@ private:
 // other face back in. σ̂ is the median RMS distance of the Ω_j to their planes (the noise along
 // the normal on a surface that is mostly flat). Orientation: each normal takes the sign of the
 // point's consistently oriented PCA normal (pca_normals), which lies within 90° of either face
-// at an edge. Throws std::invalid_argument unless inlier_sigmas > 0. `threads`: as
+// at an edge. Throws UsageError unless inlier_sigmas > 0. `threads`: as
 // pca_normals.
 [[nodiscard]] Vertices shifted_normals(const Vertices& points,
                                          const Csr& neighbourhoods,
@@ -151,7 +151,7 @@ struct PointSetParams {
     double snap_support = 4.0;     // ball radius in units of r; ≥ 1
     double snap_sigmas = 3.0;      // "within noise" of a plane, in units of σ̂; ≥ 0
 
-    // Throws std::invalid_argument naming the first bad field.
+    // Throws UsageError naming the first bad field.
     void validate() const;
 };
 
@@ -175,7 +175,8 @@ struct PointSetResult {
     std::vector<std::string> warnings;
 };
 
-// Throws std::invalid_argument for bad parameters, a non-finite point or fewer than 8 points.
+// Throws UsageError for bad parameters, DataError for a non-finite point, AnalysisError for
+// fewer than 8 points or points that all coincide.
 [[nodiscard]] PointSetResult pointset_denoise(const Vertices& points,
                                               const PointSetParams& params = {});
 

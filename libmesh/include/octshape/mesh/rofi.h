@@ -49,11 +49,11 @@ struct RofiParams {
     // kAvx2 / kAvx512 need a CPU with AVX2 / AVX-512.
     SimdPath simd = SimdPath::kBest;
 
-    // Throws std::invalid_argument naming the first bad field.
+    // Throws UsageError naming the first bad field.
     void validate() const;
 };
 
-// Denoises (V, F). Throws std::invalid_argument for bad parameters or an invalid mesh.
+// Denoises (V, F). Throws UsageError for bad parameters, DataError for an invalid mesh.
 [[nodiscard]] DenoiseResult rofi_denoise(const Vertices& V,
                                          const Faces& F,
                                          const RofiParams& params);

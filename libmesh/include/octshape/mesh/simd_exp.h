@@ -19,7 +19,7 @@ enum class SimdPath { kBest, kBaseline, kAvx2, kAvx512 };
 [[nodiscard]] bool simd_avx512_available();
 
 // out[i] = exp(x[i]) for finite x[i] ≤ 0 (0 below −708), relative error ≤ 1e−15 (the bound's
-// argument is in simd.h). Throws std::invalid_argument for kAvx2 / kAvx512 on a CPU without
+// argument is in simd.h). Throws UsageError for kAvx2 / kAvx512 on a CPU without
 // that instruction set.
 void simd_exp_nonpositive(const double* x, double* out, std::size_t n,
                           SimdPath path = SimdPath::kBest);

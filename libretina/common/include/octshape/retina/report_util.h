@@ -1,0 +1,20 @@
+#pragma once
+// Small helpers shared by the per-eye reports (cube_report.h, onh_report.h): how a number is
+// written in JSON (missing: null) and, from io/csv.h, in CSV (missing: "NA").
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "octshape/io/csv.h"
+
+namespace octshape::retina {
+
+// A finite number, or null.
+[[nodiscard]] nlohmann::ordered_json json_number(double v);
+// The CSV writers are io's (octshape/io/csv.h, the one CSV dialect), named here for the reports.
+using io::csv_field;
+using io::csv_line;
+using io::csv_number;
+
+}  // namespace octshape::retina

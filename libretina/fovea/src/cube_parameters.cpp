@@ -1,0 +1,193 @@
+// CuBe fovea analysis, the parameters (thesis §7.3, SPEC §4.6): per half-line from its curves,
+// then the eye's means, disks and volumes, and the QC flags. Decisions: docs/algorithms/cube.md.
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <string>
+
+#include "cube_stages.h"
+#include "octshape/error.h"
+#include "octshape/retina/cube.h"
+
+namespace octshape::retina {
+using namespace cube_detail;
+
+namespace cube_detail {
+
+CubeDisk disk(std::vector<V3> pts) {
+    CubeDisk out;
+    const auto n = pts.size();
+    V3 c = V3::Zero();
+    for (const auto& q : pts) c += q;
+    c /= static_cast<double>(n);
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const auto& q : pts) cov += (q - c) * (q - c).transpose();
+    cov /= static_cast<double>(n);  // Eq. 7.16
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+    const V3 ev = es.eigenvalues();  // ascending
+    V3 normal = es.eigenvectors().col(0);
+    if (normal.z() < 0.0) normal = -normal;
+    out.eigenvalues_mm2 = {ev(2), ev(1), ev(0)};
+    out.semi_axes_mm = {std::sqrt(2.0 * std::max(0.0, ev(2))),
+                        std::sqrt(2.0 * std::max(0.0, ev(1)))};
+    out.normal = {normal.x() + 0.0, normal.y() + 0.0, normal.z() + 0.0};
+    double a2 = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const V3& p = pts[i];
+        const V3& q = pts[(i + 1) % n];
+        a2 += p.x() * q.y() - q.x() * p.y();
+    }
+    out.area_mm2 = std::fabs(0.5 * a2) / std::fabs(normal.z());  // Eq. 7.17
+    double sum = 0.0;
+    for (std::size_t i = 0; i < n / 2; ++i) sum += (pts[i] - pts[i + n / 2]).norm();
+    out.diameter_mm = sum / static_cast<double>(n / 2);  // Eq. 7.18 without the square
+    out.points = std::move(pts);
+    return out;
+}
+
+void half_line_parameters(CubeHalfLine& h, const CubeParams& p) {
+    const Ctrl& qi = h.interior.control;
+    const double dy = qi[3].y() - qi[0].y();
+    h.rim_radius_mm = qi[3].x();
+    h.rim_height_mm = qi[3].y();
+    h.alpha_mm = qi[1].x() - qi[0].x();
+    h.beta_mm = qi[3].x() - qi[2].x();
+    const MaxSlope ms = interior_max_slope(qi);
+    h.max_slope_deg = std::atan(ms.slope) * kDeg;  // Eq. 7.21 averages these
+    h.slope_t = ms.t;
+    h.slope_point = bezier_point(qi, ms.t);  // Eq. 7.22
+    // Pit flat (Eq. 7.24-7.25, both on the interior curve): y(t) = CFT + dy (3t^2 - 2t^3).
+    if (p.tau_mm < dy) {
+        const double target = p.tau_mm / dy;
+        double lo = 0.0;
+        double hi = 1.0;
+        for (int it = 0; it < 200; ++it) {
+            const double mid = 0.5 * (lo + hi);
+            if (mid == lo || mid == hi) break;
+            if (mid * mid * (3.0 - 2.0 * mid) < target) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        h.pit_flat_radius_mm = bezier_point(qi, 0.5 * (lo + hi)).x();
+    }
+    // Volumes (Eq. 7.27-7.28).
+    h.rim_volume_mm3 = bezier_volume_integral(qi, 1.0);
+    const double ru = p.inner_radius_mm;
+    if (ru <= qi[3].x()) {
+        h.inner_rim_volume_mm3 = bezier_volume_integral(qi, solve_x(qi, ru));
+    } else {
+        const Ctrl& qe = h.exterior.control;
+        const double te = ru >= qe[3].x() ? 1.0 : solve_x(qe, ru);
+        h.inner_rim_volume_mm3 = h.rim_volume_mm3 + bezier_volume_integral(qe, te);
+    }
+}
+
+void summarise_macula(CubeResult& res, const CubeParams& params) {
+    const int n = static_cast<int>(res.half_lines.size());
+    int valid = 0;
+    int flat_count = 0;
+    double rim_sum = 0.0;
+    double slope_sum = 0.0;
+    double flat_sum = 0.0;
+    double alpha_sum = 0.0;
+    double beta_sum = 0.0;
+    double sse = 0.0;
+    int count = 0;
+    double vr = 0.0;
+    double vir = 0.0;
+    for (const auto& h : res.half_lines) {
+        if (!h.valid) continue;
+        ++valid;
+        rim_sum += h.rim_height_mm;
+        slope_sum += h.max_slope_deg;
+        alpha_sum += h.alpha_mm;
+        beta_sum += h.beta_mm;
+        vr += h.rim_volume_mm3;
+        vir += h.inner_rim_volume_mm3;
+        if (!std::isnan(h.pit_flat_radius_mm)) {
+            ++flat_count;
+            flat_sum += h.pit_flat_radius_mm;
+        }
+        // The samples each half-line's RMSE is measured on (the bilinear ones when the fit ran on
+        // sector bins): the eye's RMSE is the RMS over all of them.
+        sse += h.rmse_sse_mm2;
+        count += h.rmse_num_samples;
+    }
+    if (valid == 0) {
+        throw AnalysisError("no half-line could be fitted (" + res.half_lines.front().problem +
+                            "): is the fovea inside the scan?");
+    }
+    const double inv = 1.0 / valid;
+    res.rim_height_mm = rim_sum * inv;                  // Eq. 7.15
+    res.pit_depth_mm = res.rim_height_mm - res.cft_mm;  // Eq. 7.19
+    res.max_pit_slope_deg = slope_sum * inv;            // Eq. 7.21 on atan(s_i)
+    res.alpha_mean_mm = alpha_sum * inv;
+    res.beta_mean_mm = beta_sum * inv;
+    if (flat_count == valid) res.pit_flat_diameter_mm = 2.0 * flat_sum / flat_count;  // Eq. 7.26
+    res.rmse_um = 1000.0 * std::sqrt(sse / static_cast<double>(count));
+    const bool all_valid = valid == n;
+    if (!all_valid) {
+        res.qc_flags.push_back("half-line fit failed");
+        for (const auto& h : res.half_lines) {
+            if (!h.valid) {
+                res.notes.push_back("half-line " + std::to_string(h.angle_deg) +
+                                    " deg: " + h.problem);
+            }
+        }
+    }
+    if (flat_count < valid) res.qc_flags.push_back("pit shallower than tau");
+    if (!res.line_scan && all_valid) {
+        std::vector<V3> rim_pts;
+        std::vector<V3> slope_pts;
+        std::vector<V3> flat_pts;
+        for (const auto& h : res.half_lines) {
+            auto pt = [&](double r, double z) {
+                const V2 q = res.centre_mm + r * h.direction;
+                return V3(q.x(), q.y(), z);
+            };
+            rim_pts.push_back(pt(h.rim_radius_mm, h.rim_height_mm));
+            slope_pts.push_back(pt(h.slope_point.x(), h.slope_point.y()));
+            flat_pts.push_back(pt(h.pit_flat_radius_mm, res.cft_mm + params.tau_mm));
+        }
+        res.rim = disk(std::move(rim_pts));
+        res.slope = disk(std::move(slope_pts));
+        if (flat_count == n) res.pit_flat = disk(std::move(flat_pts));
+        res.rim_volume_mm3 = 2.0 * kPi / n * vr;                                         // Eq. 7.27
+        res.inner_rim_volume_mm3 = 2.0 * kPi / n * vir;                                  // Eq. 7.28
+        res.pit_volume_mm3 = res.rim.area_mm2 * res.rim_height_mm - res.rim_volume_mm3;  // 7.29
+    } else if (!res.line_scan) {
+        res.notes.push_back("disks and volumes need every half-line: omitted");
+    }
+    if (res.line_scan) {
+        res.notes.push_back(
+            "line scan: 2-D parameters only (SPEC §4.8); the 3-D parameters "
+            "(disks, volumes) are omitted");
+    }
+}
+
+void macula_qc(CubeResult& res,
+               const io::Scan& scan,
+               const ScanGeometry& geo,
+               const CubeParams& params) {
+    int missing_pit = 0;
+    for (const auto& h : res.half_lines) missing_pit += h.num_missing_interior;
+    if (missing_pit > 0) res.qc_flags.push_back("missing values in the pit");
+    if (res.rmse_um > params.rmse_warning_um) res.qc_flags.push_back("fit RMSE high");
+    if (!res.line_scan && geo.spacing().positions_known && !geo.spacing().uniform) {
+        res.qc_flags.push_back("B-scan spacing not uniform");
+    }
+    if (!geo.oriented_from_positions()) {
+        res.qc_flags.push_back("orientation assumed (B-scan positions unusable)");
+    }
+    if (scan.meta.laterality == io::Laterality::kUnknown) {
+        res.qc_flags.push_back("eye unknown: nasal assumed on SLO +x");
+    }
+}
+
+}  // namespace cube_detail
+
+CubeDisk cube_disk(std::vector<Eigen::Vector3d> points) { return disk(std::move(points)); }
+
+}  // namespace octshape::retina
