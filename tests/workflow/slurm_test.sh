@@ -4,7 +4,8 @@
 # (three macula sample scans, a small ONH phantom, a truncated export, a .vol of unknown
 # content, a note), gives the output folder of `octshape cohort` byte for byte; then one job is
 # cancelled (scancel) and another hits its Slurm time limit: Snakemake must report both and
-# stop, and a re-run must finish the cohort with the cohort's tables.
+# stop; the re-run, during which the node fails and comes back (its two jobs requeued by Slurm,
+# not resubmitted by Snakemake), must finish the cohort with the cohort's tables.
 #
 # Needs root (it starts munged, slurmctld and slurmd without systemd, on 127.0.0.1 and ports
 # 16817/16818, everything under one temporary folder): skips (exit 77) otherwise. Installs the
@@ -69,8 +70,11 @@ fi
 mkdir -p "$T/munge" "$T/ctld" "$T/slurmd"
 chown munge:munge "$T/munge"
 chmod 711 "$T/munge"   # munged refuses a socket folder that others cannot traverse
+head -c 1024 /dev/urandom >"$T/munge/munge.key"  # the test's own key, whatever /etc holds
+chown munge:munge "$T/munge/munge.key"
+chmod 400 "$T/munge/munge.key"
 setpriv --reuid munge --regid munge --clear-groups \
-  munged -F --socket="$T/munge/munge.socket" --key-file=/etc/munge/munge.key \
+  munged -F --socket="$T/munge/munge.socket" --key-file="$T/munge/munge.key" \
   --pid-file="$T/munge/munged.pid" --log-file="$T/munge/munged.log" \
   --seed-file="$T/munge/munged.seed" >"$T/munged.out" 2>&1 &
 PIDS+=($!)
@@ -107,7 +111,7 @@ OverTimeLimit=0
 JobAcctGatherType=jobacct_gather/none
 AccountingStorageType=accounting_storage/none
 $NODE NodeAddr=127.0.0.1 State=UNKNOWN
-PartitionName=octshape Nodes=ALL Default=YES MaxTime=INFINITE State=UP
+PartitionName=octshape Nodes=ALL Default=YES MaxTime=INFINITE State=UP OverSubscribe=FORCE:4
 EOF
 export SLURM_CONF=$T/slurm.conf
 slurmctld -D -f "$SLURM_CONF" >"$T/slurmctld.out" 2>&1 &
@@ -125,12 +129,13 @@ log "slurm up: $(sinfo -h -o '%P %D node(s) %c cpus %m MB %t')"
 IN=$T/in
 make_mixed_folder "$IN"
 
-# The octshape the workflow runs: the real one, but an input named hang_* sleeps while
-# $T/hang exists (to have jobs running long enough to be cancelled or to hit their limit).
+# The octshape the workflow runs: the real one, but an input named hang_* first sleeps as many
+# seconds as $T/hang says (to have jobs running long enough to be cancelled, to hit their
+# limit, or to be on a node that fails).
 cat >"$T/octshape" <<EOF
 #!/usr/bin/env bash
 if [ "\$1" = "-q" ] && [ "\$2" = "cohort-eye" ] && [ -e "$T/hang" ]; then
-  case "\$(basename "\$3")" in hang_*) sleep 600 ;; esac
+  case "\$(basename "\$3")" in hang_*) sleep "\$(cat "$T/hang")" ;; esac
 fi
 exec "$OCTSHAPE" "\$@"
 EOF
@@ -156,6 +161,23 @@ smk() {  # smk LOG CONFIG [options]: runs it to the end; it must succeed
   smk_wait "$1"
   [ "$SMK_RC" -eq 0 ] || { echo "snakemake failed ($SMK_RC)"; cat "$1"; exit 1; }
 }
+
+# Runs CMD every 0.2 s until it succeeds; fails after SECONDS (wall clock: CI may be loaded).
+wait_until() {  # wait_until SECONDS CMD...
+  local end=$(($(date +%s) + $1))
+  shift
+  until "$@"; do
+    [ "$(date +%s)" -lt "$end" ] || return 1
+    sleep 0.2
+  done
+}
+eye_key_of() { python3 -c 'import hashlib,sys; print(hashlib.sha256(sys.argv[1].encode()).hexdigest()[:16])' "$1"; }
+job_of() {  # job_of EYE_KEY -> the id of the latest Slurm job of that eye (ended ones too)
+  scontrol show job -o 2>/dev/null | grep " JobName=octshape-eye-$1 " | grep -o '^JobId=[0-9]*' |
+    cut -d= -f2 | tail -n 1
+}
+state_of() { scontrol show job -o "$1" | grep -o 'JobState=[A-Z_]*' | cut -d= -f2; }
+is_state() { [ -n "$(job_of "$1")" ] && [ "$(state_of "$(job_of "$1")")" = "$2" ]; }
 
 # ---- 1. parity: the workflow on Slurm == octshape cohort ----------------------------------
 reference_cohort "$IN" "$T/smk" "$T/cohort"
@@ -190,20 +212,16 @@ cp "$SRC/sample_scans/macula_scheibe_os.vol" "$IN2/macula/hang_cancel.vol"
 cp "$SRC/sample_scans/macula_line_od.vol" "$IN2/macula/hang_limit.vol"
 reference_cohort "$IN2" "$T/smk2" "$T/cohort2"
 write_config "$IN2" "$T/smk2" "$T/octshape" >"$T/config2.yaml"
-touch "$T/hang"
+echo 600 >"$T/hang"
 # Slurm's least time limit is 1 min: every eye job of this run gets it.
 smk_start "$T/smk2.log" "$T/config2.yaml" --set-resources eye:runtime=1
-key_cancel=$(python3 -c 'import hashlib,sys; print(hashlib.sha256(sys.argv[1].encode()).hexdigest()[:16])' "$IN2/macula/hang_cancel.vol")
-key_limit=$(python3 -c 'import hashlib,sys; print(hashlib.sha256(sys.argv[1].encode()).hexdigest()[:16])' "$IN2/macula/hang_limit.vol")
-jid_cancel=""
-for _ in $(seq 600); do
-  jid_cancel=$(squeue -h -t RUNNING -n "octshape-eye-$key_cancel" -o %i)
-  [ -n "$jid_cancel" ] && break
-  sleep 0.1
-done
-[ -n "$jid_cancel" ] || { echo "the job to cancel never ran"; exit 1; }
+key_cancel=$(eye_key_of "$IN2/macula/hang_cancel.vol")
+key_limit=$(eye_key_of "$IN2/macula/hang_limit.vol")
+# The partition runs up to 4 jobs per core: all eyes of the run start at once.
+wait_until 120 is_state "$key_cancel" RUNNING || { echo "the job to cancel never ran"; exit 1; }
 sleep 2
-jid_limit=$(squeue -h -n "octshape-eye-$key_limit" -o %i)
+jid_cancel=$(job_of "$key_cancel")
+jid_limit=$(job_of "$key_limit")
 scancel "$jid_cancel"
 t_cancel=$(date +%s.%N)
 log "scancel $jid_cancel (eye $key_cancel); job $jid_limit (eye $key_limit) left to its 1-min limit"
@@ -212,8 +230,8 @@ t_exit=$(date +%s.%N)
 smk_rc=$SMK_RC
 [ "$smk_rc" -ne 0 ] || { echo "snakemake succeeded although two jobs failed"; exit 1; }
 [ ! -e "$T/smk2/eyes.csv" ] || { echo "tables written without two eyes"; exit 1; }
-state_limit=$(scontrol show job -o "$jid_limit" | grep -o 'JobState=[A-Z_]*' | cut -d= -f2)
-state_cancel=$(scontrol show job -o "$jid_cancel" | grep -o 'JobState=[A-Z_]*' | cut -d= -f2)
+state_limit=$(state_of "$jid_limit")
+state_cancel=$(state_of "$jid_cancel")
 [ "$state_cancel" = CANCELLED ] || { echo "job $jid_cancel: $state_cancel, not CANCELLED"; exit 1; }
 [ "$state_limit" = TIMEOUT ] || { echo "job $jid_limit: $state_limit, not TIMEOUT"; exit 1; }
 end_limit=$(date -d "$(scontrol show job -o "$jid_limit" | grep -o 'EndTime=[^ ]*' | cut -d= -f2)" +%s)
@@ -237,13 +255,44 @@ for d in "$d_cancel" "$d_limit" "$d_exit"; do
   awk -v d="$d" 'BEGIN { exit !(d < 30) }' || { echo "not prompt: $d s"; exit 1; }
 done
 
-# ---- 3. the re-run finishes the cohort ----------------------------------------------------
-rm "$T/hang"
+# ---- 3. the re-run finishes the cohort, through a node failure ---------------------------
+# The two hang_* jobs sleep 20 s; while they run the node goes down (as a failed node does:
+# its jobs are killed) and comes back. Slurm must requeue them (--requeue) and Snakemake see
+# them as running, not failed (no resubmission: restart-times 0), and finish.
+echo 20 >"$T/hang"
+node=$(sinfo -h -N -o %N | head -n 1)
 t0=$(date +%s.%N)
-smk "$T/smk3.log" "$T/config2.yaml"
+smk_start "$T/smk3.log" "$T/config2.yaml"
+wait_until 120 is_state "$key_cancel" RUNNING || { echo "the re-run's job never ran"; exit 1; }
+jid=$(job_of "$key_cancel")
+sleep 2
+scontrol update NodeName="$node" State=DOWN Reason=octshape-test-node-failure
+t_down=$(date +%s.%N)
+wait_until 60 is_state "$key_cancel" PENDING ||
+  { echo "job $jid not requeued after the node failure: $(state_of "$jid")"; exit 1; }
+t_requeued=$(date +%s.%N)
+rm "$T/hang"
+# Back in service: by RESUME, or by itself when its slurmd registers (ReturnToService=2).
+node_back() {
+  scontrol update NodeName="$node" State=RESUME 2>/dev/null
+  sinfo -h -n "$node" -o %t | grep -Eq '^(idle|mix|alloc)$'
+}
+wait_until 60 node_back || { echo "node $node does not come back"; sinfo; exit 1; }
+# Slurm lets a requeued job start again only after a delay; the test does not wait for it.
+eligible=$(scontrol show job -o "$jid" | grep -o 'EligibleTime=[^ ]*' | cut -d= -f2)
+delay=$(sub "$(date -d "$eligible" +%s)" "$t_down")
+for k in "$key_cancel" "$key_limit"; do
+  [ "$(state_of "$(job_of "$k")")" = PENDING ] && scontrol update JobId="$(job_of "$k")" StartTime=now
+done
+log "node $node down: job $jid requeued (PENDING) $(sub "$t_requeued" "$t_down") s later;" \
+    "node back; Slurm would restart it $delay s after the failure (released now)"
+smk_wait "$T/smk3.log"
+[ "$SMK_RC" -eq 0 ] || { echo "the re-run failed ($SMK_RC)"; cat "$T/smk3.log"; exit 1; }
 t1=$(date +%s.%N)
+restarts=$(scontrol show job -o "$jid" | grep -o 'Restarts=[0-9]*' | cut -d= -f2)
+[ "$restarts" -ge 1 ] || { echo "job $jid: Restarts=$restarts"; exit 1; }
 jobs3=$(grep -c "Submitted job .* with external jobid" "$T/smk3.log" || true)
 [ "$jobs3" -eq 2 ] || { echo "the re-run submitted $jobs3 jobs, not the 2 failed ones"; exit 1; }
-log "re-run: $jobs3 eye jobs, $(sub "$t1" "$t0") s"
+log "re-run: $jobs3 eye jobs, job $jid run again by Slurm (Restarts=$restarts), $(sub "$t1" "$t0") s"
 compare_outputs "$T/cohort2" "$T/smk2"
 log "passed"
