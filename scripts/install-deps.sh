@@ -16,6 +16,7 @@ PKGS=(
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   snakemake                           # workflow/Snakefile (cohort scale-out) and its test
+  slurmctld slurmd slurm-client munge # the workflow's test on a real Slurm (tests/workflow/)
   r-base-core r-cran-geepack r-cran-psych r-cran-lme4   # the R recipe docs/r/ and its test
   chromium                            # the QC gallery test (headless)
 )

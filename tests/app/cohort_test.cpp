@@ -10,6 +10,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <filesystem>
@@ -17,6 +18,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <regex>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -290,6 +292,100 @@ TEST(CohortCli, MergeAndPerScanMaculaGiveTheCohortCsvByteForByte) {
     // A JSON without the cohort record is refused with the input error code.
     spit(c.dir / "old.json", R"({"command": "macula"})");
     EXPECT_EQ(test::run_octshape("merge " + q(c.dir / "old.json")).exit_code, 65);
+}
+
+// The files of a folder (name -> content); empty when it does not exist. The one value that
+// differs between two analyses of the same file, the ONH record's "analysis_seconds" (a
+// timing), is masked; every other byte is kept.
+std::map<std::string, std::string> folder_files(const fs::path& dir) {
+    static const std::regex timing(R"("analysis_seconds": [-+.0-9eE]+)");
+    std::map<std::string, std::string> m;
+    std::error_code ec;
+    for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+        m[it->path().filename().string()] =
+            std::regex_replace(slurp(it->path()), timing, R"("analysis_seconds": T)");
+    }
+    return m;
+}
+
+// The workflow's path (docs/cohort.md, "Snakemake and Slurm"): `cohort --list`, then
+// `cohort-eye` on every listed input alone (in any order), then `cohort-tables`, gives the
+// output folder of one `octshape cohort` run, byte for byte: tables, per-eye JSON, failure
+// records, QC pictures and gallery. The tables refuse while an input has no record.
+TEST(CohortEye, EachInputAloneThenTheTablesGiveTheCohortsFolderByteForByte) {
+    MixedCohort c;
+    const fs::path ref = c.dir / "cohort";
+    const fs::path out = c.dir / "out";
+    const std::string opts = " --qc --tau-um 4 " + c.key_arg();
+    const auto r = test::run_octshape("cohort " + q(c.in) + " -o " + q(out) + " --jobs 2" + opts);
+    ASSERT_EQ(r.exit_code, 1) << r.err;
+    fs::rename(out, ref);  // the jobs write the same folder (the gallery names it)
+
+    const auto listed =
+        test::run_octshape("cohort " + q(c.in) + " -o " + q(out) + " --list" + opts);
+    ASSERT_EQ(listed.exit_code, 0) << listed.err;
+    EXPECT_FALSE(fs::exists(out));  // --list writes nothing
+    std::map<std::string, std::string> type_of;  // file name -> listed type
+    std::vector<std::string> files;
+    std::istringstream lines(listed.out);
+    for (std::string line; std::getline(lines, line);) {
+        const json j = json::parse(line);
+        const std::string file = j["file"];
+        EXPECT_EQ(j["key"], io::sha256_hex(file).substr(0, 16));
+        type_of[fs::path(file).filename().string()] = j["type"];
+        files.push_back(file);
+    }
+    // The classifier's decisions (CohortCli.AnalysesEveryEyeAndRecordsEveryBadFile): three
+    // maculae, the ONH volume, and "unknown" for the circle scan (not analysable) and the
+    // truncated export; the hostile file is no export (failures.csv lists it, no job).
+    EXPECT_EQ(type_of, (std::map<std::string, std::string>{{"a_od.vol", "macula"},
+                                                           {"b_os.vol", "macula"},
+                                                           {"c_od.vol", "macula"},
+                                                           {"onh.vol", "onh"},
+                                                           {"circle.vol", "unknown"},
+                                                           {"truncated.vol", "unknown"}}))
+        << listed.out;
+
+    // All but the last input: the tables refuse (66) and write nothing.
+    std::reverse(files.begin(), files.end());
+    for (std::size_t i = 0; i + 1 < files.size(); ++i) {
+        const std::string name = fs::path(files[i]).filename().string();
+        const auto e = test::run_octshape("cohort-eye " + q(files[i]) + " -o " + q(out) + opts);
+        const bool bad = type_of[name] == "unknown";  // those fail, and are recorded
+        EXPECT_EQ(e.exit_code, bad ? 1 : 0) << name << ": " << e.err;
+    }
+    const std::string tables = "cohort-tables " + q(c.in) + " -o " + q(out) + opts;
+    const auto refused = test::run_octshape(tables);
+    EXPECT_EQ(refused.exit_code, 66) << refused.err;
+    EXPECT_NE(refused.err.find("1 input(s)"), std::string::npos) << refused.err;
+    EXPECT_FALSE(fs::exists(out / "eyes.csv"));
+
+    const auto last = test::run_octshape("cohort-eye " + q(files.back()) + " -o " + q(out) + opts);
+    EXPECT_EQ(last.exit_code, 0) << last.err;
+    const auto made = test::run_octshape(tables);
+    ASSERT_EQ(made.exit_code, 1) << made.err;  // as the cohort: some inputs failed
+
+    for (const char* t : {"eyes.csv", "eyes_onh.csv", "failures.csv"}) {
+        EXPECT_EQ(slurp(out / t), slurp(ref / t)) << t;
+        EXPECT_FALSE(slurp(ref / t).empty()) << t;
+    }
+    for (const char* d : {"eyes", "failures", "qc"}) {
+        const auto want = folder_files(ref / d);
+        const auto got = folder_files(out / d);
+        EXPECT_FALSE(want.empty()) << d;
+        ASSERT_EQ(got.size(), want.size()) << d;
+        for (const auto& [name, text] : want) {
+            ASSERT_TRUE(got.count(name)) << d << "/" << name;
+            EXPECT_TRUE(got.at(name) == text) << d << "/" << name << " differs";
+        }
+    }
+
+    // A second job on an input with a current result keeps it (the resume rule).
+    const auto before = json_mtimes(out / "eyes");
+    const auto again =
+        test::run_octshape("cohort-eye " + q(files.back()) + " -o " + q(out) + opts);
+    EXPECT_EQ(again.exit_code, 0) << again.err;
+    EXPECT_EQ(json_mtimes(out / "eyes"), before);
 }
 
 TEST(CohortCli, SubjectIdsAreKeyedHashesMapsOrRawOnRequest) {

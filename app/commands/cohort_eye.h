@@ -1,0 +1,94 @@
+#pragma once
+// The per-eye unit of `octshape cohort` (docs/cohort.md): what one input becomes in a cohort
+// output folder. `octshape cohort` runs it in its worker processes, `octshape cohort-eye` (one
+// Snakemake/Slurm job per input) runs the same code on one file, so both write the same per-eye
+// JSON, failure records and QC pictures under the same eye key.
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "commands/eye_record.h"
+#include "commands/macula_eye.h"
+#include "commands/onh_eye.h"
+
+namespace octshape::app {
+
+// The options of a cohort run (`octshape cohort`, `cohort-eye`, `cohort-tables`).
+struct CohortOptions {
+    std::vector<std::string> inputs;
+    std::string out;
+    int jobs = 0;  // 0: one per core
+    std::string groups;
+    std::string type = "auto";
+    bool qc = false;
+    bool retry_failed = false;
+    double eye_timeout_s = 600.0;  // an eye still running after this is stopped; 0: no limit
+    MaculaEyeOptions eye;
+    OnhEyeOptions onh;
+    SubjectOptions subjects;
+};
+
+// One input file and what is known about it.
+struct Item {
+    std::string path;  // absolute
+    std::string key;   // eye key: first 16 hex digits of SHA-256(path)
+    FileFacts facts;
+    bool done = false;       // a current result exists
+    bool failed = false;     // a current failure record exists
+    nlohmann::json slim;     // what eyes.csv needs of the result
+    nlohmann::json failure;  // the failure record
+};
+
+// A file that could not be taken in: path, reason, exit code.
+struct Skipped {
+    std::string path;
+    std::string reason;
+    int exit_code = 0;
+};
+
+// The eye key of an absolute path: the first 16 hex digits of its SHA-256.
+[[nodiscard]] std::string eye_key(const std::string& abs_path);
+
+// The option texts a record must carry to count as current: an eye's, per scan type (changing
+// an ONH option redoes the ONH eyes only), and a failure's (which also depends on --type, --qc
+// and --eye-timeout-s).
+struct CohortSignatures {
+    std::string macula;
+    std::string onh;
+    std::string failure;
+    [[nodiscard]] const std::string& eye(const std::string& scan_type) const {
+        return scan_type == "onh" ? onh : macula;
+    }
+};
+[[nodiscard]] CohortSignatures cohort_signatures(const CohortOptions& o,
+                                                 const SubjectSource& subjects);
+
+// What eyes.csv needs of a per-eye JSON (the rest stays on disk).
+[[nodiscard]] nlohmann::json slim(const nlohmann::json& j);
+
+// The resume check of one input: its item, marked done (with its slim result) or failed (with
+// its record) when OUTDIR holds a current record of it. A file that cannot be stat'ed goes to
+// `skipped` (nullopt).
+[[nodiscard]] std::optional<Item> load_item(const std::string& file,
+                                            const std::filesystem::path& out,
+                                            const CohortOptions& o, const CohortSignatures& sig,
+                                            std::vector<Skipped>& skipped);
+
+// One eye: classify, analyse as macula or ONH, write OUTDIR/eyes/<key>.json (and the QC
+// pictures with --qc). Returns 0 when its JSON is written, else the failure's exit code and
+// `message`. Never throws.
+int analyse_eye(const CohortOptions& o, const SubjectSource& subjects, const Item& item,
+                const std::filesystem::path& out, std::string& message);
+
+// Writes OUTDIR/failures/<key>.json (its cohort record, reason, exit code); marks `item` failed.
+void record_failure(Item& item, const std::filesystem::path& out,
+                    const std::string& options_text, const std::string& reason, int exit_code);
+
+// After analyse_eye returned 0: takes the eye's result for the tables and removes a failure
+// record an earlier run left. False (with `reason`) when the result cannot be read back.
+bool take_result(Item& item, const std::filesystem::path& out, std::string& reason);
+
+}  // namespace octshape::app

@@ -1,0 +1,34 @@
+#pragma once
+// The tables of a cohort output folder (docs/cohort.md, "Output folder"): eyes.csv (maculae),
+// eyes_onh.csv (optic nerve heads, when there are any), failures.csv and, with --qc, the QC
+// gallery. `octshape cohort` writes them at the end of its run and `octshape cohort-tables`
+// (the Snakemake workflow's last job) with the same code, from the same records.
+
+#include <cstddef>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "commands/cohort_eye.h"
+#include "commands/eye_record.h"
+
+namespace octshape::app {
+
+// failures.csv: header file,reason,exit_code; one row per failed item and per skipped file,
+// sorted.
+[[nodiscard]] std::string failures_csv(const std::vector<Item>& items,
+                                       const std::vector<Skipped>& skipped);
+
+struct CohortTables {
+    std::size_t eyes = 0;    // rows of eyes.csv and eyes_onh.csv
+    std::size_t failed = 0;  // rows of failures.csv
+};
+
+// Writes OUTDIR/eyes.csv, OUTDIR/eyes_onh.csv (when an item is an ONH eye), OUTDIR/failures.csv
+// (each atomically and durably) from the items' records, and with `qc` the gallery
+// OUTDIR/qc/index.html. The records must be on disk (the gallery reads them).
+CohortTables write_cohort_tables(const std::filesystem::path& out, const std::vector<Item>& items,
+                                 const std::vector<Skipped>& skipped, const GroupMap& groups,
+                                 bool qc);
+
+}  // namespace octshape::app
