@@ -154,6 +154,9 @@ void run_denoise(const DenoiseOptions& o) {
             p.sigma_s = o.method == "bilateral" ? a.sigma_s / 2.2 : a.sigma_s;
             if (o.method == "rofi") p.lambda_i = a.lambda_i;
             p.iterations = a.iterations;
+            // RoFi's stop (docs/algorithms/rofi.md, "Stopping"): `iterations` is then the
+            // maximum; an explicit --iterations runs exactly that many.
+            if (o.method == "rofi") p.stop = a.stop;
             p.radius_factor = a.radius_factor;
             p.sigma_c_factor = a.sigma_c_factor;
         }
@@ -161,7 +164,10 @@ void run_denoise(const DenoiseOptions& o) {
         if (o.similarity == "tukey") p.similarity = mesh::Similarity::kTukey;
         if (o.sigma_s) p.sigma_s = *o.sigma_s;
         if (o.lambda_i) p.lambda_i = *o.lambda_i;
-        if (o.iterations) p.iterations = *o.iterations;
+        if (o.iterations) {
+            p.iterations = *o.iterations;
+            p.stop = mesh::RofiStop::kNone;
+        }
         if (o.radius_factor) p.radius_factor = *o.radius_factor;
         if (o.sigma_c_factor) p.sigma_c_factor = *o.sigma_c_factor;
         p.threads = o.threads;
@@ -174,7 +180,8 @@ void run_denoise(const DenoiseOptions& o) {
                   {"radius_factor", p.radius_factor},
                   {"sigma_c_factor", p.sigma_c_factor},
                   {"similarity", p.similarity == mesh::Similarity::kTukey ? "tukey" : "gaussian"},
-                  {"repair_folds", p.repair_folds}};
+                  {"repair_folds", p.repair_folds},
+                  {"stop", p.stop == mesh::RofiStop::kNone ? "none" : "white_residual"}};
         result = mesh::rofi_denoise(in.V, in.F, p);
     } else {
         mesh::EnvtParams p;
@@ -216,6 +223,9 @@ void run_denoise(const DenoiseOptions& o) {
                        {"noise_sigma_per_edge", noise.noise_sigma},
                        {"mean_edge_length_mm", noise.mean_edge_length},
                        {"mean_centroid_distance_mm", noise.mean_centroid_distance}}},
+            {"iterations_run", result.iterations},
+            {"residual_rms_mm", result.displacement},
+            {"residual_whiteness", result.residual_whiteness},
             {"vertices", in.V.rows()},
             {"faces", in.F.rows()},
             {"fixed_boundary_vertices", result.fixed_vertices},

@@ -483,6 +483,82 @@ void require(bool ok, const std::string& field, const std::string& rule, double 
     }
 }
 
+// The residual r_i = n̂_i · (v⁰_i − v_i) of V against the input V0, n̂_i = normalised
+// Σ_{f ∋ i} a_f n_f from `current` (the geometry of V); r_i = 0 for fixed vertices. Returns
+// δ = RMS of r over the free vertices and W = Σ (r_i − mean_{j ∈ ring(i)} r_j)² / (1 + 1/k_i)
+// / Σ r_i² over the free vertices with k_i ≥ 3 ring neighbours that are not on a feature: two
+// of their faces' normals differ by more than σ_s (x = |n_a − n_b|, the Tukey cut-off)
+// (RofiStop::kWhiteResidual).
+// Per-vertex terms in parallel, summed in vertex order: the same bits for any thread count.
+RofiProgress residual_progress(const Vertices& V, const Vertices& V0,
+                               const detail::FaceState* current, const Adjacency& adjacency,
+                               const std::vector<std::uint8_t>& fixed, double sigma_s,
+                               int threads, std::vector<double>& r, std::vector<double>& terms) {
+    // |n_a − n_b| > σ_s ⇔ n_a · n_b < 1 − σ_s²/2 (unit normals).
+    const double feature_dot = 1.0 - 0.5 * sigma_s * sigma_s;
+    const auto n = static_cast<int>(V.rows());
+    r.assign(static_cast<std::size_t>(n), 0.0);
+    terms.assign(3 * static_cast<std::size_t>(n), 0.0);
+    detail::parallel_for(n, threads, [&](int begin, int end) {
+        for (int i = begin; i < end; ++i) {
+            const int fb = adjacency.vertex_faces.begin(i);
+            const int fe = adjacency.vertex_faces.end(i);
+            if (fixed[static_cast<std::size_t>(i)] != 0 || fb == fe) continue;
+            double s[3] = {0.0, 0.0, 0.0};
+            bool feature = false;
+            for (int p = fb; p < fe; ++p) {
+                const detail::FaceState& f = current[adjacency.vertex_faces.item(p)];
+                for (int c = 0; c < 3; ++c) s[c] += f.area * f.normal[c];
+                for (int q = fb; q < p; ++q) {
+                    const detail::FaceState& g = current[adjacency.vertex_faces.item(q)];
+                    const double dot = f.normal[0] * g.normal[0] + f.normal[1] * g.normal[1] +
+                                       f.normal[2] * g.normal[2];
+                    feature = feature || dot < feature_dot;
+                }
+            }
+            const double norm = std::sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+            if (!(norm > 0.0)) continue;
+            double d = 0.0;
+            for (int c = 0; c < 3; ++c) d += s[c] * (V0(i, c) - V(i, c));
+            r[static_cast<std::size_t>(i)] = d / norm;
+            terms[3 * static_cast<std::size_t>(i)] = feature ? 2.0 : 1.0;  // counted in δ
+        }
+    });
+    detail::parallel_for(n, threads, [&](int begin, int end) {
+        for (int i = begin; i < end; ++i) {
+            const auto si = static_cast<std::size_t>(i);
+            if (terms[3 * si] != 1.0) continue;  // fixed or on a feature
+            const int k = adjacency.vertex_vertices.size(i);
+            if (k < 3) continue;
+            double mean = 0.0;
+            for (int p = adjacency.vertex_vertices.begin(i); p < adjacency.vertex_vertices.end(i);
+                 ++p) {
+                mean += r[static_cast<std::size_t>(adjacency.vertex_vertices.item(p))];
+            }
+            const double l = r[si] - mean / k;
+            terms[3 * si + 1] = l * l / (1.0 + 1.0 / k);
+            terms[3 * si + 2] = r[si] * r[si];
+        }
+    });
+    double sum = 0.0, num = 0.0, den = 0.0;
+    int count = 0, tested = 0;
+    for (std::size_t i = 0; i < r.size(); ++i) {
+        if (terms[3 * i] == 0.0) continue;
+        sum += r[i] * r[i];
+        ++count;
+        if (terms[3 * i + 2] == 0.0 && terms[3 * i + 1] == 0.0) continue;
+        num += terms[3 * i + 1];
+        den += terms[3 * i + 2];
+        ++tested;
+    }
+    RofiProgress out;
+    out.displacement = count > 0 ? std::sqrt(sum / count) : 0.0;
+    out.whiteness = den > 0.0 ? num / den : 0.0;
+    out.tested_vertices = tested;
+    out.threshold = tested > 0 ? 1.0 - 1.5 / std::sqrt(static_cast<double>(tested)) : 0.0;
+    return out;
+}
+
 }  // namespace
 
 void RofiParams::validate() const {
@@ -496,6 +572,9 @@ void RofiParams::validate() const {
     require(std::isfinite(sigma_c_factor) && sigma_c_factor > 0.0, "sigma_c_factor",
             "finite and > 0", sigma_c_factor);
     require(threads >= 1, "threads", ">= 1", threads);
+    if (stop != RofiStop::kNone && stop != RofiStop::kWhiteResidual) {
+        throw UsageError("RofiParams.stop must be kNone or kWhiteResidual");
+    }
     (void)run_path(simd, "RofiParams.simd");
 }
 
@@ -568,10 +647,26 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
     const bool avx512 = path == SimdPath::kAvx512;
     const bool avx2 = path != SimdPath::kBaseline;
     double lambda = params.lambda_i;
-    for (int it = 0; it < params.iterations; ++it) {
+    const bool stop = params.stop == RofiStop::kWhiteResidual;
+    const bool measure = stop || static_cast<bool>(params.observer);
+    std::vector<double> residual, terms;
+    for (int it = 0; it <= params.iterations; ++it) {
+        if (it == params.iterations && !measure) break;
         detail::parallel_for(m, params.threads, [&](int begin, int end) {
             detail::update_faces(result.V, F, begin, end, current.data(), avx2);
         });
+        if (measure && it > 0) {
+            // The residual of the mesh after `it` iterations: the observer sees it, the stop
+            // tests it (rofi.md, "Stopping": white while it is noise, smoother once signal).
+            const RofiProgress progress =
+                residual_progress(result.V, V, current.data(), setup.adjacency, setup.fixed,
+                                  params.sigma_s, params.threads, residual, terms);
+            result.displacement = progress.displacement;
+            result.residual_whiteness = progress.whiteness;
+            if (params.observer) params.observer(it, result.V, progress);
+            if (stop && progress.whiteness <= progress.threshold) break;
+        }
+        if (it == params.iterations) break;
         const auto rows = [&](int kind) {
             detail::parallel_for(kind == 0 ? pair_blocks : m, params.threads,
                                  [&](int begin, int end) {

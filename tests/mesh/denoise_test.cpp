@@ -69,6 +69,7 @@ TEST(AutoParams, DoNotDependOnTheMeshScale) {
     EXPECT_NEAR(a.sigma_s, b.sigma_s, 1e-9);
     EXPECT_NEAR(a.lambda_i, b.lambda_i, 1e-9);
     EXPECT_EQ(a.iterations, b.iterations);
+    EXPECT_EQ(a.stop, mesh::RofiStop::kWhiteResidual);
     EXPECT_EQ(a.radius_factor, b.radius_factor);
     EXPECT_EQ(a.sigma_c_factor, b.sigma_c_factor);
     // The automatic disk is wider and flatter than §5.2's (rofi.md, "Automatic parameters"),

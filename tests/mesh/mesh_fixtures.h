@@ -158,6 +158,70 @@ inline TestMesh with_noise(TestMesh m, double sigma, std::uint32_t seed = 7) {
     return m;
 }
 
+// Vertex normals: the normalised sum of the area-weighted normals of each vertex's faces.
+inline mesh::Vertices vertex_normals(const mesh::Vertices& V, const mesh::Faces& F) {
+    mesh::Vertices n = mesh::Vertices::Zero(V.rows(), 3);
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+        const Eigen::Vector3d a = V.row(F(f, 0));
+        const Eigen::Vector3d b = V.row(F(f, 1));
+        const Eigen::Vector3d c = V.row(F(f, 2));
+        const Eigen::Vector3d w = (b - a).cross(c - a);  // 2 × area × unit normal
+        for (int k = 0; k < 3; ++k) n.row(F(f, k)) += w.transpose();
+    }
+    n.rowwise().normalize();
+    return n;
+}
+
+// Adds Gaussian noise of standard deviation sigma along each vertex normal of the clean mesh.
+inline TestMesh with_normal_noise(TestMesh m, double sigma, std::uint32_t seed = 7) {
+    const mesh::Vertices n = vertex_normals(m.V, m.F);
+    Gaussian g(seed);
+    for (Eigen::Index i = 0; i < m.V.rows(); ++i) m.V.row(i) += sigma * g() * n.row(i);
+    m.name += "+normal-noise";
+    return m;
+}
+
+// Organic detail: the icosphere of `levels` with each vertex at radius
+// 1 + amplitude · Σ_j sin(ω_j · d + φ_j) / √J along its direction d, J = 12 plane waves, half
+// of wavenumber 6 and half of 16 (wavelengths ≈ 1.05 and 0.39 on the unit sphere; level 5
+// has edges ≈ 0.06, so the fine relief spans ~6 edges), random directions and phases from
+// `seed`. Known clean geometry: the mesh itself.
+inline TestMesh relief_sphere(int levels, double amplitude = 0.04, std::uint32_t seed = 11) {
+    TestMesh m = icosphere(levels);
+    Gaussian g(seed);
+    constexpr int kWaves = 12;
+    std::vector<Eigen::Vector3d> omega;
+    std::vector<double> phase;
+    for (int j = 0; j < kWaves; ++j) {
+        Eigen::Vector3d w(g(), g(), g());
+        omega.push_back(w.normalized() * (j < kWaves / 2 ? 6.0 : 16.0));
+        phase.push_back(g());
+    }
+    for (Eigen::Index i = 0; i < m.V.rows(); ++i) {
+        const Eigen::Vector3d d = m.V.row(i).normalized();
+        double h = 0.0;
+        for (int j = 0; j < kWaves; ++j) h += std::sin(omega[j].dot(d) + phase[j]);
+        m.V.row(i) = (1.0 + amplitude * h / std::sqrt(double{kWaves})) * d.transpose();
+    }
+    m.name = "relief_sphere";
+    return m;
+}
+
+// Super-ellipsoid |x|^e + |y|^e + |z|^e = 1: the icosphere of `levels` projected radially onto
+// it (e = 2 the sphere; e = 6 a cube with rounded edges of radius ~0.3).
+inline TestMesh superellipsoid(int levels, double e = 6.0) {
+    TestMesh m = icosphere(levels);
+    for (Eigen::Index i = 0; i < m.V.rows(); ++i) {
+        const Eigen::Vector3d d = m.V.row(i).normalized();
+        const double s = std::pow(std::pow(std::abs(d.x()), e) + std::pow(std::abs(d.y()), e) +
+                                      std::pow(std::abs(d.z()), e),
+                                  -1.0 / e);
+        m.V.row(i) = s * d.transpose();
+    }
+    m.name = "superellipsoid";
+    return m;
+}
+
 // The family the property tests loop over: closed smooth, closed sharp, open; noisy.
 inline std::vector<TestMesh> noisy_family() {
     return {with_noise(icosphere(3), 0.02), with_noise(cube(6), 0.03),

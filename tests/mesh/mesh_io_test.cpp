@@ -263,6 +263,28 @@ TEST(MeshCommands, DenoiseThenMetricsAndFeatures) {
         EXPECT_GT(j.at("mean_neighbourhood_faces").get<double>(),
                   d.at("mean_neighbourhood_faces").get<double>());
     }
+    // The automatic rule ends RoFi when its residual is no longer white (rofi.md,
+    // "Stopping"): the stop and the iterations run are recorded; an explicit --iterations
+    // runs exactly that many.
+    r = run_octshape("denoise '" + in + "' -o '" + out + "' --json");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    {
+        const auto j = nlohmann::json::parse(r.out);
+        const auto& p = j.at("parameters");
+        EXPECT_TRUE(j.at("auto").get<bool>());
+        EXPECT_EQ(p.at("stop").get<std::string>(), "white_residual");
+        const int run = j.at("iterations_run").get<int>();
+        EXPECT_GE(run, 1);
+        EXPECT_LE(run, p.at("iterations").get<int>());
+        EXPECT_GT(j.at("residual_rms_mm").get<double>(), 0.0);
+        if (run < p.at("iterations").get<int>()) {
+            EXPECT_LE(j.at("residual_whiteness").get<double>(), 1.0);
+        }
+        const auto d = nlohmann::json::parse(
+            run_octshape("denoise '" + in + "' -o '" + out + "' --auto -p 3 --json").out);
+        EXPECT_EQ(d.at("parameters").at("stop").get<std::string>(), "none");
+        EXPECT_EQ(d.at("iterations_run").get<int>(), 3);
+    }
     EXPECT_EQ(run_octshape("denoise '" + in + "' -o x.off --method envt --radius-factor 3")
                   .exit_code,
               64);

@@ -387,6 +387,174 @@ TEST(Rofi, ValidateNamesTheBadField) {
     p = {};
     p.threads = 0;
     expect_field(p, "threads");
+    p = {};
+    p.stop = static_cast<mesh::RofiStop>(7);
+    expect_field(p, "stop");
+}
+
+// δ and W of RofiProgress recomputed here from their definitions (rofi.h), with the vertex
+// normals of the fixtures, not rofi.cpp's code.
+mesh::RofiProgress progress(const mesh::Vertices& V, const mesh::Vertices& V0,
+                            const mesh::Faces& F, double sigma_s) {
+    const mesh::Vertices n = vertex_normals(V, F);
+    const auto g = mesh::face_geometry(V, F);
+    const auto adj = mesh::build_adjacency(F, static_cast<int>(V.rows()));
+    // On a feature: two of the vertex's faces' normals further apart than σ_s.
+    const auto feature = [&](int i) {
+        for (int p = adj.vertex_faces.begin(i); p < adj.vertex_faces.end(i); ++p) {
+            for (int q = adj.vertex_faces.begin(i); q < p; ++q) {
+                const int a = adj.vertex_faces.item(p);
+                const int b = adj.vertex_faces.item(q);
+                if ((g.normals.row(a) - g.normals.row(b)).norm() > sigma_s) return true;
+            }
+        }
+        return false;
+    };
+    std::vector<double> r(static_cast<std::size_t>(V.rows()), 0.0);
+    for (Eigen::Index i = 0; i < V.rows(); ++i) {
+        if (adj.boundary_vertex[static_cast<std::size_t>(i)] == 0) {
+            r[static_cast<std::size_t>(i)] = n.row(i).dot(V0.row(i) - V.row(i));
+        }
+    }
+    double sum = 0.0, num = 0.0, den = 0.0;
+    int count = 0;
+    for (int i = 0; i < static_cast<int>(V.rows()); ++i) {
+        if (adj.boundary_vertex[static_cast<std::size_t>(i)] != 0) continue;
+        const double ri = r[static_cast<std::size_t>(i)];
+        sum += ri * ri;
+        ++count;
+        const int k = adj.vertex_vertices.size(i);
+        if (k < 3 || feature(i)) continue;
+        double mean = 0.0;
+        for (int p = adj.vertex_vertices.begin(i); p < adj.vertex_vertices.end(i); ++p) {
+            mean += r[static_cast<std::size_t>(adj.vertex_vertices.item(p))] / k;
+        }
+        num += (ri - mean) * (ri - mean) / (1.0 + 1.0 / k);
+        den += ri * ri;
+    }
+    mesh::RofiProgress out;
+    out.displacement = std::sqrt(sum / count);
+    out.whiteness = num / den;
+    return out;
+}
+
+TEST(RofiStop, ObserverSeesEveryIterationWithItsResidual) {
+    for (const auto& m : noisy_family()) {
+        auto p = params(12);
+        p.repair_folds = false;
+        std::vector<mesh::Vertices> states;
+        std::vector<mesh::RofiProgress> seen;
+        p.observer = [&](int k, const mesh::Vertices& V, const mesh::RofiProgress& q) {
+            EXPECT_EQ(k, static_cast<int>(states.size()) + 1);
+            states.push_back(V);
+            seen.push_back(q);
+        };
+        const auto r = mesh::rofi_denoise(m.V, m.F, p);
+        ASSERT_EQ(states.size(), 12U) << m.name;
+        EXPECT_EQ(states.back(), r.V) << m.name;  // the last state is the result (no repair)
+        // Observing changes nothing: the same bits as a run without an observer.
+        auto plain = params(12);
+        plain.repair_folds = false;
+        EXPECT_EQ(mesh::rofi_denoise(m.V, m.F, plain).V, r.V) << m.name;
+        for (std::size_t k = 0; k < states.size(); ++k) {
+            // Other normals' and sums' rounding than rofi.cpp's: 1e-9 relative is ~1e6 ulps,
+            // far below any change that would matter (W is compared with 1). (A face pair
+            // within rounding of the σ_s cut-off would flip a vertex's feature test; none is
+            // on these meshes, or W would differ by far more than 1e-9.)
+            const auto q = progress(states[k], m.V, m.F, p.sigma_s);
+            EXPECT_NEAR(seen[k].displacement, q.displacement, 1e-9 * q.displacement)
+                << m.name << " k " << k + 1;
+            EXPECT_NEAR(seen[k].whiteness, q.whiteness, 1e-9 * q.whiteness)
+                << m.name << " k " << k + 1;
+        }
+    }
+}
+
+// The stop ends the run at the first k with W_k ≤ its threshold and returns exactly the
+// k-iteration run; where W stays above it, it runs the maximum.
+TEST(RofiStop, StopsAtTheFirstIterationWhoseResidualIsNotRougherThanWhiteNoise) {
+    auto family = noisy_family();
+    {
+        // Fine relief at low noise: W falls below 1 within a few iterations (rofi.md).
+        const auto c = relief_sphere(4);
+        family.push_back(with_normal_noise(c, 0.1 * mesh::mean_edge_length(c.V, c.F), 3));
+    }
+    int stopped = 0;
+    for (const auto& m : family) {
+        auto p = params(40);
+        std::vector<double> w;
+        int expected = 40;
+        p.observer = [&](int k, const mesh::Vertices&, const mesh::RofiProgress& q) {
+            w.push_back(q.whiteness);
+            // Two standard errors below 1 (rofi.h), N counted here as rofi.cpp should.
+            EXPECT_NEAR(q.threshold, 1.0 - 1.5 / std::sqrt(q.tested_vertices), 1e-15);
+            EXPECT_GT(q.tested_vertices, 0);
+            if (expected == 40 && k < 40 && q.whiteness <= q.threshold) expected = k;
+        };
+        (void)mesh::rofi_denoise(m.V, m.F, p);
+        ASSERT_EQ(w.size(), 40U);
+        auto s = params(40);
+        s.stop = mesh::RofiStop::kWhiteResidual;
+        const auto r = mesh::rofi_denoise(m.V, m.F, s);
+        EXPECT_EQ(r.iterations, expected) << m.name;
+        EXPECT_EQ(r.V, mesh::rofi_denoise(m.V, m.F, params(expected)).V) << m.name;
+        EXPECT_EQ(r.residual_whiteness, w[static_cast<std::size_t>(expected) - 1]) << m.name;
+        s.threads = 2;
+        EXPECT_EQ(mesh::rofi_denoise(m.V, m.F, s).V, r.V) << m.name;
+        if (expected < 40) ++stopped;
+    }
+    EXPECT_GE(stopped, 1);  // the relief sphere at least: the stop was exercised
+}
+
+// The automatic rule on a detail-rich surface (relief_sphere: known clean geometry, fine
+// relief of ~6 edges' wavelength) with Gaussian noise along the normals.
+struct ReliefRun {
+    int iterations;
+    double msae_auto, msae_fixed_p, msae_best_p;
+};
+
+ReliefRun relief_run(double level) {
+    const auto clean = relief_sphere(5);
+    const auto noisy =
+        with_normal_noise(clean, level * mesh::mean_edge_length(clean.V, clean.F), 3);
+    const auto noise = mesh::estimate_noise(noisy.V, noisy.F);
+    const auto a = mesh::auto_rofi_params(noise);
+    const auto r = mesh::rofi_denoise(noisy.V, noisy.F, a);
+    const auto msae = [&](const mesh::Vertices& V) {
+        return mesh::mean_angle_error_deg(V, clean.F, clean.V, clean.F);
+    };
+    // Small inline oracle: the same parameters at every p ≤ the maximum, best MSAE (before
+    // the fold repair, which finds nothing to repair here: no face is turned over).
+    auto o = a;
+    o.stop = mesh::RofiStop::kNone;
+    o.repair_folds = false;
+    double best = 1e9;
+    o.observer = [&](int, const mesh::Vertices& V, const mesh::RofiProgress&) {
+        best = std::min(best, msae(V));
+    };
+    (void)mesh::rofi_denoise(noisy.V, noisy.F, o);
+    const auto fixed = mesh::rofi_denoise(noisy.V, noisy.F, mesh::fixed_p_rofi_params(noise));
+    return {r.iterations, msae(r.V), msae(fixed.V), best};
+}
+
+TEST(RofiAutoStop, DetailRichSurfaceStopsNearTheBestIterationAndMoreNoiseRunsLonger) {
+    // 20,480 faces, three runs of ≤ 30 iterations per level: a few seconds in Release.
+    const ReliefRun low = relief_run(0.05);
+    const ReliefRun mid = relief_run(0.1);
+    const ReliefRun high = relief_run(0.3);
+    // More noise needs more iterations before the residual holds relief rather than noise.
+    EXPECT_LT(low.iterations, mid.iterations);
+    EXPECT_LT(mid.iterations, high.iterations);
+    for (const ReliefRun& r : {low, mid}) {
+        // Within 5 % of the best p for these parameters (the target against its
+        // oracle), and far better than the fixed 30 iterations of session 8 (which over-smooth
+        // the relief: 3–4× the MSAE here, rofi.md "Stopping").
+        EXPECT_LE(r.msae_auto, 1.05 * r.msae_best_p);
+        EXPECT_LT(r.msae_auto, 0.5 * r.msae_fixed_p);
+    }
+    // At 0.3 l_e the residual stays rougher than white noise until ~1.5× the best p (rofi.md,
+    // "Stopping"), near the maximum 30: no worse than the fixed 30.
+    EXPECT_LE(high.msae_auto, high.msae_fixed_p);
 }
 
 }  // namespace

@@ -38,7 +38,7 @@ mesh::MeshComparison compare(const Pair& p, const mesh::DenoiseResult& r) {
 
 // RoFi with auto_rofi_params; also checks that it beats paper_disk_rofi_params (the rule before
 // session 8) on this pair: a lower MSAE and no more flips created (flip_transitions against the
-// noisy input).
+// noisy input); and that it is no worse than fixed_p_rofi_params (session 8) on either count.
 mesh::MeshComparison rofi_auto(const Pair& p) {
     const auto noise = mesh::estimate_noise(p.noisy.V, p.noisy.F);
     const auto r = mesh::rofi_denoise(p.noisy.V, p.noisy.F, mesh::auto_rofi_params(noise));
@@ -49,6 +49,12 @@ mesh::MeshComparison rofi_auto(const Pair& p) {
     const auto t0 = mesh::flip_transitions(before.V, p.noisy.V, p.truth.V, p.noisy.F);
     EXPECT_LT(c.msae_deg, mesh::mean_angle_error_deg(before.V, p.noisy.F, p.truth.V, p.truth.F));
     EXPECT_LE(t.created, t0.created);
+    // And the session-8 rule (fixed p = 30, no stop): the stop of session 9 must not be worse
+    // on any shared pair (issue 23).
+    const auto today =
+        mesh::rofi_denoise(p.noisy.V, p.noisy.F, mesh::fixed_p_rofi_params(noise));
+    EXPECT_LE(c.msae_deg, mesh::mean_angle_error_deg(today.V, p.noisy.F, p.truth.V, p.truth.F));
+    EXPECT_LE(t.created, mesh::flip_transitions(today.V, p.noisy.V, p.truth.V, p.noisy.F).created);
     return c;
 }
 

@@ -12,6 +12,10 @@ namespace octshape::mesh {
 struct DenoiseResult {
     Vertices V;                         // #V×3 denoised positions
     int iterations = 0;                 // iterations run
+    // RoFi with a stop or an observer (rofi.h, RofiProgress): δ and W of the returned mesh
+    // before the fold repair; 0 when not measured.
+    double displacement = 0;        // length unit
+    double residual_whiteness = 0;
     double mean_centroid_distance = 0;  // c_a of the input (length unit)
     double radius = 0;                  // disk radius used for Ω_i (length unit)
     double mean_neighbourhood = 0;      // mean |Ω_i| (faces, incl. f_i)

@@ -12,6 +12,8 @@
 // Boundary vertices stay fixed. Every face and vertex is computed from the previous
 // iteration's state only, so the result is bit-identical for any thread count.
 
+#include <functional>
+
 #include "octshape/mesh/denoise.h"
 #include "octshape/mesh/mesh.h"
 #include "octshape/mesh/simd_exp.h"
@@ -30,10 +32,31 @@ enum class PairWeights {
     kPerRow,  // in each row, nothing stored: 4 bytes per slot, ~15–25 % more time per iteration
 };
 
+// The residual r_i = n̂_i · (v⁰_i − v_i) after an iteration: the input vertex v⁰_i against the
+// current v_i along the current vertex normal n̂_i (area-weighted face normals); free vertices.
+struct RofiProgress {
+    double displacement = 0;  // δ = RMS of r_i (length unit)
+    // W = Σ_i (r_i − mean_{j∈ring(i)} r_j)² / (1 + 1/k_i) / Σ_i r_i² over the free vertices
+    // with k_i ≥ 3 ring neighbours not on a feature (two of their faces' current normals
+    // further apart than σ_s, |n_a − n_b| > σ_s): 1 in expectation for white noise; > 1 while
+    // the removed part is rougher than white noise; < 1 once it is smoother, i.e. holds the
+    // surface's own relief.
+    double whiteness = 0;
+    int tested_vertices = 0;  // N, the vertices in W's sums
+    // RofiStop::kWhiteResidual stops when W ≤ 1 − 1.5/√N: W below 1 by two of its standard
+    // errors for white Gaussian residuals, ≈ 0.75/√N (rofi.md, "Stopping").
+    double threshold = 0;
+};
+
+enum class RofiStop {
+    kNone,           // run all `iterations`
+    kWhiteResidual,  // stop before the first iteration at whose start W ≤ its threshold
+};
+
 struct RofiParams {
     double sigma_s = 0.5;       // similarity width σ_s on x = |n_i − n_j| ∈ [0, 2], Eq. 5.3
     double lambda_i = 0.2;      // initial isotropic (fidelity) factor λ_I, Eq. 5.9; ≥ 0
-    int iterations = 100;       // p; 0 returns the input unchanged
+    int iterations = 100;       // p (the maximum with a stop); 0 returns the input unchanged
     double lambda_decay = 0.6;  // λ_I^{p+1} = decay · λ_I^p (§5.1.2); in [0, 1]
     double radius_factor = 2.0;   // disk radius r = radius_factor · c_a (§5.2); > 0
     double sigma_c_factor = 1.0;  // closeness width σ_c = sigma_c_factor · c_a (§5.2); > 0
@@ -44,6 +67,12 @@ struct RofiParams {
     // edge-neighbour, n_a · n_b < −0.9; their apex moves to its 1-ring centroid). Not in
     // Eq. 5.1–5.9 (docs/algorithms/rofi.md, "Fold-overs"); false = the equations alone.
     bool repair_folds = true;
+    // When to stop (docs/algorithms/rofi.md, "Stopping"); kWhiteResidual makes `iterations`
+    // the maximum.
+    RofiStop stop = RofiStop::kNone;
+    // Called after every iteration k = 1, 2, … with the vertices (before the fold repair) and
+    // the residual's measures (RofiProgress); for measurements (bench/). Empty = none.
+    std::function<void(int iteration, const Vertices& V, const RofiProgress& progress)> observer;
     int threads = 1;            // std::threads; results do not depend on it; ≥ 1
     // Instruction set of the vector kernels; results do not depend on it (simd_exp.h).
     // kAvx2 / kAvx512 need a CPU with AVX2 / AVX-512.
@@ -60,7 +89,12 @@ struct RofiParams {
 
 // Parameters chosen from a noise estimate (docs/algorithms/rofi.md says how and shows the
 // measurements behind it). `similarity` and `threads` are left at their defaults.
+// Since session 9 it stops by RofiStop::kWhiteResidual, with `iterations` the maximum.
 [[nodiscard]] RofiParams auto_rofi_params(const NoiseEstimate& noise);
+
+// The automatic rule of session 8 (fixed p = 30, no stop): kept for comparison (tests,
+// bench/rofi_autostop).
+[[nodiscard]] RofiParams fixed_p_rofi_params(const NoiseEstimate& noise);
 
 // The automatic rule with the paper's disk (r = 2 c_a, σ_c = c_a; σ_s = clamp(1.7 θ, 0.1, 1),
 // p = 80, λ_I as auto_rofi_params): the automatic rule before session 8. `--method bilateral`

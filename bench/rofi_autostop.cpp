@@ -1,0 +1,374 @@
+// RoFi's automatic rule with its discrepancy stop against an oracle (docs/algorithms/rofi.md,
+// "Stopping"). Usage:
+//   rofi_autostop [--full] [--no-oracle] [--noise] [--curves FILE] [--bunny OBJ] [--meshes DIR]
+// The family (clean geometry known, noise added here): a sphere with fine relief, a
+// super-ellipsoid (rounded cube), VTK's random hills, the Stanford bunny (Loop-subdivided
+// once; `--bunny`, written by scripts/mesh_family.sh, skipped if absent), each with Gaussian
+// noise of level × l_e along the vertex normals ("n") and per coordinate ("c"); plus the shared
+// pairs of ../shared/meshes. Default: level 0.3, both models, seed 1 (about 2 minutes on an
+// idle core); --full: levels 0.1, 0.3, 0.5 and seeds 1, 2.
+// For each mesh: the oracle (the best MSAE over a grid of (σ_s, λ_I, p, r, σ_c), p read off
+// every run at the iterations listed in kEval), the automatic rule (its chosen p and time),
+// the session-8 rule (p = 30, no stop), the bilateral filter (automatic and its own oracle
+// over σ_s and p) and ENVT (automatic). MSAE in degrees; "cr" = flips created (flipped in the
+// output, not in the input). The cost table times the rule with its stop against the same
+// parameters and the same p without it (CPU s, one thread, min of 3).
+// --curves FILE writes every run's (k, δ_k / l_e, MSAE_k, created_k) as TSV, for the analysis.
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <vtkCellArray.h>
+#include <vtkCleanPolyData.h>
+#include <vtkIdList.h>
+#include <vtkLoopSubdivisionFilter.h>
+#include <vtkNew.h>
+#include <vtkParametricFunctionSource.h>
+#include <vtkParametricRandomHills.h>
+#include <vtkPoints.h>
+#include <vtkPolyData.h>
+#include <vtkTriangleFilter.h>
+
+#include "mesh/mesh_fixtures.h"
+#include "octshape/io/mesh_io.h"
+#include "octshape/mesh/envt.h"
+#include "octshape/mesh/folds.h"
+#include "octshape/mesh/metrics.h"
+#include "octshape/mesh/rofi.h"
+
+namespace {
+
+namespace mesh = octshape::mesh;
+namespace test = octshape::test;
+
+constexpr int kMaxIterations = 80;
+
+bool evaluated(int k) { return k <= 20 || k % 5 == 0; }
+
+struct Case {
+    std::string name;
+    mesh::Vertices clean;
+    mesh::Vertices noisy;
+    mesh::Faces F;
+};
+
+mesh::Vertices to_vertices(vtkPolyData* pd) {
+    mesh::Vertices V(pd->GetNumberOfPoints(), 3);
+    for (vtkIdType i = 0; i < pd->GetNumberOfPoints(); ++i) {
+        double p[3];
+        pd->GetPoint(i, p);
+        V.row(i) << p[0], p[1], p[2];
+    }
+    return V;
+}
+
+mesh::Faces to_faces(vtkPolyData* pd) {
+    mesh::Faces F(pd->GetNumberOfPolys(), 3);
+    vtkNew<vtkIdList> ids;
+    vtkCellArray* polys = pd->GetPolys();
+    polys->InitTraversal();
+    Eigen::Index f = 0;
+    while (polys->GetNextCell(ids) != 0) {
+        if (ids->GetNumberOfIds() != 3) continue;
+        F.row(f++) << static_cast<int>(ids->GetId(0)), static_cast<int>(ids->GetId(1)),
+            static_cast<int>(ids->GetId(2));
+    }
+    F.conservativeResize(f, 3);
+    return F;
+}
+
+test::TestMesh random_hills() {
+    vtkNew<vtkParametricRandomHills> hills;
+    hills->AllowRandomGenerationOn();
+    hills->SetRandomSeed(3);
+    hills->SetNumberOfHills(40);
+    vtkNew<vtkParametricFunctionSource> source;
+    source->SetParametricFunction(hills);
+    source->SetUResolution(80);
+    source->SetVResolution(80);
+    source->SetScalarModeToNone();
+    source->GenerateTextureCoordinatesOff();
+    source->GenerateNormalsOff();
+    vtkNew<vtkTriangleFilter> tri;
+    tri->SetInputConnection(source->GetOutputPort());
+    tri->Update();
+    return {"random_hills", to_vertices(tri->GetOutput()), to_faces(tri->GetOutput())};
+}
+
+test::TestMesh bunny(const std::filesystem::path& obj) {
+    const auto data = octshape::io::read_mesh(obj);
+    vtkNew<vtkPoints> points;
+    for (Eigen::Index i = 0; i < data.V.rows(); ++i) {
+        points->InsertNextPoint(data.V(i, 0), data.V(i, 1), data.V(i, 2));
+    }
+    vtkNew<vtkCellArray> cells;
+    for (Eigen::Index f = 0; f < data.F.rows(); ++f) {
+        const vtkIdType ids[3] = {data.F(f, 0), data.F(f, 1), data.F(f, 2)};
+        cells->InsertNextCell(3, ids);
+    }
+    vtkNew<vtkPolyData> pd;
+    pd->SetPoints(points);
+    pd->SetPolys(cells);
+    vtkNew<vtkCleanPolyData> clean;
+    clean->SetInputData(pd);
+    vtkNew<vtkLoopSubdivisionFilter> loop;
+    loop->SetInputConnection(clean->GetOutputPort());
+    loop->SetNumberOfSubdivisions(1);
+    loop->Update();
+    return {"bunny", to_vertices(loop->GetOutput()), to_faces(loop->GetOutput())};
+}
+
+double cpu_seconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
+
+struct Point {
+    int k = 0;
+    double delta = 0;  // δ_k / l_e
+    double whiteness = 0;  // W_k
+    double msae = 0;
+    int created = 0;
+};
+
+struct Config {
+    std::string label;
+    mesh::RofiParams params;
+};
+
+struct Best {
+    double msae = std::numeric_limits<double>::infinity();
+    int created = 0;
+    std::string where;
+};
+
+// One run of `params` up to kMaxIterations, MSAE and created flips (after the fold repair, as
+// rofi_denoise returns them) at every evaluated k.
+std::vector<Point> curve(const Case& c, mesh::RofiParams params, double le,
+                         const std::vector<std::uint8_t>& fixed) {
+    std::vector<Point> out;
+    params.iterations = kMaxIterations;
+    params.stop = mesh::RofiStop::kNone;
+    params.observer = [&](int k, const mesh::Vertices& V, const mesh::RofiProgress& progress) {
+        if (!evaluated(k)) return;
+        mesh::Vertices W = V;
+        (void)mesh::repair_folds(W, c.F, fixed);
+        out.push_back({k, progress.displacement / le, progress.whiteness,
+                       mesh::mean_angle_error_deg(W, c.F, c.clean, c.F),
+                       mesh::flip_transitions(W, c.noisy, c.clean, c.F).created});
+    };
+    (void)mesh::rofi_denoise(c.noisy, c.F, params);
+    return out;
+}
+
+std::string fmt(const char* f, double a, double b, double c2, double d, double e) {
+    char buf[96];
+    std::snprintf(buf, sizeof buf, f, a, b, c2, d, e);
+    return buf;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    bool full = false;
+    bool no_oracle = false;   // --no-oracle: the automatic rules only (no grid)
+    bool noise_only = false;  // --noise: the noise estimates of every case, nothing else
+    std::string curves_path;
+    std::filesystem::path bunny_obj = "build/mesh_family/bunny.obj";
+    std::filesystem::path meshes = OCTSHAPE_SHARED_MESHES;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "--full") {
+            full = true;
+        } else if (a == "--no-oracle") {
+            no_oracle = true;
+        } else if (a == "--noise") {
+            noise_only = true;
+        } else if (a == "--curves" && i + 1 < argc) {
+            curves_path = argv[++i];
+        } else if (a == "--bunny" && i + 1 < argc) {
+            bunny_obj = argv[++i];
+        } else if (a == "--meshes" && i + 1 < argc) {
+            meshes = argv[++i];
+        } else {
+            std::fprintf(stderr, "usage: rofi_autostop [--full] [--no-oracle] [--noise] [--curves FILE] [--bunny OBJ] "
+                                 "[--meshes DIR]\n");
+            return 2;
+        }
+    }
+    std::vector<test::TestMesh> shapes = {test::relief_sphere(5), test::superellipsoid(5),
+                                          random_hills()};
+    if (std::filesystem::exists(bunny_obj)) {
+        shapes.push_back(bunny(bunny_obj));
+    } else {
+        std::printf("(no %s: run scripts/mesh_family.sh for the bunny)\n", bunny_obj.c_str());
+    }
+    const std::vector<double> levels = full ? std::vector<double>{0.1, 0.3, 0.5}
+                                            : std::vector<double>{0.3};
+    const std::vector<std::uint32_t> seeds = full ? std::vector<std::uint32_t>{1, 2}
+                                                  : std::vector<std::uint32_t>{1};
+    // The shared pairs first, then the family seed by seed (a partial run still covers every
+    // shape and level).
+    std::vector<Case> cases;
+    for (const char* pair : {"Fandisk0.3", "Block0.4", "Twelve0.5Impulsive", "SharpSphere0.3"}) {
+        const auto dir = meshes / pair;
+        if (!std::filesystem::exists(dir / "Noisy.obj")) continue;
+        const auto o = octshape::io::read_mesh(dir / "Original.obj");
+        const auto n = octshape::io::read_mesh(dir / "Noisy.obj");
+        cases.push_back({pair, o.V, n.V, n.F});
+    }
+    for (const auto seed : seeds) {
+        for (const auto& s : shapes) {
+            const double le = mesh::mean_edge_length(s.V, s.F);
+            for (const double level : levels) {
+                for (const char model : {'n', 'c'}) {
+                    const test::TestMesh noisy =
+                        model == 'n' ? test::with_normal_noise(s, level * le, seed)
+                                     : test::with_noise(s, level * le, seed);
+                    char name[96];
+                    std::snprintf(name, sizeof name, "%s %.1f%c s%u", s.name.c_str(), level,
+                                  model, seed);
+                    cases.push_back({name, s.V, noisy.V, s.F});
+                }
+            }
+        }
+    }
+
+    std::ofstream curves;
+    if (!curves_path.empty()) {
+        curves.open(curves_path);
+        curves << "mesh\tconfig\tsigma_s\tlambda_i\tr\tsigma_c\tk\tdelta_le\twhiteness\tmsae\t"
+                  "created\n";
+    }
+    std::printf("%-26s %7s %6s %6s | %4s %7s %4s | %7s %4s %-22s | %7s %4s | %7s %4s %7s "
+                "%4s | %7s %4s | %7s\n",
+                "mesh", "faces", "sig^n", "theta", "p", "auto", "cr", "oracle", "cr",
+                "(s_s, l_I, p, r, s_c)", "today", "cr", "bil.au", "cr", "bil.or", "cr", "envt",
+                "cr", "in.flip");
+    struct Cost {
+        std::string name;
+        int faces, p;
+        double with_stop, without;
+    };
+    std::vector<Cost> costs;
+    for (const Case& c : cases) {
+        const mesh::NoiseEstimate noise = mesh::estimate_noise(c.noisy, c.F);
+        if (noise_only) {
+            std::printf("%-26s %7d %6.3f %6.2f\n", c.name.c_str(),
+                        static_cast<int>(c.F.rows()), noise.noise_sigma, noise.normal_angle_deg);
+            continue;
+        }
+        const double le = noise.mean_edge_length;
+        const mesh::Adjacency adj = mesh::build_adjacency(c.F, static_cast<int>(c.noisy.rows()));
+        const std::vector<std::uint8_t>& fixed = adj.boundary_vertex;
+        std::vector<Config> grid;
+        for (const double ss : {0.3, 0.5, 0.7, 0.9, 1.2}) {
+            for (const double li : {0.05, 0.2}) {
+                for (const double sc : {1.0, 1.5, 2.0}) {
+                    mesh::RofiParams p;
+                    p.sigma_s = ss;
+                    p.lambda_i = li;
+                    p.sigma_c_factor = sc;
+                    p.radius_factor = 2.0 * sc;
+                    grid.push_back({"grid", p});
+                }
+            }
+        }
+        grid.push_back({"today", mesh::fixed_p_rofi_params(noise)});
+        grid.push_back({"paper_auto", mesh::paper_disk_rofi_params(noise)});
+        std::vector<Config> bil;
+        for (const double ss : {0.15, 0.25, 0.35, 0.5}) {
+            mesh::RofiParams p;
+            p.similarity = mesh::Similarity::kGaussian;
+            p.sigma_s = ss;
+            p.lambda_i = 0.0;
+            bil.push_back({"bilateral", p});
+        }
+        mesh::RofiParams bil_auto = mesh::paper_disk_rofi_params(noise);
+        bil_auto.similarity = mesh::Similarity::kGaussian;
+        bil_auto.sigma_s /= 2.2;  // as `octshape denoise --method bilateral` (app/commands)
+        bil_auto.lambda_i = 0.0;
+        bil.push_back({"bilateral_auto", bil_auto});
+
+        Best oracle, bil_oracle;
+        const auto scan = [&](const std::vector<Config>& configs, Best& best) {
+            for (const Config& cfg : configs) {
+                const auto pts = curve(c, cfg.params, le, fixed);
+                for (const Point& q : pts) {
+                    if (curves.is_open()) {
+                        curves << c.name << '\t' << cfg.label << '\t' << cfg.params.sigma_s
+                               << '\t' << cfg.params.lambda_i << '\t'
+                               << cfg.params.radius_factor << '\t' << cfg.params.sigma_c_factor
+                               << '\t' << q.k << '\t' << q.delta << '\t' << q.whiteness << '\t' << q.msae << '\t'
+                               << q.created << '\n';
+                    }
+                    if (cfg.label != "grid" && cfg.label != "bilateral") continue;
+                    if (q.msae < best.msae) {
+                        best.msae = q.msae;
+                        best.created = q.created;
+                        best.where = fmt("(%.2g, %.2g, %.0f, %.0f, %.1f)", cfg.params.sigma_s,
+                                         cfg.params.lambda_i, q.k, cfg.params.radius_factor,
+                                         cfg.params.sigma_c_factor);
+                    }
+                }
+            }
+        };
+        if (!no_oracle) {
+            scan(grid, oracle);
+            scan(bil, bil_oracle);
+        }
+
+        const auto run = [&](const mesh::RofiParams& p, double* seconds) {
+            mesh::DenoiseResult r;
+            double best_t = std::numeric_limits<double>::infinity();
+            for (int rep = 0; rep < (seconds != nullptr ? 3 : 1); ++rep) {
+                const double t0 = cpu_seconds();
+                r = mesh::rofi_denoise(c.noisy, c.F, p);
+                best_t = std::min(best_t, cpu_seconds() - t0);
+            }
+            if (seconds != nullptr) *seconds = best_t;
+            return r;
+        };
+        double t_auto = 0, t_plain = 0;
+        const mesh::RofiParams ap = mesh::auto_rofi_params(noise);
+        const mesh::DenoiseResult ar = run(ap, &t_auto);
+        mesh::RofiParams plain = ap;
+        plain.stop = mesh::RofiStop::kNone;
+        plain.iterations = ar.iterations;
+        (void)run(plain, &t_plain);
+        costs.push_back({c.name, static_cast<int>(c.F.rows()), ar.iterations, t_auto, t_plain});
+        const mesh::DenoiseResult tr = run(mesh::fixed_p_rofi_params(noise), nullptr);
+        const mesh::DenoiseResult br = run(bil_auto, nullptr);
+        const mesh::DenoiseResult er =
+            mesh::envt_denoise(c.noisy, c.F, mesh::auto_envt_params(noise));
+        const auto score = [&](const mesh::Vertices& V) {
+            return std::pair{mesh::mean_angle_error_deg(V, c.F, c.clean, c.F),
+                             mesh::flip_transitions(V, c.noisy, c.clean, c.F).created};
+        };
+        const auto [am, ac] = score(ar.V);
+        const auto [tm, tc] = score(tr.V);
+        const auto [bm, bc] = score(br.V);
+        const auto [em, ec] = score(er.V);
+        const int input_flips = mesh::flipped_faces(c.noisy, c.F, c.clean, c.F);
+        std::printf("%-26s %7d %6.3f %6.2f | %4d %7.3f %4d | %7.3f %4d %-22s | %7.3f %4d | "
+                    "%7.3f %4d %7.3f %4d | %7.3f %4d | %7d\n",
+                    c.name.c_str(), static_cast<int>(c.F.rows()), noise.noise_sigma,
+                    noise.normal_angle_deg, ar.iterations, am, ac, oracle.msae, oracle.created,
+                    oracle.where.c_str(), tm, tc, bm, bc, bil_oracle.msae, bil_oracle.created,
+                    em, ec, input_flips);
+        std::fflush(stdout);
+    }
+    std::printf("\nCost of the stopping test (CPU s, one thread, min of 3): the automatic rule "
+                "with its stop against the same parameters run for the same p without it\n");
+    std::printf("%-26s %7s %4s %9s %9s %6s\n", "mesh", "faces", "p", "stop s", "no-stop s",
+                "ratio");
+    for (const Cost& k : costs) {
+        std::printf("%-26s %7d %4d %9.4f %9.4f %6.3f\n", k.name.c_str(), k.faces, k.p,
+                    k.with_stop, k.without, k.with_stop / k.without);
+    }
+    return 0;
+}
