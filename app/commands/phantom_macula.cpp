@@ -67,7 +67,7 @@ void add_phantom_macula_command(CLI::App& parent, RunContext& /*ctx*/) {
     CLI::App* cmd = parent.add_subcommand(
         "macula",
         "Spectralis-style macula export (.vol) plus FILE.truth.json with the true CuBe "
-        "parameters (SPEC §4) computed from the generating surface");
+        "parameters (docs/algorithms/cube.md) computed from the generating surface");
     auto& p = opts->params;
     cmd->add_option("-o,--output", opts->output, "Output FILE.vol (FILE.truth.json beside it)")
         ->required();

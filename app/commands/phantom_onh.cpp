@@ -101,7 +101,7 @@ void add_phantom_onh_command(CLI::App& phantom, RunContext& /*ctx*/) {
         "onh",
         "Optic nerve head volume (Spectralis HSF-OCT-103, ScanPattern 3) with a curved BM, an "
         "elliptical BMO and a cupped, swollen or overhanging ILM; writes FILE.vol and "
-        "FILE.truth.json (true SPEC §5 parameters, docs/phantoms.md)");
+        "FILE.truth.json (the true ONH parameters, docs/phantoms.md)");
     cmd->add_option("-o,--output", st->output, "Output .vol file")->required();
     cmd->add_option("--truth", st->truth_path, "Truth JSON (default: FILE.truth.json)");
     cmd->add_option("--shape", st->shape, "ILM shape")

@@ -165,7 +165,7 @@ void summarise_macula(CubeResult& res, const CubeParams& params) {
     }
     if (res.line_scan) {
         res.notes.push_back(
-            "line scan: 2-D parameters only (SPEC §4.8); the 3-D parameters "
+            "line scan: 2-D parameters only (docs/algorithms/cube.md); the 3-D parameters "
             "(disks, volumes) are omitted");
     }
 }

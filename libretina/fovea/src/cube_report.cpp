@@ -89,7 +89,7 @@ void disk_json(J& v, const std::string& diameter, const std::string& prefix, con
 
 J cube_json(const CubeResult& r, const CubeParams& p) {
     J j;
-    j["analysis"] = r.line_scan ? "line scan (2-D, SPEC 4.8)" : "volume (3-D)";
+    j["analysis"] = r.line_scan ? "line scan (2-D, docs/algorithms/cube.md)" : "volume (3-D)";
     j["orientation"] =
         "angles anatomical: 0 deg nasal, 90 deg superior, for both eyes; positions and disk "
         "points in grid mm (x along a B-scan = A-scan index * ScaleX, y across B-scans = "

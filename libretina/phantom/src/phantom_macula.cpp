@@ -906,7 +906,7 @@ nlohmann::ordered_json macula_truth_json(const MaculaTruth& t,
     a["inner_radius_mm"] = o.inner_radius_mm;
     j["analysis_options"] = a;
     if (t.line_scan) {
-        j["note"] = "line scan: 2-D parameters only (SPEC §4.8); the 3-D ones are omitted";
+        j["note"] = "line scan: 2-D parameters only (docs/algorithms/cube.md); the 3-D ones are omitted";
     }
     J v;
     v["centre_x_mm"] = t.centre_x_mm;
