@@ -8,3 +8,7 @@ set_tests_properties(Icp.RecoversKnownRotations MeanShape.RigidCopiesGiveTheOrig
   MeanShape.CommandWritesMeanWithSdAndReportsIcpResiduals PROPERTIES LABELS slow)
 # Ten denoisings of the 6345-point noisy cube (tests/mesh/pointset_test.cpp), ~2.5 s Release.
 set_tests_properties(PointSet.CubeEdgesOverSeedsShiftedAgainstPcaNormals PROPERTIES LABELS slow)
+# The automatic RoFi stop on the 20,480-face relief sphere at three noise levels, each beside
+# an inline oracle over p and the fixed-p rule (tests/mesh/rofi_test.cpp): ~5 s Release idle.
+set_tests_properties(RofiAutoStop.DetailRichSurfaceStopsNearTheBestIterationAndMoreNoiseRunsLonger
+  PROPERTIES LABELS slow)
