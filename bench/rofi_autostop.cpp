@@ -357,12 +357,17 @@ int main(int argc, char** argv) {
         const auto [bm, bc] = score(br.V);
         const auto [em, ec] = score(er.V);
         const int input_flips = mesh::flipped_faces(c.noisy, c.F, c.clean, c.F);
-        std::printf("%-26s %7d %6.3f %6.2f | %4d %7.3f %4d | %7.3f %4d %-22s | %7.3f %4d | "
-                    "%7.3f %4d %7.3f %4d | %7.3f %4d | %7d\n",
+        // Without the grid (--no-oracle) the oracle columns print as "-".
+        char orc[64] = "      -    -", bor[32] = "      -    -";
+        if (!no_oracle) {
+            std::snprintf(orc, sizeof orc, "%7.3f %4d", oracle.msae, oracle.created);
+            std::snprintf(bor, sizeof bor, "%7.3f %4d", bil_oracle.msae, bil_oracle.created);
+        }
+        std::printf("%-26s %7d %6.3f %6.2f | %4d %7.3f %4d | %s %-22s | %7.3f %4d | "
+                    "%7.3f %4d %s | %7.3f %4d | %7d\n",
                     c.name.c_str(), static_cast<int>(c.F.rows()), noise.noise_sigma,
-                    noise.normal_angle_deg, ar.iterations, am, ac, oracle.msae, oracle.created,
-                    oracle.where.c_str(), tm, tc, bm, bc, bil_oracle.msae, bil_oracle.created,
-                    em, ec, input_flips);
+                    noise.normal_angle_deg, ar.iterations, am, ac, orc, oracle.where.c_str(), tm,
+                    tc, bm, bc, bor, em, ec, input_flips);
         std::fflush(stdout);
     }
     std::printf("\nCost of the stopping test (CPU s, one thread, min of 5 interleaved): the automatic rule "
