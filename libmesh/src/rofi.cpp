@@ -521,7 +521,8 @@ RofiProgress residual_progress(const Vertices& V, const Vertices& V0,
             double d = 0.0;
             for (int c = 0; c < 3; ++c) d += s[c] * (V0(i, c) - V(i, c));
             r[static_cast<std::size_t>(i)] = d / norm;
-            terms[3 * static_cast<std::size_t>(i)] = feature ? 2.0 : 1.0;  // counted in δ
+            // Counted in δ; 1 = a candidate for W's sums, 2 = on a feature (not in W).
+            terms[3 * static_cast<std::size_t>(i)] = feature ? 2.0 : 1.0;
         }
     });
     detail::parallel_for(n, threads, [&](int begin, int end) {
@@ -536,6 +537,7 @@ RofiProgress residual_progress(const Vertices& V, const Vertices& V0,
                 mean += r[static_cast<std::size_t>(adjacency.vertex_vertices.item(p))];
             }
             const double l = r[si] - mean / k;
+            terms[3 * si] = 3.0;  // in W's sums
             terms[3 * si + 1] = l * l / (1.0 + 1.0 / k);
             terms[3 * si + 2] = r[si] * r[si];
         }
@@ -546,7 +548,7 @@ RofiProgress residual_progress(const Vertices& V, const Vertices& V0,
         if (terms[3 * i] == 0.0) continue;
         sum += r[i] * r[i];
         ++count;
-        if (terms[3 * i + 2] == 0.0 && terms[3 * i + 1] == 0.0) continue;
+        if (terms[3 * i] != 3.0) continue;
         num += terms[3 * i + 1];
         den += terms[3 * i + 2];
         ++tested;

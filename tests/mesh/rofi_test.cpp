@@ -14,6 +14,7 @@
 
 #include "mesh/mesh_fixtures.h"
 #include "octshape/mesh/metrics.h"
+#include "slow_test.h"
 
 namespace octshape::test {
 namespace {
@@ -537,7 +538,8 @@ ReliefRun relief_run(double level) {
     return {r.iterations, msae(r.V), msae(fixed.V), best};
 }
 
-TEST(RofiAutoStop, DetailRichSurfaceStopsNearTheBestIterationAndMoreNoiseRunsLonger) {
+// Slow: the 20,480-face relief sphere at three noise levels beside an inline oracle (~5 s).
+SLOW_TEST(RofiAutoStop, DetailRichSurfaceStopsNearTheBestIterationAndMoreNoiseRunsLonger) {
     // 20,480 faces, three runs of ≤ 30 iterations per level: a few seconds in Release.
     const ReliefRun low = relief_run(0.05);
     const ReliefRun mid = relief_run(0.1);
