@@ -7,8 +7,8 @@
 # stop; the re-run, during which the node fails and comes back (its two jobs requeued by Slurm,
 # not resubmitted by Snakemake), must finish the cohort with the cohort's tables.
 #
-# Needs root (it starts munged, slurmctld and slurmd without systemd, on 127.0.0.1 and ports
-# 16817/16818, everything under one temporary folder): skips (exit 77) otherwise. Installs the
+# Needs root (it starts munged, slurmctld and slurmd without systemd, on 127.0.0.1 and two free
+# ports, everything under one temporary folder): skips (exit 77) otherwise. Installs the
 # Debian packages slurmctld, slurmd, slurm-client and munge if missing. Every daemon it starts is
 # stopped by its PID on exit.
 #
@@ -82,11 +82,17 @@ for _ in $(seq 100); do [ -S "$T/munge/munge.socket" ] && break; sleep 0.05; don
 [ -S "$T/munge/munge.socket" ] || { cat "$T/munged.out"; echo "munged did not start"; exit 1; }
 
 NODE=$(slurmd -C | head -n 1 | sed 's/ UpTime=[^ ]*//')
+# Two free loopback ports (another run of this test may hold others at the same time).
+read -r CTLD_PORT SLURMD_PORT < <(python3 -c '
+import socket
+s = [socket.socket() for _ in range(2)]
+for x in s: x.bind(("127.0.0.1", 0))
+print(*[x.getsockname()[1] for x in s])')
 cat >"$T/slurm.conf" <<EOF
 ClusterName=octshapetest
 SlurmctldHost=$(hostname -s)(127.0.0.1)
-SlurmctldPort=16817
-SlurmdPort=16818
+SlurmctldPort=$CTLD_PORT
+SlurmdPort=$SLURMD_PORT
 AuthType=auth/munge
 AuthInfo=socket=$T/munge/munge.socket
 CredType=cred/munge

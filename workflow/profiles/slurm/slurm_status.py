@@ -18,9 +18,11 @@ FAILED = {"FAILED", "CANCELLED", "TIMEOUT", "OUT_OF_MEMORY", "NODE_FAIL", "PREEM
 
 
 def ask(cmd):
+    """The command's output; "" when it fails or takes over 15 s (an unreachable controller:
+    scontrol retries for a while), which reads as no answer, i.e. running."""
     try:
         r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                           timeout=30, check=False)
+                           timeout=15, check=False)
     except (OSError, subprocess.TimeoutExpired):
         return ""
     return r.stdout.decode("utf-8", "replace") if r.returncode == 0 else ""
