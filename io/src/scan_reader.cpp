@@ -8,6 +8,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <vector>
 
 #include "octshape/error.h"
 #include "octshape/io/heyex_xml.h"
@@ -52,9 +53,9 @@ struct FileVersion {
     timespec ctime{};
 
     [[nodiscard]] bool operator==(const FileVersion& o) const {
-        return dev == o.dev && ino == o.ino && size == o.size &&
-               mtime.tv_sec == o.mtime.tv_sec && mtime.tv_nsec == o.mtime.tv_nsec &&
-               ctime.tv_sec == o.ctime.tv_sec && ctime.tv_nsec == o.ctime.tv_nsec;
+        return dev == o.dev && ino == o.ino && size == o.size && mtime.tv_sec == o.mtime.tv_sec &&
+               mtime.tv_nsec == o.mtime.tv_nsec && ctime.tv_sec == o.ctime.tv_sec &&
+               ctime.tv_nsec == o.ctime.tv_nsec;
     }
 };
 
@@ -106,8 +107,9 @@ Scan read_scan(const std::string& path, const ReadOptions& options) {
     std::array<char, 16> head{};
     in.read(head.data(), head.size());
     throw InputError::unsupported(
-        path, "not a Spectralis .vol or Heidelberg XML export (starts with \"" +
-                  describe_head(head.data(), static_cast<std::size_t>(in.gcount())) + "\")",
+        path,
+        "not a Spectralis .vol or Heidelberg XML export (starts with \"" +
+            describe_head(head.data(), static_cast<std::size_t>(in.gcount())) + "\")",
         0);
 }
 
@@ -120,11 +122,34 @@ HashedScan read_scan_hashed(const std::string& path, const ReadOptions& options)
     (void)detect_format(path);  // missing, not regular, empty: the usual errors first
     const FileVersion before = file_version(path);
     HashedScan out;
-    out.sha256 = sha256_file(path);
+    // The hash of exactly `before.size` bytes: a file cut while it is hashed hashes fewer, and
+    // the timestamps alone may not move (they tick at the kernel's clock granularity).
+    {
+        std::ifstream in(path, std::ios::binary);
+        if (!in) throw InputError::unreadable(path, "cannot open");
+        Sha256 hash;
+        std::vector<char> chunk(std::size_t{1} << 20U);
+        std::uint64_t hashed = 0;
+        while (in) {
+            in.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
+            const auto got = static_cast<std::size_t>(in.gcount());
+            if (got == 0) break;
+            hash.update(chunk.data(), got);
+            hashed += got;
+        }
+        if (in.bad()) throw InputError::unreadable(path, "read error");
+        if (hashed != static_cast<std::uint64_t>(before.size)) {
+            throw InputError::corrupt(path,
+                                      "the file changed while it was being read (read it "
+                                      "again once whatever writes it has finished)");
+        }
+        out.sha256 = hash.hex();
+    }
     out.scan = read_scan(path, options);
     if (!(file_version(path) == before)) {
-        throw InputError::corrupt(path, "the file changed while it was being read (read it again "
-                                        "once whatever writes it has finished)");
+        throw InputError::corrupt(path,
+                                  "the file changed while it was being read (read it again "
+                                  "once whatever writes it has finished)");
     }
     return out;
 }

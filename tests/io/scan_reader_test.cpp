@@ -1,17 +1,22 @@
-// read_scan_hashed: one reading of the file gives both the scan and its SHA-256. Both must be
-// exactly what the separate readers give (read_scan, sha256_file), on real and synthetic files,
-// and a damaged file must fail with the same InputError as read_scan.
+// read_scan_hashed: the scan and the SHA-256 of the same bytes. Both must be exactly what the
+// separate readers give (read_scan, sha256_file), on real and synthetic files; a damaged file
+// must fail with the same InputError as read_scan, and a file that changes while it is read
+// (truncated, rewritten) must give a typed error, never a signal or a result under a wrong hash.
+
+#include "octshape/io/scan_reader.h"
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
 
 #include "io/vol_test_util.h"
 #include "octshape/error.h"
-#include "octshape/io/scan_reader.h"
 #include "octshape/io/sha256.h"
 #include "test_paths.h"
 
@@ -71,9 +76,12 @@ TEST(ReadScanHashed, FilesLargerThanTheReleaseChunkReadExactly) {
     // read. A ~26 MiB volume crosses several chunk boundaries in both passes: hash and scan
     // must still be exactly those of the separate readers.
     TempDir tmp;
-    const std::string bytes = write_to_string(make_synthetic_scan(
-        {.num_bscans = 40, .size_x = 320, .size_z = 512, .num_lines = 3, .slo_x = 64,
-         .slo_y = 64}));
+    const std::string bytes = write_to_string(make_synthetic_scan({.num_bscans = 40,
+                                                                   .size_x = 320,
+                                                                   .size_z = 512,
+                                                                   .num_lines = 3,
+                                                                   .slo_x = 64,
+                                                                   .slo_y = 64}));
     ASSERT_GT(bytes.size(), std::size_t{3} * (std::size_t{8} << 20U));
     const std::string path = (tmp.path() / "large.vol").string();
     std::ofstream(path, std::ios::binary) << bytes;
@@ -111,6 +119,57 @@ TEST(ReadScanHashed, TruncatedAndMissingFilesFailAsReadScanDoes) {
         }
     }
     EXPECT_THROW((void)io::read_scan_hashed((tmp.path() / "absent.vol").string()), InputError);
+}
+
+TEST(ReadScanHashed, AFileTruncatedOrRewrittenWhileReadGivesATypedErrorOrTheRightHash) {
+    // A writer thread truncates the file and writes it back whole, again and again, while the
+    // main thread reads it: every read must either succeed with the hash of the whole file (it
+    // saw one version from start to end) or throw InputError (truncated, or "changed while it
+    // was being read"). A memory mapping would die of SIGBUS here; two threads read at once too.
+    TempDir tmp;
+    const std::string bytes = write_to_string(make_synthetic_scan({.num_bscans = 20,
+                                                                   .size_x = 256,
+                                                                   .size_z = 256,
+                                                                   .num_lines = 3,
+                                                                   .slo_x = 64,
+                                                                   .slo_y = 64}));
+    const std::string path = (tmp.path() / "moving.vol").string();
+    std::ofstream(path, std::ios::binary) << bytes;
+    const std::string whole_sha = io::sha256_hex(bytes);
+    std::atomic<bool> stop{false};
+    std::thread writer([&] {
+        while (!stop.load()) {
+            std::filesystem::resize_file(path, bytes.size() / 3);
+            std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+        }
+    });
+    std::atomic<int> ok{0};
+    std::atomic<int> refused{0};
+    std::atomic<int> wrong{0};
+    const auto reader = [&] {
+        for (int i = 0; i < 40; ++i) {
+            try {
+                const io::HashedScan h = io::read_scan_hashed(path, {.pixels = true});
+                if (h.sha256 == whole_sha && h.scan.num_bscans() == 20) {
+                    ++ok;
+                } else {
+                    ++wrong;
+                }
+            } catch (const InputError&) {
+                ++refused;
+            }
+        }
+    };
+    std::thread second(reader);
+    reader();
+    second.join();
+    stop = true;
+    writer.join();
+    EXPECT_EQ(wrong.load(), 0);  // never a result under another version's hash
+    EXPECT_EQ(ok.load() + refused.load(), 80);
+    // And once the file is still, it reads as always.
+    const io::HashedScan h = io::read_scan_hashed(path);
+    EXPECT_EQ(h.sha256, whole_sha);
 }
 
 }  // namespace
