@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <string>
+#include <vector>
+
 #include "octshape/version.h"
 #include "test_paths.h"
 
@@ -37,10 +40,10 @@ TEST(Cli, EveryBadOptionValueIsTheSameUsageError) {
     // code 105; a number that does not parse: 106; an unknown option: 109) and octshape's own
     // checks (UsageError) all exit 64 with a message naming the option.
     const std::string scan = std::string(OCTSHAPE_SOURCE_DIR) + "/sample_scans/macula_line_od.vol";
-    for (const std::string args :
-         {"denoise in.ply -o out.ply --method nonsense", "denoise in.ply -o out.ply -p abc",
-          "denoise in.ply -o out.ply --no-such-option", "macula " + scan + " --rim nowhere",
-          "macula " + scan + " --half-lines 5"}) {
+    for (const std::string& args : std::vector<std::string>{
+             "denoise in.ply -o out.ply --method nonsense", "denoise in.ply -o out.ply -p abc",
+             "denoise in.ply -o out.ply --no-such-option", "macula " + scan + " --rim nowhere",
+             "macula " + scan + " --half-lines 5"}) {
         const RunResult r = run_octshape(args);
         EXPECT_EQ(r.exit_code, 64) << args << "\n" << r.err;
         EXPECT_FALSE(r.err.empty()) << args;

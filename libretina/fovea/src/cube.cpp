@@ -5,11 +5,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 #include <string>
 
 #include "cube_stages.h"
 #include "octshape/error.h"
 #include "octshape/retina/scan_geometry.h"
+#include "octshape/retina/scan_limits.h"
 
 namespace octshape::retina {
 using namespace cube_detail;
@@ -45,6 +47,8 @@ bool check_macula_scan(const io::Scan& scan) {
     if (!(scan.meta.scale_x_mm > 0.0) || !(scan.meta.scale_z_mm > 0.0)) {
         throw AnalysisError("the scan's ScaleX/ScaleZ are not positive");
     }
+    // Before anything is allocated from them (samples per half-line, kernel widths).
+    check_scan_scales(scan, !line_scan);
     return line_scan;
 }
 
@@ -102,6 +106,18 @@ void final_fit(RadialSamples& s, const CftPass& cft, const CubeParams& params, d
     }
 }
 
+void check_macula_field(const ThicknessMap& m, const CubeParams& params, bool line_scan) {
+    const double width = (m.cols - 1) * m.dx_mm;
+    const double height = (m.rows - 1) * m.dy_mm;
+    if (width >= params.radius_mm && (line_scan || height >= params.radius_mm)) return;
+    std::ostringstream s;
+    s.precision(4);
+    s << "the scan's field (" << width << " x " << height
+      << " mm) is smaller than the model's half-lines of " << params.radius_mm
+      << " mm: no half-line can reach the rim (a smaller --radius-mm, or a larger scan)";
+    throw AnalysisError(s.str());
+}
+
 }  // namespace cube_detail
 
 std::string_view to_string(RimPoint r) { return r == RimPoint::kCrest ? "crest" : "maximum"; }
@@ -120,8 +136,11 @@ void CubeParams::validate() const {
         bad("num_half_lines", "must be even and in 4..3600");
     }
     if (!(radius_mm > 0.0) || radius_mm > 10.0) bad("radius_mm", "must be in (0, 10] mm");
-    if (!(sample_spacing_mm >= 0.0) || sample_spacing_mm > radius_mm / 8.0) {
-        bad("sample_spacing_mm", "must be 0 (ScaleX) or in (0, radius/8]");
+    // 0.1 um: 20x finer than any Spectralis A-scan spacing, and at most 1e5 samples per
+    // half-line (R <= 10 mm) before anything is allocated.
+    if (!(sample_spacing_mm >= 0.0) || sample_spacing_mm > radius_mm / 8.0 ||
+        (sample_spacing_mm > 0.0 && sample_spacing_mm < 1e-4)) {
+        bad("sample_spacing_mm", "must be 0 (ScaleX) or in [0.0001 mm, radius/8]");
     }
     if (!(tau_mm > 0.0) || tau_mm > 0.2) bad("tau_mm", "must be in (0, 0.2] mm");
     if (!(inner_radius_mm > 0.0) || inner_radius_mm >= radius_mm) {
@@ -155,6 +174,7 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
     CubeResult res;
     res.line_scan = check_macula_scan(scan);
     res.map = thickness_map(scan);
+    check_macula_field(res.map, params, res.line_scan);
     const double noise_sd_mm = thickness_noise_sd(res.map);
     res.thickness_noise_sd_um = noise_sd_mm * 1e3;
     // 3 SDs: a sample that low below the maximum one is its rival only if the two noises differ
@@ -197,6 +217,7 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
 
     summarise_macula(res, params);
     macula_qc(res, scan, geo, params);
+    check_macula_result(res, scan);
     return res;
 }
 

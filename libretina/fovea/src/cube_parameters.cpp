@@ -3,7 +3,10 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <limits>
+#include <sstream>
 #include <string>
+#include <utility>
 
 #include "cube_stages.h"
 #include "octshape/error.h"
@@ -183,6 +186,60 @@ void macula_qc(CubeResult& res,
     }
     if (scan.meta.laterality == io::Laterality::kUnknown) {
         res.qc_flags.push_back("eye unknown: nasal assumed on SLO +x");
+    }
+    if (res.map.num_outside_image > 0) {
+        res.qc_flags.push_back("segmentation outside the image");
+        res.notes.push_back(std::to_string(res.map.num_outside_image) +
+                            " A-scans with the ILM or BM outside the image: missing");
+    }
+    if (res.map.num_inverted > 0) {
+        res.qc_flags.push_back("ILM below BM");
+        res.notes.push_back(std::to_string(res.map.num_inverted) +
+                            " A-scans with the ILM below the BM: missing");
+    }
+}
+
+void check_macula_result(const CubeResult& res, const io::Scan& scan) {
+    const double depth_mm = scan.meta.size_z > 0 ? scan.meta.size_z * scan.meta.scale_z_mm
+                                                 : std::numeric_limits<double>::infinity();
+    const double width = (res.map.cols - 1) * res.map.dx_mm;
+    const double height = (res.map.rows - 1) * res.map.dy_mm;
+    const double diagonal = std::hypot(width, height);
+    const auto refuse = [](const std::string& what, double v, const std::string& expected) {
+        std::ostringstream s;
+        s.precision(6);
+        s << "impossible result: " << what << " " << v << " (expected " << expected
+          << "): the segmentation does not describe a fovea";
+        throw AnalysisError(s.str());
+    };
+    const auto in_depth = [&](const std::string& what, double v) {
+        if (!(std::isfinite(v) && v > 0.0 && v <= depth_mm)) {
+            refuse(what, v, "in (0, " + std::to_string(depth_mm) + "] mm, the image depth");
+        }
+    };
+    in_depth("CFT", res.cft_mm);
+    in_depth("rim height", res.rim_height_mm);
+    if (!(res.pit_depth_mm >= 0.0)) refuse("pit depth", res.pit_depth_mm, ">= 0 mm");
+    if (!std::isfinite(res.rmse_um)) refuse("fit RMSE", res.rmse_um, "finite");
+    if (!(res.max_pit_slope_deg >= 0.0 && res.max_pit_slope_deg < 90.0)) {
+        refuse("maximum pit slope", res.max_pit_slope_deg, "in [0, 90) deg");
+    }
+    // Volumes and disks are NaN when omitted (line scans, failed half-lines): checked when given.
+    const auto non_negative = [&](const std::string& what, double v) {
+        if (!std::isnan(v) && !(v >= 0.0 && std::isfinite(v))) refuse(what, v, ">= 0");
+    };
+    non_negative("rim volume (mm3)", res.rim_volume_mm3);
+    non_negative("inner rim volume (mm3)", res.inner_rim_volume_mm3);
+    non_negative("pit volume (mm3)", res.pit_volume_mm3);
+    for (const auto& [what, d] : {std::pair<const char*, const CubeDisk*>{"rim", &res.rim},
+                                  {"slope", &res.slope},
+                                  {"pit-flat", &res.pit_flat}}) {
+        if (std::isnan(d->diameter_mm)) continue;
+        if (!(d->diameter_mm >= 0.0 && d->diameter_mm <= diagonal)) {
+            refuse(std::string(what) + " disk diameter (mm)", d->diameter_mm,
+                   "within the scan's diagonal, " + std::to_string(diagonal) + " mm");
+        }
+        non_negative(std::string(what) + " disk area (mm2)", d->area_mm2);
     }
 }
 

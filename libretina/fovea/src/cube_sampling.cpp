@@ -616,6 +616,12 @@ ThicknessMap thickness_map(const io::Scan& scan) {
         throw AnalysisError("the ILM segmentation is missing everywhere (needed for thickness)");
     }
     const double sz = scan.meta.scale_z_mm;
+    // A boundary lies in the image when its depth is within [0, SizeZ] pixels (a boundary at
+    // the bottom edge is depth SizeZ); a scan without a known depth is not checked.
+    const auto depth_px = static_cast<float>(scan.meta.size_z);
+    const auto inside = [depth_px](float d) {
+        return depth_px <= 0.0F || (d >= 0.0F && d <= depth_px);
+    };
     m.mm.assign(static_cast<std::size_t>(m.rows) * static_cast<std::size_t>(m.cols), kMissing);
     for (int b = 0; b < m.rows; ++b) {
         const auto& bs = scan.bscans[static_cast<std::size_t>(b)];
@@ -627,11 +633,24 @@ ThicknessMap thickness_map(const io::Scan& scan) {
             // Height z = -depth * ScaleZ, so ILM - BM = (depth_BM - depth_ILM) * ScaleZ.
             if (io::is_valid(di) && io::is_valid(db) && di < io::kInvalidThreshold &&
                 db < io::kInvalidThreshold) {
-                v = (static_cast<double>(db) - static_cast<double>(di)) * sz;
+                if (!inside(di) || !inside(db)) {
+                    ++m.num_outside_image;
+                } else if (db < di) {
+                    ++m.num_inverted;
+                } else {
+                    v = (static_cast<double>(db) - static_cast<double>(di)) * sz;
+                }
             }
             if (std::isnan(v)) ++m.num_missing;
             m.mm[static_cast<std::size_t>(b) * static_cast<std::size_t>(m.cols) + i] = v;
         }
+    }
+    if (static_cast<std::size_t>(m.num_missing) == m.mm.size()) {
+        throw AnalysisError(
+            "no A-scan has both an ILM and a BM inside the image with the ILM above "
+            "the BM (" +
+            std::to_string(m.num_outside_image) + " outside the image, " +
+            std::to_string(m.num_inverted) + " with the ILM below the BM)");
     }
     return m;
 }

@@ -51,6 +51,10 @@ inline constexpr double kDeg = 180.0 / kPi;
 // any other pattern, or a scan without the spacings the analysis needs.
 [[nodiscard]] bool check_macula_scan(const io::Scan& scan);
 
+// The field must hold the model: a scan narrower than the half-lines' length R (a volume: or
+// shorter) cannot give a half-line with its rim inside; AnalysisError naming both sizes.
+void check_macula_field(const ThicknessMap& m, const CubeParams& params, bool line_scan);
+
 // ---- stage 2: the centre (SPEC §4.2, Eq. 7.13) ---------------------------------------------
 
 struct CentreInput {
@@ -153,10 +157,15 @@ void half_line_parameters(CubeHalfLine& h, const CubeParams& p);
 void summarise_macula(CubeResult& res, const CubeParams& params);
 
 // QC flags that look at the whole result and the scan (pit values missing, RMSE, spacing,
-// orientation, laterality).
+// orientation, laterality, impossible segmentation kept as missing values).
 void macula_qc(CubeResult& res,
                const io::Scan& scan,
                const ScanGeometry& geo,
                const CubeParams& params);
+
+// The last gate: a result that is not finite or not physically possible where it is reported
+// (CFT or rim height outside (0, image depth], a negative pit depth or volume, a disk wider
+// than the scan) is refused with AnalysisError naming the value; a success never carries one.
+void check_macula_result(const CubeResult& res, const io::Scan& scan);
 
 }  // namespace octshape::retina::cube_detail

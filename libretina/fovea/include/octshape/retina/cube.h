@@ -34,7 +34,11 @@ struct ThicknessMap {
     double dx_mm = 0.0;      // ScaleX
     double dy_mm = 0.0;      // Distance (0 for a line scan)
     std::vector<double> mm;  // rows * cols, row-major
-    int num_missing = 0;
+    int num_missing = 0;     // nodes without a thickness, for any reason (the counts below too)
+    // Nodes whose ILM or BM lies outside the image (above row 0 or below its last row), and
+    // whose ILM lies below the BM: impossible segmentations, kept as missing values.
+    int num_outside_image = 0;
+    int num_inverted = 0;
 
     [[nodiscard]] double at(int b, int a) const {
         return mm[static_cast<std::size_t>(b) * static_cast<std::size_t>(cols) +
@@ -45,7 +49,9 @@ struct ThicknessMap {
     [[nodiscard]] double sample(double x_mm, double y_mm) const;
 };
 
-// Throws AnalysisError when the scan has no ILM/BM lines or no valid thickness at all.
+// A node whose ILM or BM lies outside the image's depth (SizeZ pixels), or whose ILM lies below
+// its BM, is missing (and counted). Throws AnalysisError when the scan has no ILM/BM lines or no
+// valid thickness at all.
 [[nodiscard]] ThicknessMap thickness_map(const io::Scan& scan);
 
 // Noise SD of the map's nodes (mm), from the second differences along the A-scans (x): for
