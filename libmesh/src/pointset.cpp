@@ -594,6 +594,431 @@ void PointSetParams::validate() const {
     }
 }
 
+// ---------------------------------------------------------------- the denoiser's stages
+//
+// pointset_denoise runs, in this order (docs/algorithms/pointset.md):
+//   setup            k-d tree, mean spacing, r and ε, Ω_i, the initial normals (PCA or shifted)
+//   per iteration:   filter_normals   (Eq. 4.1-4.6, binary optimisation §4.1.1)
+//                    classify_points  (Eq. 4.7-4.10: flat, edge with its direction, corner)
+//                    update_vertices  (Eq. 4.11-4.17, bounded by ε)
+//   snap_edges       onto the refitted face planes near features (beyond §4.1)
+// Each parallel pass reads the previous pass' arrays and writes only row i of its own, so the
+// results are bit-identical for any thread count (parallel.h).
+
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+using CMap = Eigen::Map<const Vec3>;
+
+struct Setup {
+    KdTree tree;
+    Csr nb;      // Ω_i: i first, then ascending
+    Vertices N;  // consistently oriented initial normals
+};
+
+Setup setup(const Vertices& points, const PointSetParams& params, PointSetResult& out) {
+    const int n = static_cast<int>(points.rows());
+    Setup st{KdTree(points), {}, {}};
+    out.mean_spacing = mean_point_spacing(points, st.tree, params.threads);
+    out.radius = params.radius ? *params.radius : 2.0 * out.mean_spacing;  // §4.2.1
+    if (!(out.radius > 0.0)) throw AnalysisError("points: all points coincide");
+    out.epsilon = params.epsilon ? *params.epsilon : out.radius;
+    st.nb = point_neighbourhoods(points, st.tree, out.radius, params.min_neighbours,
+                                 params.threads);
+    out.mean_neighbourhood = static_cast<double>(st.nb.items.size()) / n;
+    if (params.normals == NormalEstimator::kShifted) {
+        const Csr support = point_neighbourhoods(points, st.tree, params.support * out.radius,
+                                                 params.min_neighbours, params.threads);
+        st.N = shifted_normals(points, st.nb, support, params.inlier_sigmas, params.threads);
+    } else {
+        st.N = pca_normals(points, st.nb, params.threads);
+    }
+    return st;
+}
+
+// Constants of the iterations, from the parameters and r.
+struct IterationConstants {
+    double cos_rho = 0;     // Eq. 4.2 / 4.8 angle threshold
+    double r2 = 0;          // r²
+    double c2 = 0;          // (2 sin(ρ/2))²: the width of the normal term of Eq. 4.17
+    double flat_trace = 0;  // trace of A_i for a flat disc of radius r (r²/2)
+};
+
+// (1) Normal filtering, Eq. 4.1–4.6: Nf from N.
+void filter_normals(const Csr& nb, const Vertices& N, const PointSetParams& params,
+                    const IterationConstants& ic, Vertices& Nf) {
+    const int n = static_cast<int>(N.rows());
+    const int* const items = nb.items.data();
+    const int* const offsets = nb.offsets.data();
+    const double cos_rho = ic.cos_rho;
+    const double* const nrm = N.data();
+    double* const nf = Nf.data();
+    detail::parallel_for(n, params.threads, [&](int begin, int end) {
+        for (int i = begin; i < end; ++i) {
+            const CMap ni(nrm + 3 * i);
+            Sym3 C;
+            int count = 0;
+            for (int k = offsets[i]; k < offsets[i + 1]; ++k) {
+                const CMap nj(nrm + 3 * items[k]);
+                if (ni.dot(nj) < cos_rho) continue;  // Eq. 4.2: w_ij = 0
+                C.add(nj);
+                ++count;
+            }
+            // count ≥ 1: n_i itself
+            const Eigen::Matrix3d Cm = C.matrix() / count;
+            // Binary optimisation (§4.1.1): λ̃ = (1,1,1) if λ3 ≥ τ, (1,1,0) if λ2 ≥ τ,
+            // else (1,0,0); C̃ n_i (Eq. 4.5) is then n_i, (I − e3e3ᵀ) n_i or e1e1ᵀ n_i, so
+            // only kept = 1, 2 need an eigenvector (e1 resp. e3).
+            const int kept = std::max(1, eigenvalues_at_least(Cm, params.tau));
+            Vec3 filtered = (params.damping + 1.0) * ni;  // Eq. 4.6, kept = 3
+            if (kept < 3) {
+                const Eigen3 e = eigen_decreasing_direct(Cm);
+                if (kept == 2) {
+                    filtered -= e.vectors.col(2).dot(ni) * e.vectors.col(2);
+                } else {
+                    filtered = params.damping * ni + e.vectors.col(0).dot(ni) * e.vectors.col(0);
+                }
+            }
+            const double len = filtered.norm();
+            Eigen::Map<Vec3>(nf + 3 * i) = len > 0.0 ? Vec3(filtered / len) : Vec3(ni);
+        }
+    });
+}
+
+// (2) Classification, Eq. 4.7–4.10, of the positions V with the filtered normals N: classes,
+// and x1 of A_i (the edge direction) at edge points in edge_dir (zero elsewhere).
+void classify_points(const Csr& nb, const Vertices& V, const Vertices& N,
+                     const PointSetParams& params, const IterationConstants& ic,
+                     std::vector<PointClass>& classes, Vertices& edge_dir) {
+    const int n = static_cast<int>(V.rows());
+    const int* const items = nb.items.data();
+    const int* const offsets = nb.offsets.data();
+    const double cos_rho = ic.cos_rho;
+    const double flat_trace = ic.flat_trace;
+    const double* const v = V.data();
+    const double* const fn = N.data();
+    double* const xd = edge_dir.data();
+    detail::parallel_for(n, params.threads, [&](int begin, int end) {
+        for (int i = begin; i < end; ++i) {
+            const CMap ni(fn + 3 * i);
+            const CMap vi(v + 3 * i);
+            // One pass: moments of d_j = v_j − v_i (lengths ~ r, no cancellation), then
+            // A = Σ d dᵀ / m − d̄ d̄ᵀ, the covariance about v_c (Eq. 4.7–4.8).
+            Vec3 sum = Vec3::Zero();
+            Sym3 S;
+            int count = 0;
+            for (int k = offsets[i]; k < offsets[i + 1]; ++k) {
+                const int j = items[k];
+                if (ni.dot(CMap(fn + 3 * j)) < cos_rho) continue;  // Eq. 4.8
+                const Vec3 d = CMap(v + 3 * j) - vi;
+                sum += d;
+                S.add(d);
+                ++count;
+            }
+            const Vec3 mean = sum / count;  // v_c − v_i
+            const Eigen::Matrix3d A = S.matrix() / count - mean * mean.transpose();  // Eq. 4.7
+            // Eq. 4.10 on a_k / (r²/2): two eigenvalues ≥ τ flat, one edge, none or three
+            // corner; only an edge point needs its eigenvector x1 (Eq. 4.14).
+            const int above = eigenvalues_at_least(A, params.tau * flat_trace);
+            const PointClass cls = above == 2   ? PointClass::kFlat
+                                   : above == 1 ? PointClass::kEdge
+                                                : PointClass::kCorner;
+            classes[static_cast<std::size_t>(i)] = cls;
+            Eigen::Map<Vec3>(xd + 3 * i) = cls == PointClass::kEdge
+                                               ? Vec3(eigen_decreasing_direct(A).vectors.col(0))
+                                               : Vec3::Zero();
+        }
+    });
+}
+
+// (3) Vertex update, Eq. 4.11–4.17: Vn from V; a candidate farther than ε from the input
+// point (or not finite) is refused, the point kept and counted in `held`.
+void update_vertices(const Vertices& points, const Csr& nb, const Vertices& V, const Vertices& N,
+                     const std::vector<PointClass>& classes, const Vertices& edge_dir,
+                     const PointSetParams& params, const IterationConstants& ic, double epsilon,
+                     Vertices& Vn, std::vector<int>& held) {
+    const int n = static_cast<int>(V.rows());
+    const int* const items = nb.items.data();
+    const int* const offsets = nb.offsets.data();
+    const double c2 = ic.c2;
+    const double r2 = ic.r2;
+    const double* const v = V.data();
+    const double* const fn = N.data();
+    const double* const xd = edge_dir.data();
+    double* const vn = Vn.data();
+    const double* const v0 = points.data();
+    detail::parallel_for(n, params.threads, [&](int begin, int end) {
+        for (int i = begin; i < end; ++i) {
+            const CMap ni(fn + 3 * i);
+            const CMap vi(v + 3 * i);
+            const PointClass cls = classes[static_cast<std::size_t>(i)];
+            // A small Tikhonov term μ|v − v_i|² keeps the position unchanged along
+            // directions the quadric does not constrain (a rank-deficient Σ N_j).
+            const double mu = 1e-3 * (offsets[i + 1] - offsets[i]);
+            Vec3 candidate = vi;
+            if (cls == PointClass::kCorner) {  // Eq. 4.13, solved for v − v_i
+                Sym3 M;
+                Vec3 b = Vec3::Zero();
+                for (int k = offsets[i]; k < offsets[i + 1]; ++k) {
+                    const int j = items[k];
+                    const CMap nj(fn + 3 * j);
+                    M.add(nj);
+                    b += nj.dot(CMap(v + 3 * j) - vi) * nj;
+                }
+                const Eigen::Matrix3d Mm = M.matrix() + mu * Eigen::Matrix3d::Identity();
+                candidate = vi + Mm.ldlt().solve(b);
+            } else if (cls == PointClass::kEdge) {  // Eq. 4.14–4.15, solved for v − v_i
+                const CMap x1(xd + 3 * i);
+                Sym3 M;
+                M.add(x1);
+                Vec3 b = Vec3::Zero();  // the x1 x1ᵀ v_i term vanishes relative to v_i
+                for (int k = offsets[i]; k < offsets[i + 1]; ++k) {
+                    const int j = items[k];
+                    const Vec3 dj = CMap(v + 3 * j) - vi;
+                    const CMap nj(fn + 3 * j);
+                    const Vec3 dp = dj - dj.dot(x1) * x1;  // v_j^p − v_i
+                    const Vec3 np = nj - nj.dot(x1) * x1;  // ñ_j^p
+                    M.add(np);
+                    b += np.dot(dp) * np;
+                }
+                const Eigen::Matrix3d Mm = M.matrix() + mu * Eigen::Matrix3d::Identity();
+                candidate = vi + Mm.ldlt().solve(b);
+            } else {  // Eq. 4.16–4.17
+                double wsum = 0.0;
+                double step = 0.0;
+                for (int k = offsets[i]; k < offsets[i + 1]; ++k) {
+                    const int j = items[k];
+                    const Vec3 dj = CMap(v + 3 * j) - vi;
+                    const CMap nj(fn + 3 * j);
+                    // Eq. 4.17. The thesis divides |ñ_i − ñ_j|² by r², a length²; on unit
+                    // normals the width must be dimensionless: we use the chord of the
+                    // angle threshold, c = 2 sin(ρ/2) (docs/algorithms/pointset.md). One
+                    // exp of the summed exponents.
+                    const double w = std::exp(-16.0 * (ni - nj).squaredNorm() / c2 -
+                                              4.0 * dj.squaredNorm() / r2);
+                    wsum += w;
+                    step += w * nj.dot(dj);
+                }
+                candidate = vi + params.lambda * step / wsum * ni;
+            }
+            // Eq. 4.11: the bound on the deviation from the input.
+            if ((candidate - CMap(v0 + 3 * i)).norm() > epsilon ||
+                !candidate.allFinite()) {
+                candidate = vi;
+                ++held[static_cast<std::size_t>(i)];
+            }
+            Eigen::Map<Vec3>(vn + 3 * i) = candidate;
+        }
+    });
+}
+
+// The normal groups of a snapping neighbourhood: each member's filtered normal joins the group
+// whose mean normal is nearest if within snap_group_deg, else starts a new group; groups whose
+// means are within that angle are merged; groups below max(6, 10 % of the members) are
+// dropped and at most the 3 largest kept (count 0 = dropped).
+struct NormalGroups {
+    std::vector<Vec3> sums;   // group normal sums
+    std::vector<Vec3> units;  // their directions
+    std::vector<int> counts;
+
+    // The surviving group whose mean normal is nearest to nj within the angle, or −1.
+    [[nodiscard]] int nearest(const Vec3& nj, double cos_group) const {
+        int g_best = -1;
+        double c_best = cos_group;
+        for (std::size_t g = 0; g < units.size(); ++g) {
+            const double c = counts[g] > 0 ? units[g].dot(nj) : -2.0;
+            if (c >= c_best) {
+                c_best = c;
+                g_best = static_cast<int>(g);
+            }
+        }
+        return g_best;
+    }
+    [[nodiscard]] std::ptrdiff_t left() const {
+        return std::count_if(counts.begin(), counts.end(), [](int c) { return c > 0; });
+    }
+};
+
+void group_normals(const std::vector<int>& members, const double* fn, double cos_group,
+                   NormalGroups& groups) {
+    std::vector<Vec3>& sums = groups.sums;
+    std::vector<Vec3>& units = groups.units;
+    std::vector<int>& counts = groups.counts;
+    sums.clear();
+    units.clear();
+    counts.clear();
+    for (const int j : members) {
+        const CMap nj(fn + 3 * j);
+        const int g = groups.nearest(nj, cos_group);
+        if (g < 0) {
+            sums.emplace_back(nj);
+            units.emplace_back(nj);
+            counts.push_back(1);
+        } else {
+            const auto gs = static_cast<std::size_t>(g);
+            sums[gs] += nj;
+            units[gs] = sums[gs].normalized();
+            ++counts[gs];
+        }
+    }
+    // Merge groups whose mean normals are within snap_group_deg of each other: the greedy pass
+    // splits a curved patch whose normals span more than that angle (a sphere's cap), though
+    // its halves' means are closer.
+    for (bool merged = true; merged;) {
+        merged = false;
+        for (std::size_t g = 0; g < units.size() && !merged; ++g) {
+            for (std::size_t h = g + 1; h < units.size() && !merged; ++h) {
+                if (counts[g] == 0 || counts[h] == 0 || units[g].dot(units[h]) < cos_group) {
+                    continue;
+                }
+                sums[g] += sums[h];
+                units[g] = sums[g].normalized();
+                counts[g] += counts[h];
+                counts[h] = 0;
+                merged = true;
+            }
+        }
+    }
+    // Drop the small groups (the blended normals of the last points near an edge), keep the 3
+    // largest.
+    const int min_count = std::max(6, static_cast<int>(0.1 * static_cast<double>(members.size())));
+    for (int& c : counts) c = c < min_count ? 0 : c;
+    while (groups.left() > 3) {
+        auto smallest = counts.end();
+        for (auto it = counts.begin(); it != counts.end(); ++it) {
+            if (*it > 0 && (smallest == counts.end() || *it < *smallest)) smallest = it;
+        }
+        *smallest = 0;
+    }
+}
+
+// The face plane of every surviving group with ≥ 3 members: every member to its nearest
+// group; one pass accumulates the moments of each group's denoised positions (the plane) and
+// of its input positions (their scatter about that plane: σ̂), relative to v_i / v⁰_i.
+// Returns the largest σ̂ of the planes.
+double fit_group_planes(const std::vector<int>& members, const NormalGroups& groups,
+                        double cos_group, const double* v, const double* v0, const double* fn,
+                        const Vec3& vi, const Vec3& v0i, std::vector<int>& slot,
+                        std::vector<FacePlane>& planes) {
+    struct Moments {
+        int m = 0;
+        Vec3 d = Vec3::Zero();
+        Vec3 d0 = Vec3::Zero();
+        Vec3 normals = Vec3::Zero();
+        Sym3 S;
+        Sym3 S0;
+    };
+    std::array<Moments, 3> mo{};  // the ≤ 3 surviving groups
+    slot.assign(groups.counts.size(), -1);
+    int used = 0;
+    for (std::size_t g = 0; g < groups.counts.size(); ++g) {
+        if (groups.counts[g] > 0) slot[g] = used++;
+    }
+    for (const int j : members) {
+        const int g = groups.nearest(CMap(fn + 3 * j), cos_group);
+        if (g < 0) continue;
+        Moments& q = mo[static_cast<std::size_t>(slot[static_cast<std::size_t>(g)])];
+        const Vec3 d = CMap(v + 3 * j) - vi;
+        const Vec3 d0 = CMap(v0 + 3 * j) - v0i;
+        ++q.m;
+        q.d += d;
+        q.d0 += d0;
+        q.normals += CMap(fn + 3 * j);
+        q.S.add(d);
+        q.S0.add(d0);
+    }
+    planes.clear();
+    double sigma = 0.0;
+    for (int g = 0; g < used; ++g) {
+        const Moments& q = mo[static_cast<std::size_t>(g)];
+        if (q.m < 3) continue;
+        const Vec3 mean = q.d / q.m;
+        const Vec3 mean0 = q.d0 / q.m;
+        const Eigen::Matrix3d C = q.S.matrix() / q.m - mean * mean.transpose();
+        const Eigen::Matrix3d C0 = q.S0.matrix() / q.m - mean0 * mean0.transpose();
+        Vec3 normal = eigen_decreasing(C).vectors.col(2);
+        if (normal.dot(q.normals) < 0.0) normal = -normal;
+        const Vec3 centroid = vi + mean;
+        // Mean squared distance of the input points to the plane (Σ over the group of
+        // (n·(v⁰_j − c))², c the plane's centroid).
+        const double off = normal.dot(v0i + mean0 - centroid);
+        sigma = std::max(sigma, std::sqrt(std::max(0.0, normal.dot(C0 * normal)) + off * off));
+        planes.push_back(FacePlane{normal, normal.dot(centroid), centroid});
+    }
+    return sigma;
+}
+
+// Edge snapping (beyond §4.1; PointSetParams, docs/algorithms/pointset.md): near a feature,
+// the faces are refitted from the points ≥ ~1.5 r away (whose normals the NVT leaves on the
+// face) and the point is moved onto them, bounded by ε (Eq. 4.11). Reads the final positions
+// and normals, writes row i of copies: thread-count independent. Moves out.V and N in place;
+// returns the number of points moved.
+int snap_edges(const Vertices& points, const KdTree& tree, const Csr& nb,
+               const PointSetParams& params, PointSetResult& out, Vertices& N) {
+    const int n = static_cast<int>(points.rows());
+    const int* const items = nb.items.data();
+    const int* const offsets = nb.offsets.data();
+    const double cos_group = std::cos(params.snap_group_deg * M_PI / 180.0);
+    const double support_radius = params.snap_support * out.radius;
+    const std::vector<PointClass>& cls = out.classes;
+    Vertices Vs = out.V;
+    Vertices Ns = N;
+    std::vector<int> moved(static_cast<std::size_t>(n), 0);
+    const double* const v = out.V.data();
+    const double* const fn = N.data();
+    const double* const v0 = points.data();
+    // A point is near a feature if its Ω_i holds an edge or corner point.
+    std::vector<char> near_feature(static_cast<std::size_t>(n), 0);
+    for (int i = 0; i < n; ++i) {
+        for (int k = offsets[i]; k < offsets[i + 1]; ++k) {
+            if (cls[static_cast<std::size_t>(items[k])] != PointClass::kFlat) {
+                near_feature[static_cast<std::size_t>(i)] = 1;
+                break;
+            }
+        }
+    }
+    // The reliable points: classified flat, with no feature point in their Ω_j.
+    const auto reliable = [&](int j) {
+        return cls[static_cast<std::size_t>(j)] == PointClass::kFlat &&
+               near_feature[static_cast<std::size_t>(j)] == 0;
+    };
+    detail::parallel_for(n, params.threads, [&](int begin, int end) {
+        std::vector<int> ball;
+        std::vector<int> members;
+        NormalGroups groups;
+        std::vector<int> slot;  // group → index of its moments
+        std::vector<FacePlane> planes;
+        for (int i = begin; i < end; ++i) {
+            if (near_feature[static_cast<std::size_t>(i)] == 0) continue;
+            const CMap vi(v + 3 * i);
+            const CMap v0i(v0 + 3 * i);
+            tree.within(v0i, support_radius, ball);
+            members.clear();
+            for (const int j : ball) {
+                if (reliable(j)) members.push_back(j);
+            }
+            group_normals(members, fn, cos_group, groups);
+            if (groups.left() < 2) continue;  // one face (or none): nothing to sharpen
+            const double sigma =
+                fit_group_planes(members, groups, cos_group, v, v0, fn, vi, v0i, slot, planes);
+            if (planes.size() < 2) continue;
+            Vec3 x;
+            int on_one = -1;
+            if (!nearest_on_faces(vi, planes, params.snap_sigmas * sigma, &x, &on_one)) continue;
+            // Eq. 4.11: the bound on the deviation from the input.
+            if ((x - v0i).norm() > out.epsilon) continue;
+            Vs.row(i) = x.transpose();
+            if (on_one >= 0) Ns.row(i) = planes[static_cast<std::size_t>(on_one)].normal.transpose();
+            moved[static_cast<std::size_t>(i)] = 1;
+        }
+    });
+    out.V.swap(Vs);
+    N.swap(Ns);
+    return std::accumulate(moved.begin(), moved.end(), 0);
+}
+
+}  // namespace
+
 PointSetResult pointset_denoise(const Vertices& points, const PointSetParams& params) {
     params.validate();
     const int n = static_cast<int>(points.rows());
@@ -602,364 +1027,35 @@ PointSetResult pointset_denoise(const Vertices& points, const PointSetParams& pa
 
     PointSetResult out;
     const auto t_setup = std::chrono::steady_clock::now();
-    const KdTree tree(points);
-    out.mean_spacing = mean_point_spacing(points, tree, params.threads);
-    out.radius = params.radius ? *params.radius : 2.0 * out.mean_spacing;  // §4.2.1
-    if (!(out.radius > 0.0)) throw AnalysisError("points: all points coincide");
-    out.epsilon = params.epsilon ? *params.epsilon : out.radius;
-    const Csr nb = point_neighbourhoods(points, tree, out.radius, params.min_neighbours,
-                                        params.threads);
-    out.mean_neighbourhood = static_cast<double>(nb.items.size()) / n;
-    Vertices N;
-    if (params.normals == NormalEstimator::kShifted) {
-        const Csr support = point_neighbourhoods(points, tree, params.support * out.radius,
-                                                 params.min_neighbours, params.threads);
-        N = shifted_normals(points, nb, support, params.inlier_sigmas, params.threads);
-    } else {
-        N = pca_normals(points, nb, params.threads);
-    }
+    Setup st = setup(points, params, out);
+    Vertices& N = st.N;
     out.seconds_setup = seconds_since(t_setup);
 
     out.V = points;
     out.classes.assign(static_cast<std::size_t>(n), PointClass::kFlat);
     const auto t_iter = std::chrono::steady_clock::now();
-    const double cos_rho = std::cos(params.rho);
-    const double r2 = out.radius * out.radius;
-    const double c2 = std::pow(2.0 * std::sin(params.rho / 2.0), 2);
-    const double flat_trace = r2 / 2.0;  // trace of A_i for a flat disc of radius r
+    const IterationConstants ic{std::cos(params.rho), out.radius * out.radius,
+                               std::pow(2.0 * std::sin(params.rho / 2.0), 2),
+                               out.radius * out.radius / 2.0};
     // Flat #P×3 row-major buffers, read through fixed-size maps; nothing is allocated inside
-    // the iterations. Each parallel pass reads the previous pass' buffers and writes only row i
-    // of its own, so results are bit-identical for any thread count (parallel.h).
+    // the iterations.
     Vertices Nf(n, 3);
     Vertices Vn(n, 3);
     Vertices edge_dir(n, 3);  // x1 of A_i: the edge direction at edge points
     std::vector<int> held(static_cast<std::size_t>(n), 0);
-    using Vec3 = Eigen::Vector3d;
-    using CMap = Eigen::Map<const Vec3>;
-    const int* const items = nb.items.data();
-    const int* const offsets = nb.offsets.data();
     for (int it = 0; it < params.iterations; ++it) {
-        const double* const v = out.V.data();
-        const double* const nrm = N.data();
-        double* const nf = Nf.data();
-        // (1) Normal filtering, Eq. 4.1–4.6.
-        detail::parallel_for(n, params.threads, [&](int begin, int end) {
-            for (int i = begin; i < end; ++i) {
-                const CMap ni(nrm + 3 * i);
-                Sym3 C;
-                int count = 0;
-                for (int k = offsets[i]; k < offsets[i + 1]; ++k) {
-                    const CMap nj(nrm + 3 * items[k]);
-                    if (ni.dot(nj) < cos_rho) continue;  // Eq. 4.2: w_ij = 0
-                    C.add(nj);
-                    ++count;
-                }
-                // count ≥ 1: n_i itself
-                const Eigen::Matrix3d Cm = C.matrix() / count;
-                // Binary optimisation (§4.1.1): λ̃ = (1,1,1) if λ3 ≥ τ, (1,1,0) if λ2 ≥ τ,
-                // else (1,0,0); C̃ n_i (Eq. 4.5) is then n_i, (I − e3e3ᵀ) n_i or e1e1ᵀ n_i, so
-                // only kept = 1, 2 need an eigenvector (e1 resp. e3).
-                const int kept = std::max(1, eigenvalues_at_least(Cm, params.tau));
-                Vec3 filtered = (params.damping + 1.0) * ni;  // Eq. 4.6, kept = 3
-                if (kept < 3) {
-                    const Eigen3 e = eigen_decreasing_direct(Cm);
-                    if (kept == 2) {
-                        filtered -= e.vectors.col(2).dot(ni) * e.vectors.col(2);
-                    } else {
-                        filtered = params.damping * ni + e.vectors.col(0).dot(ni) * e.vectors.col(0);
-                    }
-                }
-                const double len = filtered.norm();
-                Eigen::Map<Vec3>(nf + 3 * i) = len > 0.0 ? Vec3(filtered / len) : Vec3(ni);
-            }
-        });
+        filter_normals(st.nb, N, params, ic, Nf);
         N.swap(Nf);
-        const double* const fn = N.data();
-        double* const xd = edge_dir.data();
-        // (2) Classification, Eq. 4.7–4.10.
-        detail::parallel_for(n, params.threads, [&](int begin, int end) {
-            for (int i = begin; i < end; ++i) {
-                const CMap ni(fn + 3 * i);
-                const CMap vi(v + 3 * i);
-                // One pass: moments of d_j = v_j − v_i (lengths ~ r, no cancellation), then
-                // A = Σ d dᵀ / m − d̄ d̄ᵀ, the covariance about v_c (Eq. 4.7–4.8).
-                Vec3 sum = Vec3::Zero();
-                Sym3 S;
-                int count = 0;
-                for (int k = offsets[i]; k < offsets[i + 1]; ++k) {
-                    const int j = items[k];
-                    if (ni.dot(CMap(fn + 3 * j)) < cos_rho) continue;  // Eq. 4.8
-                    const Vec3 d = CMap(v + 3 * j) - vi;
-                    sum += d;
-                    S.add(d);
-                    ++count;
-                }
-                const Vec3 mean = sum / count;  // v_c − v_i
-                const Eigen::Matrix3d A = S.matrix() / count - mean * mean.transpose();  // Eq. 4.7
-                // Eq. 4.10 on a_k / (r²/2): two eigenvalues ≥ τ flat, one edge, none or three
-                // corner; only an edge point needs its eigenvector x1 (Eq. 4.14).
-                const int above = eigenvalues_at_least(A, params.tau * flat_trace);
-                const PointClass cls = above == 2   ? PointClass::kFlat
-                                       : above == 1 ? PointClass::kEdge
-                                                    : PointClass::kCorner;
-                out.classes[static_cast<std::size_t>(i)] = cls;
-                Eigen::Map<Vec3>(xd + 3 * i) = cls == PointClass::kEdge
-                                                   ? Vec3(eigen_decreasing_direct(A).vectors.col(0))
-                                                   : Vec3::Zero();
-            }
-        });
-        double* const vn = Vn.data();
-        const double* const v0 = points.data();
-        // (3) Vertex update, Eq. 4.11–4.17.
-        detail::parallel_for(n, params.threads, [&](int begin, int end) {
-            for (int i = begin; i < end; ++i) {
-                const CMap ni(fn + 3 * i);
-                const CMap vi(v + 3 * i);
-                const PointClass cls = out.classes[static_cast<std::size_t>(i)];
-                // A small Tikhonov term μ|v − v_i|² keeps the position unchanged along
-                // directions the quadric does not constrain (a rank-deficient Σ N_j).
-                const double mu = 1e-3 * (offsets[i + 1] - offsets[i]);
-                Vec3 candidate = vi;
-                if (cls == PointClass::kCorner) {  // Eq. 4.13, solved for v − v_i
-                    Sym3 M;
-                    Vec3 b = Vec3::Zero();
-                    for (int k = offsets[i]; k < offsets[i + 1]; ++k) {
-                        const int j = items[k];
-                        const CMap nj(fn + 3 * j);
-                        M.add(nj);
-                        b += nj.dot(CMap(v + 3 * j) - vi) * nj;
-                    }
-                    const Eigen::Matrix3d Mm = M.matrix() + mu * Eigen::Matrix3d::Identity();
-                    candidate = vi + Mm.ldlt().solve(b);
-                } else if (cls == PointClass::kEdge) {  // Eq. 4.14–4.15, solved for v − v_i
-                    const CMap x1(xd + 3 * i);
-                    Sym3 M;
-                    M.add(x1);
-                    Vec3 b = Vec3::Zero();  // the x1 x1ᵀ v_i term vanishes relative to v_i
-                    for (int k = offsets[i]; k < offsets[i + 1]; ++k) {
-                        const int j = items[k];
-                        const Vec3 dj = CMap(v + 3 * j) - vi;
-                        const CMap nj(fn + 3 * j);
-                        const Vec3 dp = dj - dj.dot(x1) * x1;  // v_j^p − v_i
-                        const Vec3 np = nj - nj.dot(x1) * x1;  // ñ_j^p
-                        M.add(np);
-                        b += np.dot(dp) * np;
-                    }
-                    const Eigen::Matrix3d Mm = M.matrix() + mu * Eigen::Matrix3d::Identity();
-                    candidate = vi + Mm.ldlt().solve(b);
-                } else {  // Eq. 4.16–4.17
-                    double wsum = 0.0;
-                    double step = 0.0;
-                    for (int k = offsets[i]; k < offsets[i + 1]; ++k) {
-                        const int j = items[k];
-                        const Vec3 dj = CMap(v + 3 * j) - vi;
-                        const CMap nj(fn + 3 * j);
-                        // Eq. 4.17. The thesis divides |ñ_i − ñ_j|² by r², a length²; on unit
-                        // normals the width must be dimensionless: we use the chord of the
-                        // angle threshold, c = 2 sin(ρ/2) (docs/algorithms/pointset.md). One
-                        // exp of the summed exponents.
-                        const double w = std::exp(-16.0 * (ni - nj).squaredNorm() / c2 -
-                                                  4.0 * dj.squaredNorm() / r2);
-                        wsum += w;
-                        step += w * nj.dot(dj);
-                    }
-                    candidate = vi + params.lambda * step / wsum * ni;
-                }
-                // Eq. 4.11: the bound on the deviation from the input.
-                if ((candidate - CMap(v0 + 3 * i)).norm() > out.epsilon ||
-                    !candidate.allFinite()) {
-                    candidate = vi;
-                    ++held[static_cast<std::size_t>(i)];
-                }
-                Eigen::Map<Vec3>(vn + 3 * i) = candidate;
-            }
-        });
+        classify_points(st.nb, out.V, N, params, ic, out.classes, edge_dir);
+        update_vertices(points, st.nb, out.V, N, out.classes, edge_dir, params, ic, out.epsilon, Vn,
+                        held);
         out.V.swap(Vn);
         ++out.iterations;
     }
     out.seconds_iterations = seconds_since(t_iter);
     if (params.snap_edges && params.iterations > 0) {
-        // Edge snapping (beyond §4.1; PointSetParams, docs/algorithms/pointset.md): near a
-        // feature, the faces are refitted from the points ≥ ~1.5 r away (whose normals the NVT
-        // leaves on the face) and the point is moved onto them, bounded by ε (Eq. 4.11). Reads
-        // the final positions and normals, writes row i of copies: thread-count independent.
         const auto t_snap = std::chrono::steady_clock::now();
-        const double cos_group = std::cos(params.snap_group_deg * M_PI / 180.0);
-        const double support_radius = params.snap_support * out.radius;
-        const std::vector<PointClass>& cls = out.classes;
-        Vertices Vs = out.V;
-        Vertices Ns = N;
-        std::vector<int> moved(static_cast<std::size_t>(n), 0);
-        const double* const v = out.V.data();
-        const double* const fn = N.data();
-        // A point is near a feature if its Ω_i holds an edge or corner point.
-        std::vector<char> near_feature(static_cast<std::size_t>(n), 0);
-        for (int i = 0; i < n; ++i) {
-            for (int k = offsets[i]; k < offsets[i + 1]; ++k) {
-                if (cls[static_cast<std::size_t>(items[k])] != PointClass::kFlat) {
-                    near_feature[static_cast<std::size_t>(i)] = 1;
-                    break;
-                }
-            }
-        }
-        const double* const v0 = points.data();
-        const auto reliable = [&](int j) {
-            return cls[static_cast<std::size_t>(j)] == PointClass::kFlat &&
-                   near_feature[static_cast<std::size_t>(j)] == 0;
-        };
-        detail::parallel_for(n, params.threads, [&](int begin, int end) {
-            std::vector<int> ball;
-            std::vector<int> members;
-            std::vector<Vec3> sums;   // group normal sums
-            std::vector<Vec3> units;  // their directions
-            std::vector<int> counts;
-            std::vector<int> slot;  // group → index of its moments
-            std::vector<FacePlane> planes;
-            const auto nearest_group = [&](const Vec3& nj) {
-                int g_best = -1;
-                double c_best = cos_group;
-                for (std::size_t g = 0; g < units.size(); ++g) {
-                    const double c = counts[g] > 0 ? units[g].dot(nj) : -2.0;
-                    if (c >= c_best) {
-                        c_best = c;
-                        g_best = static_cast<int>(g);
-                    }
-                }
-                return g_best;
-            };
-            const auto groups_left = [&] {
-                return std::count_if(counts.begin(), counts.end(), [](int c) { return c > 0; });
-            };
-            for (int i = begin; i < end; ++i) {
-                if (near_feature[static_cast<std::size_t>(i)] == 0) continue;
-                const CMap vi(v + 3 * i);
-                const CMap v0i(v0 + 3 * i);
-                // The reliable points: classified flat, with no feature point in their Ω_j.
-                tree.within(v0i, support_radius, ball);
-                members.clear();
-                for (const int j : ball) {
-                    if (reliable(j)) members.push_back(j);
-                }
-                // Group their filtered normals: each joins the group whose mean normal is
-                // nearest if within snap_group_deg, else starts a new group.
-                sums.clear();
-                units.clear();
-                counts.clear();
-                for (const int j : members) {
-                    const CMap nj(fn + 3 * j);
-                    const int g = nearest_group(nj);
-                    if (g < 0) {
-                        sums.emplace_back(nj);
-                        units.emplace_back(nj);
-                        counts.push_back(1);
-                    } else {
-                        const auto gs = static_cast<std::size_t>(g);
-                        sums[gs] += nj;
-                        units[gs] = sums[gs].normalized();
-                        ++counts[gs];
-                    }
-                }
-                // Merge groups whose mean normals are within snap_group_deg of each other: the
-                // greedy pass splits a curved patch whose normals span more than that angle
-                // (a sphere's cap), though its halves' means are closer.
-                for (bool merged = true; merged;) {
-                    merged = false;
-                    for (std::size_t g = 0; g < units.size() && !merged; ++g) {
-                        for (std::size_t h = g + 1; h < units.size() && !merged; ++h) {
-                            if (counts[g] == 0 || counts[h] == 0 ||
-                                units[g].dot(units[h]) < cos_group) {
-                                continue;
-                            }
-                            sums[g] += sums[h];
-                            units[g] = sums[g].normalized();
-                            counts[g] += counts[h];
-                            counts[h] = 0;
-                            merged = true;
-                        }
-                    }
-                }
-                // Drop the small groups (the blended normals of the last points near an edge),
-                // keep the 3 largest.
-                const int min_count =
-                    std::max(6, static_cast<int>(0.1 * static_cast<double>(members.size())));
-                for (int& c : counts) c = c < min_count ? 0 : c;
-                while (groups_left() > 3) {
-                    auto smallest = counts.end();
-                    for (auto it = counts.begin(); it != counts.end(); ++it) {
-                        if (*it > 0 && (smallest == counts.end() || *it < *smallest)) {
-                            smallest = it;
-                        }
-                    }
-                    *smallest = 0;
-                }
-                if (groups_left() < 2) continue;  // one face (or none): nothing to sharpen
-                // Every reliable point to the nearest surviving group; one pass accumulates the
-                // moments of each group's denoised positions (the plane) and of its input
-                // positions (their scatter about that plane: σ̂), relative to v_i / v⁰_i.
-                struct Moments {
-                    int m = 0;
-                    Vec3 d = Vec3::Zero();
-                    Vec3 d0 = Vec3::Zero();
-                    Vec3 normals = Vec3::Zero();
-                    Sym3 S;
-                    Sym3 S0;
-                };
-                std::array<Moments, 3> mo{};  // the ≤ 3 surviving groups
-                slot.assign(counts.size(), -1);
-                int used = 0;
-                for (std::size_t g = 0; g < counts.size(); ++g) {
-                    if (counts[g] > 0) slot[g] = used++;
-                }
-                for (const int j : members) {
-                    const int g = nearest_group(CMap(fn + 3 * j));
-                    if (g < 0) continue;
-                    Moments& q = mo[static_cast<std::size_t>(slot[static_cast<std::size_t>(g)])];
-                    const Vec3 d = CMap(v + 3 * j) - vi;
-                    const Vec3 d0 = CMap(v0 + 3 * j) - v0i;
-                    ++q.m;
-                    q.d += d;
-                    q.d0 += d0;
-                    q.normals += CMap(fn + 3 * j);
-                    q.S.add(d);
-                    q.S0.add(d0);
-                }
-                planes.clear();
-                double sigma = 0.0;
-                for (int g = 0; g < used; ++g) {
-                    const Moments& q = mo[static_cast<std::size_t>(g)];
-                    if (q.m < 3) continue;
-                    const Vec3 mean = q.d / q.m;
-                    const Vec3 mean0 = q.d0 / q.m;
-                    const Eigen::Matrix3d C = q.S.matrix() / q.m - mean * mean.transpose();
-                    const Eigen::Matrix3d C0 = q.S0.matrix() / q.m - mean0 * mean0.transpose();
-                    Vec3 normal = eigen_decreasing(C).vectors.col(2);
-                    if (normal.dot(q.normals) < 0.0) normal = -normal;
-                    const Vec3 centroid = vi + mean;
-                    // Mean squared distance of the input points to the plane (Σ over the
-                    // group of (n·(v⁰_j − c))², c the plane's centroid).
-                    const double off = normal.dot(v0i + mean0 - centroid);
-                    sigma = std::max(sigma, std::sqrt(std::max(0.0, normal.dot(C0 * normal)) +
-                                                      off * off));
-                    planes.push_back(FacePlane{normal, normal.dot(centroid), centroid});
-                }
-                if (planes.size() < 2) continue;
-                Vec3 x;
-                int on_one = -1;
-                if (!nearest_on_faces(vi, planes, params.snap_sigmas * sigma, &x, &on_one)) {
-                    continue;
-                }
-                // Eq. 4.11: the bound on the deviation from the input.
-                if ((x - v0i).norm() > out.epsilon) continue;
-                Vs.row(i) = x.transpose();
-                if (on_one >= 0) {
-                    Ns.row(i) = planes[static_cast<std::size_t>(on_one)].normal.transpose();
-                }
-                moved[static_cast<std::size_t>(i)] = 1;
-            }
-        });
-        out.V.swap(Vs);
-        N.swap(Ns);
-        out.snapped_points = std::accumulate(moved.begin(), moved.end(), 0);
+        out.snapped_points = snap_edges(points, st.tree, st.nb, params, out, N);
         out.seconds_snap = seconds_since(t_snap);
     }
     out.normals = N;

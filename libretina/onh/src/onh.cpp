@@ -15,6 +15,7 @@
 #include "octshape/mesh/envt.h"
 #include "octshape/mesh/metrics.h"
 #include "octshape/retina/levelset.h"
+#include "onh_stages.h"
 #include "octshape/retina/scan_geometry.h"
 
 namespace octshape::retina {
@@ -27,30 +28,6 @@ std::string fmt_mm(double v, int digits = 4) {
     char b[64];
     std::snprintf(b, sizeof b, "%.*f", digits, v);
     return b;
-}
-
-// Height of the topmost crossing of the vertical line through (x, y) with the mesh: what the
-// line meets first coming from the vitreous (SPEC §5.6 CONHT). NaN if it misses the mesh.
-double top_crossing(const mesh::Vertices& V, const mesh::Faces& F, double x, double y) {
-    double best = -std::numeric_limits<double>::infinity();
-    for (Eigen::Index f = 0; f < F.rows(); ++f) {
-        const Eigen::Vector3d a = V.row(F(f, 0));
-        const Eigen::Vector3d b = V.row(F(f, 1));
-        const Eigen::Vector3d c = V.row(F(f, 2));
-        if (x < std::min({a.x(), b.x(), c.x()}) || x > std::max({a.x(), b.x(), c.x()}) ||
-            y < std::min({a.y(), b.y(), c.y()}) || y > std::max({a.y(), b.y(), c.y()})) {
-            continue;
-        }
-        const double det = (b.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (b.y() - a.y());
-        if (std::fabs(det) < 1e-18) continue;  // vertical face: the line grazes it
-        const double l1 = ((x - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (y - a.y())) / det;
-        const double l2 = ((b.x() - a.x()) * (y - a.y()) - (x - a.x()) * (b.y() - a.y())) / det;
-        const double l0 = 1.0 - l1 - l2;
-        const double eps = -1e-12;
-        if (l0 < eps || l1 < eps || l2 < eps) continue;
-        best = std::max(best, l0 * a.z() + l1 * b.z() + l2 * c.z());
-    }
-    return std::isfinite(best) ? best : kNaN;
 }
 
 MeshQuality mesh_quality_report(const mesh::Vertices& V,
@@ -249,13 +226,54 @@ OnhResult analyse_onh(const io::Scan& scan,
                       const IlmSurface& ilm,
                       const OnhParams& params,
                       const std::optional<std::vector<BmoPoint>>& bmo_file_points) {
+    using namespace onh_detail;
     const auto t0 = std::chrono::steady_clock::now();
     params.validate();
     require_onh_volume(scan);
     OnhResult r;
     r.ilm_source = ilm.source;
-    r.eye = std::string(io::to_string(scan.meta.laterality));
     const ScanGeometry geo(scan);
+    check_onh_inputs(scan, geo, ilm, r);
+    GridSurface bm = bmo_points(scan, params, bmo_file_points, r);
+    bmo_ellipse(geo, params, r);
+    rpe_surface(std::move(bm), r);
+    const mesh::FaceGeometry g = orient_ilm(ilm, r);
+    ilm_regions(ilm, params, r);
+    centre_and_shape(g, params, r);
+    minimum_rim_width(geo, r);
+    r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return r;
+}
+
+namespace onh_detail {
+
+// Height of the topmost crossing of the vertical line through (x, y) with the mesh: what the
+// line meets first coming from the vitreous (SPEC §5.6 CONHT). NaN if it misses the mesh.
+double top_crossing(const mesh::Vertices& V, const mesh::Faces& F, double x, double y) {
+    double best = -std::numeric_limits<double>::infinity();
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+        const Eigen::Vector3d a = V.row(F(f, 0));
+        const Eigen::Vector3d b = V.row(F(f, 1));
+        const Eigen::Vector3d c = V.row(F(f, 2));
+        if (x < std::min({a.x(), b.x(), c.x()}) || x > std::max({a.x(), b.x(), c.x()}) ||
+            y < std::min({a.y(), b.y(), c.y()}) || y > std::max({a.y(), b.y(), c.y()})) {
+            continue;
+        }
+        const double det = (b.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (b.y() - a.y());
+        if (std::fabs(det) < 1e-18) continue;  // vertical face: the line grazes it
+        const double l1 = ((x - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (y - a.y())) / det;
+        const double l2 = ((b.x() - a.x()) * (y - a.y()) - (x - a.x()) * (b.y() - a.y())) / det;
+        const double l0 = 1.0 - l1 - l2;
+        const double eps = -1e-12;
+        if (l0 < eps || l1 < eps || l2 < eps) continue;
+        best = std::max(best, l0 * a.z() + l1 * b.z() + l2 * c.z());
+    }
+    return std::isfinite(best) ? best : kNaN;
+}
+
+void check_onh_inputs(const io::Scan& scan, const ScanGeometry& geo, const IlmSurface& ilm,
+                      OnhResult& r) {
+    r.eye = std::string(io::to_string(scan.meta.laterality));
     r.oriented_from_positions = geo.oriented_from_positions();
     r.grid_to_anatomical = geo.grid_to_anatomical();
     if (!geo.oriented_from_positions()) {
@@ -271,58 +289,65 @@ OnhResult analyse_onh(const io::Scan& scan,
     } catch (const DataError& e) {
         throw AnalysisError(std::string("the ILM surface is not a valid mesh: ") + e.what());
     }
+}
 
-    // ---- RPE/BM surface (SPEC §5.1) and BMO points (§5.3) ----------------------------------
+GridSurface bmo_points(const io::Scan& scan, const OnhParams& params,
+                       const std::optional<std::vector<BmoPoint>>& file_points, OnhResult& r) {
     GridSurface bm = line_height_field(scan, io::Layer::kBM);
     if (std::all_of(bm.z.begin(), bm.z.end(), [](double v) { return std::isnan(v); })) {
         throw AnalysisError("the BM segmentation is missing everywhere");
     }
-    if (bmo_file_points) {
+    if (file_points) {
         r.bmo_source = "file";
-        r.bmo_measured = *bmo_file_points;
-    } else {
-        r.bmo_source = "automatic";
-        BmoDetection det = detect_bmo_points(bm, params.detection);
-        r.bmo_measured = std::move(det.points);
-        r.bmo_points_per_bscan = std::move(det.points_per_bscan);
-        r.bmo_gap_area_mm2 = det.gap_area_mm2;
-        r.bmo_other_gaps = det.other_gaps;
-        int single = 0;
-        for (const int n : r.bmo_points_per_bscan) single += n == 1 ? 1 : 0;
-        if (single > 0) {
-            r.notes.push_back(std::to_string(single) +
-                              " B-scans crossing the BM gap gave one BMO point only (the gap "
-                              "reaches the scan edge or meets a missing neighbour)");
-        }
-        if (det.other_gaps > 0) {
-            r.notes.push_back(std::to_string(det.other_gaps) + " smaller BM gaps (" +
-                              std::to_string(det.other_gap_nodes) +
-                              " A-scans) are not the disc and were ignored for the BMO");
-        }
+        r.bmo_measured = *file_points;
+        return bm;
     }
+    r.bmo_source = "automatic";
+    BmoDetection det = detect_bmo_points(bm, params.detection);
+    r.bmo_measured = std::move(det.points);
+    r.bmo_points_per_bscan = std::move(det.points_per_bscan);
+    r.bmo_gap_area_mm2 = det.gap_area_mm2;
+    r.bmo_other_gaps = det.other_gaps;
+    int single = 0;
+    for (const int n : r.bmo_points_per_bscan) single += n == 1 ? 1 : 0;
+    if (single > 0) {
+        r.notes.push_back(std::to_string(single) +
+                          " B-scans crossing the BM gap gave one BMO point only (the gap "
+                          "reaches the scan edge or meets a missing neighbour)");
+    }
+    if (det.other_gaps > 0) {
+        r.notes.push_back(std::to_string(det.other_gaps) + " smaller BM gaps (" +
+                          std::to_string(det.other_gap_nodes) +
+                          " A-scans) are not the disc and were ignored for the BMO");
+    }
+    return bm;
+}
+
+void bmo_ellipse(const ScanGeometry& geo, const OnhParams& params, OnhResult& r) {
     r.ellipse = fit_bmo_ellipse(r.bmo_measured, params.bmo_points);
     const BmoEllipse& E = r.ellipse;
-    {
-        const double th = E.orientation_deg * kPi / 180.0;
-        r.bmo_orientation_anatomical_deg =
-            std::fmod(geo.anatomical_angle_deg(std::cos(th), std::sin(th)), 180.0);
-    }
+    const double th = E.orientation_deg * kPi / 180.0;
+    r.bmo_orientation_anatomical_deg =
+        std::fmod(geo.anatomical_angle_deg(std::cos(th), std::sin(th)), 180.0);
     if (E.rms_residual_mm > 0.05) {
         r.qc_flags.push_back("BMO points lie " + fmt_mm(E.rms_residual_mm * 1000.0, 1) +
                              " um (RMS) from their ellipse");
     }
+}
 
-    r.rpe = bm;
+void rpe_surface(GridSurface bm, OnhResult& r) {
+    r.rpe = std::move(bm);
     const ThinPlateFillResult fill = thin_plate_fill(r.rpe);
     r.rpe_filled_vertices = fill.filled;
     r.rpe_fill_residual = fill.residual;
     const double cell = r.rpe.dx_mm * r.rpe.dy_mm;
     r.rpe_fill_area_mm2 = fill.filled * cell;
+    r.rpe_fill_outside_bmo_mm2 = 0.0;
     for (int b = 0; b < r.rpe.rows; ++b) {
         for (int a = 0; a < r.rpe.cols; ++a) {
             const auto i = static_cast<std::size_t>(b) * static_cast<std::size_t>(r.rpe.cols) +
                            static_cast<std::size_t>(a);
-            if (r.rpe.filled[i] && !E.inside(a * r.rpe.dx_mm, b * r.rpe.dy_mm)) {
+            if (r.rpe.filled[i] && !r.ellipse.inside(a * r.rpe.dx_mm, b * r.rpe.dy_mm)) {
                 r.rpe_fill_outside_bmo_mm2 += cell;
             }
         }
@@ -332,8 +357,9 @@ OnhResult analyse_onh(const io::Scan& scan,
                              fmt_mm(r.rpe_fill_outside_bmo_mm2, 3) + " mm2 filled");
     }
     graph_mesh(r.rpe, r.rpe_V, r.rpe_F);
+}
 
-    // ---- ILM, oriented towards the vitreous -----------------------------------------------
+mesh::FaceGeometry orient_ilm(const IlmSurface& ilm, OnhResult& r) {
     r.ilm_V = ilm.V;
     r.ilm_F = ilm.F;
     r.ilm_filled_vertices = ilm.filled_vertices;
@@ -341,51 +367,46 @@ OnhResult analyse_onh(const io::Scan& scan,
     for (const auto& f : ilm.qc_flags) r.qc_flags.push_back(f);
     const Eigen::Index nf = r.ilm_F.rows();
     Eigen::VectorXd proj(nf);
-    auto projected_areas = [&] {
-        for (Eigen::Index f = 0; f < nf; ++f) {
-            const Eigen::Vector3d a = r.ilm_V.row(r.ilm_F(f, 0));
-            const Eigen::Vector3d b = r.ilm_V.row(r.ilm_F(f, 1));
-            const Eigen::Vector3d c = r.ilm_V.row(r.ilm_F(f, 2));
-            // Eq. 8.9: A_i = 1/2 (e0 x e1)_z of the projected triangle, signed.
-            proj(f) = 0.5 * ((b.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (b.y() - a.y()));
-        }
-    };
-    projected_areas();
+    for (Eigen::Index f = 0; f < nf; ++f) {
+        const Eigen::Vector3d a = r.ilm_V.row(r.ilm_F(f, 0));
+        const Eigen::Vector3d b = r.ilm_V.row(r.ilm_F(f, 1));
+        const Eigen::Vector3d c = r.ilm_V.row(r.ilm_F(f, 2));
+        // Eq. 8.9: A_i = 1/2 (e0 x e1)_z of the projected triangle, signed.
+        proj(f) = 0.5 * ((b.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (b.y() - a.y()));
+    }
     if (proj.sum() < 0.0) {
         r.ilm_F.col(1).swap(r.ilm_F.col(2));
         r.ilm_flipped = true;
         proj = -proj;
     }
     r.face_projected_area_mm2 = proj;
-    const mesh::FaceGeometry g = mesh::face_geometry(r.ilm_V, r.ilm_F);
+    mesh::FaceGeometry g = mesh::face_geometry(r.ilm_V, r.ilm_F);
     r.ilm_quality = mesh_quality_report(r.ilm_V, r.ilm_F, g, proj);
+    return g;
+}
 
-    // ---- Correspondence (Eq. 8.3-8.4, bilinear), regions (§8.1.5), volumes (Eq. 8.7-8.17) --
-    const Eigen::Vector2d c = E.centre_mm;
+void ilm_regions(const IlmSurface& ilm, const OnhParams& params, OnhResult& r) {
+    const Eigen::Vector2d c = r.ellipse.centre_mm;
     const double R = params.disc_radius_mm;
-    {
-        OnhRegions m = measure_onh_regions(r.ilm_V, r.ilm_F, r.rpe, E, R);
-        r.face_height_mm = std::move(m.face_height_mm);
-        r.face_region = std::move(m.face_region);
-        r.faces_outside_rpe = m.faces_outside_rpe;
-        r.cup_volume_mm3 = m.cup_volume_mm3;
-        r.has_cup = m.cup_volume_mm3 > 0.0;
-        r.bmo_volume_mm3 = m.bmo_volume_mm3;
-        r.total_volume_mm3 = m.total_volume_mm3;
-        r.annular_volume_mm3 = m.annular_volume_mm3;
-    }
+    OnhRegions m = measure_onh_regions(r.ilm_V, r.ilm_F, r.rpe, r.ellipse, R);
+    r.face_height_mm = std::move(m.face_height_mm);
+    r.face_region = std::move(m.face_region);
+    r.faces_outside_rpe = m.faces_outside_rpe;
+    r.cup_volume_mm3 = m.cup_volume_mm3;
+    r.has_cup = m.cup_volume_mm3 > 0.0;
+    r.bmo_volume_mm3 = m.bmo_volume_mm3;
+    r.total_volume_mm3 = m.total_volume_mm3;
+    r.annular_volume_mm3 = m.annular_volume_mm3;
     if (r.faces_outside_rpe > 0) {
         r.notes.push_back(std::to_string(r.faces_outside_rpe) +
                           " ILM faces lie outside the RPE grid and are in no region");
     }
-    {
-        const double gx = (r.rpe.cols - 1) * r.rpe.dx_mm;
-        const double gy = (r.rpe.rows - 1) * r.rpe.dy_mm;
-        if (c.x() - R < 0.0 || c.y() - R < 0.0 || c.x() + R > gx || c.y() + R > gy) {
-            r.qc_flags.push_back("the " + fmt_mm(R, 2) +
-                                 " mm disc around the BMO centre leaves the scan: total and "
-                                 "annular volumes are incomplete");
-        }
+    const double gx = (r.rpe.cols - 1) * r.rpe.dx_mm;
+    const double gy = (r.rpe.rows - 1) * r.rpe.dy_mm;
+    if (c.x() - R < 0.0 || c.y() - R < 0.0 || c.x() + R > gx || c.y() + R > gy) {
+        r.qc_flags.push_back("the " + fmt_mm(R, 2) +
+                             " mm disc around the BMO centre leaves the scan: total and "
+                             "annular volumes are incomplete");
     }
     if (ilm.vertex_filled.size() == static_cast<std::size_t>(r.ilm_V.rows())) {
         for (Eigen::Index i = 0; i < r.ilm_V.rows(); ++i) {
@@ -399,8 +420,11 @@ OnhResult analyse_onh(const io::Scan& scan,
         r.qc_flags.push_back(std::to_string(r.ilm_filled_in_disc) +
                              " ILM vertices within the disc were filled (missing ILM)");
     }
+}
 
-    // ---- CONHT (Eq. 8.10) ---------------------------------------------------------------
+void centre_and_shape(const mesh::FaceGeometry& g, const OnhParams& params, OnhResult& r) {
+    // CONHT (Eq. 8.10).
+    const Eigen::Vector2d c = r.ellipse.centre_mm;
     r.ilm_centre_height_mm = top_crossing(r.ilm_V, r.ilm_F, c.x(), c.y());
     r.rpe_centre_height_mm = r.rpe.bilinear(c.x(), c.y());
     r.conht_mm = r.ilm_centre_height_mm - r.rpe_centre_height_mm;
@@ -409,11 +433,10 @@ OnhResult analyse_onh(const io::Scan& scan,
             "CONHT undefined: the vertical line through the BMO centre misses "
             "the ILM surface");
     }
-
-    // ---- Bending energy (Eq. 8.18-8.20: one area-weighted tensor of the BMO region) ------
+    // Bending energy (Eq. 8.18-8.20: one area-weighted tensor of the BMO region).
     Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
     double area = 0.0;
-    for (Eigen::Index f = 0; f < nf; ++f) {
+    for (Eigen::Index f = 0; f < r.ilm_F.rows(); ++f) {
         if (!(r.face_region[static_cast<std::size_t>(f)] & kRegionBmo)) continue;
         const Eigen::Vector3d n = g.normals.row(f);
         M += g.areas(f) * n * n.transpose();
@@ -427,20 +450,26 @@ OnhResult analyse_onh(const io::Scan& scan,
         r.bmo_tensor_eigenvalues = {ev(2), ev(1), ev(0)};
         r.bending_energy = ev(0) + ev(1);  // lambda2 + lambda3
     } else {
+        r.bmo_tensor_eigenvalues = {kNaN, kNaN, kNaN};
         r.bending_energy = kNaN;
         r.qc_flags.push_back("no ILM face inside the BMO: bending energy undefined");
     }
     if (params.local_features) {
         r.face_envt_strength = mesh::face_features(r.ilm_V, r.ilm_F).strength;
     }
+}
 
-    // ---- BMO-MRW (Eq. 8.21-8.23): closest point on the ILM surface ------------------------
+void minimum_rim_width(const ScanGeometry& geo, OnhResult& r) {
+    // Closest point on the ILM surface (Eq. 8.21-8.22).
+    const BmoEllipse& E = r.ellipse;
+    const Eigen::Vector2d c = E.centre_mm;
     const mesh::TriangleTree tree(r.ilm_V, r.ilm_F);
     const std::size_t np = E.points_mm.size();
     r.mrw_points_mm.resize(np);
     r.mrw_mm.resize(np);
     r.bmo_anatomical_deg.resize(np);
     std::array<double, 12> sector_sum{};
+    r.mrw_sector_points = {};
     double sum = 0.0;
     r.mrw_min_mm = std::numeric_limits<double>::infinity();
     r.mrw_max_mm = 0.0;
@@ -465,14 +494,15 @@ OnhResult analyse_onh(const io::Scan& scan,
             r.mrw_sector_points[k] > 0 ? sector_sum[k] / r.mrw_sector_points[k] : kNaN;
     }
     // Eq. 8.23: quad i = (p_i, p_i+1, q_i+1, q_i), area = |d1 x d2| / 2 with its diagonals.
+    r.mrw_area_mm2 = 0.0;
     for (std::size_t i = 0; i < np; ++i) {
         const std::size_t j = (i + 1) % np;
         r.mrw_area_mm2 +=
             0.5 *
             (r.mrw_points_mm[j] - E.points_mm[i]).cross(r.mrw_points_mm[i] - E.points_mm[j]).norm();
     }
-    r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    return r;
 }
+
+}  // namespace onh_detail
 
 }  // namespace octshape::retina

@@ -91,8 +91,9 @@ J onh_json(const OnhResult& r, const OnhParams& p) {
     v["ilm_centre_height_mm"] = json_number(r.ilm_centre_height_mm);
     v["rpe_centre_height_mm"] = json_number(r.rpe_centre_height_mm);
     v["bmo_region_area_mm2"] = r.bmo_region_area_mm2;
-    v["bmo_tensor_eigenvalues"] = J::array(
-        {r.bmo_tensor_eigenvalues[0], r.bmo_tensor_eigenvalues[1], r.bmo_tensor_eigenvalues[2]});
+    v["bmo_tensor_eigenvalues"] =
+        J::array({json_number(r.bmo_tensor_eigenvalues[0]), json_number(r.bmo_tensor_eigenvalues[1]),
+                  json_number(r.bmo_tensor_eigenvalues[2])});
     j["parameters"] = v;
 
     J b;

@@ -103,7 +103,6 @@ struct LevelSetResult {
     double last_sign_change_fraction = 0.0;  // last_sign_changes / last_updated_voxels (0 if 0)
     std::int64_t voxel_updates = 0;      // total over all iterations
     double time_step = 0.0;              // global dt (mm per unit speed); voxels use local steps
-    int patience = 0;                    // effective patience (≥ params.patience, see there)
     double c_vitreous = 0.0;             // final region means (display units; see region_means)
     double c_tissue = 0.0;
     bool front_reached_window_edge = false;  // interface touched a window's top or bottom row
@@ -113,7 +112,7 @@ struct LevelSetResult {
     // Mesh diagnostics.
     std::int64_t raw_vertices = 0;  // marching cubes output (merged over slabs)
     std::int64_t raw_faces = 0;
-    int components = 0;             // connected components of the raw mesh
+    int components = 0;             // connected components after the valid-area clip
     std::int64_t clipped_faces = 0;   // faces removed by the valid-area clip
     int rofi_iterations = 0;
 
@@ -136,8 +135,9 @@ struct LevelSetResult {
 // and at least one valid ILM value, or when no surface is found.
 [[nodiscard]] LevelSetResult levelset_ilm(const io::Scan& scan, const LevelSetParams& params = {});
 
-// The same, but frees every B-scan's pixels (and clears scan.pixels_loaded) as soon as the
-// intensities have been copied onto the depth windows, so that the volume and the mesh stages
+// The same result, but frees every B-scan's pixels (and clears scan.pixels_loaded) as soon as
+// the intensities have been copied onto the depth windows (the stages before "evolve" in
+// libretina/onh/src/levelset_stages.h), so that the volume and the mesh stages
 // (RoFi's neighbourhoods) never occupy memory together: the per-eye pipeline's peak then stays
 // well below what holding the pixels to the end costs (docs/algorithms/levelset.md, "Memory").
 [[nodiscard]] LevelSetResult levelset_ilm_releasing_pixels(io::Scan& scan,

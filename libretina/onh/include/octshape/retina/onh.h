@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -88,6 +89,9 @@ struct MeshQuality {
 };
 
 struct OnhResult {
+    // A value the analysis could not measure (as CubeResult's kMissing): JSON null, CSV NA.
+    static constexpr double kMissing = std::numeric_limits<double>::quiet_NaN();
+
     // Inputs as measured.
     std::string ilm_source;
     std::string bmo_source;  // "automatic" or "file"
@@ -111,33 +115,37 @@ struct OnhResult {
     // BMO.
     std::vector<BmoPoint> bmo_measured;
     std::vector<int> bmo_points_per_bscan;  // automatic detection only
-    double bmo_gap_area_mm2 = 0.0;          // automatic detection only
+    double bmo_gap_area_mm2 = kMissing;     // automatic detection only (NaN for a file)
     int bmo_other_gaps = 0;
     BmoEllipse ellipse;
-    double bmo_orientation_anatomical_deg = 0.0;  // major axis from nasal towards superior
+    double bmo_orientation_anatomical_deg = kMissing;  // major axis from nasal towards superior
 
-    // Parameters (SPEC §5.6).
+    // Parameters (SPEC §5.6). NaN (kMissing) where a parameter cannot be measured: CONHT when
+    // the vertical line through the BMO centre misses the ILM, the BMO tensor and bending energy
+    // when no ILM face lies inside the BMO, an MRW sector without a BMO point.
     bool has_cup = false;
-    double cup_volume_mm3 = 0.0;  // Eq. 8.8, positive
-    double conht_mm = 0.0;        // Eq. 8.10 (top ILM crossing above the BMO centre)
-    double ilm_centre_height_mm = 0.0;
-    double rpe_centre_height_mm = 0.0;
-    double bmo_volume_mm3 = 0.0;                     // Eq. 8.11-8.12
-    double total_volume_mm3 = 0.0;                   // Eq. 8.14-8.15
-    double annular_volume_mm3 = 0.0;                 // Eq. 8.16-8.17 (annulus minus cup)
-    double bending_energy = 0.0;                     // Eq. 8.18-8.20, one tensor for the BMO region
-    std::array<double, 3> bmo_tensor_eigenvalues{};  // descending
-    double bmo_region_area_mm2 = 0.0;                // 3-D area of the ILM faces inside the BMO
+    double cup_volume_mm3 = kMissing;  // Eq. 8.8, positive
+    double conht_mm = kMissing;        // Eq. 8.10 (top ILM crossing above the BMO centre)
+    double ilm_centre_height_mm = kMissing;
+    double rpe_centre_height_mm = kMissing;
+    double bmo_volume_mm3 = kMissing;        // Eq. 8.11-8.12
+    double total_volume_mm3 = kMissing;      // Eq. 8.14-8.15
+    double annular_volume_mm3 = kMissing;    // Eq. 8.16-8.17 (annulus minus cup)
+    double bending_energy = kMissing;        // Eq. 8.18-8.20, one tensor for the BMO region
+    std::array<double, 3> bmo_tensor_eigenvalues{kMissing, kMissing, kMissing};  // descending
+    double bmo_region_area_mm2 = kMissing;   // 3-D area of the ILM faces inside the BMO (0: none)
     // MRW (Eq. 8.21-8.23), per resampled BMO point and summarised.
     std::vector<Eigen::Vector3d> mrw_points_mm;
     std::vector<double> mrw_mm;
     std::vector<double> bmo_anatomical_deg;
-    double mrw_mean_mm = 0.0;
-    double mrw_min_mm = 0.0;
-    double mrw_max_mm = 0.0;
-    std::array<double, 12> mrw_sector_mm{};  // anatomical 0, 30, ..., 330 (NaN: no point)
+    double mrw_mean_mm = kMissing;
+    double mrw_min_mm = kMissing;
+    double mrw_max_mm = kMissing;
+    std::array<double, 12> mrw_sector_mm{kMissing, kMissing, kMissing, kMissing, kMissing, kMissing,
+                                         kMissing, kMissing, kMissing, kMissing, kMissing, kMissing};
+    // ^ anatomical 0, 30, ..., 330 (NaN: no point)
     std::array<int, 12> mrw_sector_points{};
-    double mrw_area_mm2 = 0.0;  // Eq. 8.23
+    double mrw_area_mm2 = kMissing;  // Eq. 8.23
 
     // QC.
     int rpe_filled_vertices = 0;

@@ -1,0 +1,72 @@
+#pragma once
+// The stages of the ONH analysis (analyse_onh, onh.cpp) and what they hand each other;
+// internal to octshape::onh. The ILM surface (device line or level set) is built before, by
+// build_ilm_surface (onh.h); analyse_onh then runs, in this order:
+//
+//   check_onh_inputs   volume scan, orientation and spacing notes, a valid ILM mesh
+//   bmo_points         the BM height field (SPEC §5.1) and the BMO points: from a file or
+//                      detected at the BM gap (§5.3, bmo.cpp)
+//   bmo_ellipse        the ellipse through them, resampled; its anatomical orientation
+//   rpe_surface        the BM filled inside the BMO (thin plate) and its graph mesh
+//   orient_ilm         the ILM with its normals towards the vitreous; mesh quality
+//   ilm_regions        correspondence, regions and volumes (Eq. 8.3-8.17); disc and fill QC
+//   centre_and_shape   CONHT (Eq. 8.10), bending energy (Eq. 8.18-8.20), local features
+//   minimum_rim_width  BMO-MRW per point, per sector and its area (Eq. 8.21-8.23)
+//
+// Each stage reads the fields of OnhResult that the stages before it wrote and writes the
+// fields named at its declaration. Decisions and measurements: docs/algorithms/onh.md.
+
+#include <optional>
+#include <vector>
+
+#include "octshape/io/scan.h"
+#include "octshape/mesh/mesh.h"
+#include "octshape/retina/onh.h"
+#include "octshape/retina/scan_geometry.h"
+
+namespace octshape::retina::onh_detail {
+
+// Writes eye, oriented_from_positions, grid_to_anatomical and their notes / QC flags.
+// AnalysisError when the ILM has no faces or is not a valid mesh.
+void check_onh_inputs(const io::Scan& scan, const ScanGeometry& geo, const IlmSurface& ilm,
+                      OnhResult& r);
+
+// Returns the BM height field; writes bmo_source, bmo_measured and, for the automatic
+// detection, bmo_points_per_bscan, bmo_gap_area_mm2, bmo_other_gaps and their notes.
+// AnalysisError when the BM line is missing everywhere.
+[[nodiscard]] GridSurface bmo_points(const io::Scan& scan, const OnhParams& params,
+                                     const std::optional<std::vector<BmoPoint>>& file_points,
+                                     OnhResult& r);
+
+// Writes ellipse (from bmo_measured) and bmo_orientation_anatomical_deg; a QC flag when the
+// points lie more than 50 µm (RMS) from it.
+void bmo_ellipse(const ScanGeometry& geo, const OnhParams& params, OnhResult& r);
+
+// Writes rpe (bm filled), rpe_V, rpe_F and the fill's QC: rpe_filled_vertices,
+// rpe_fill_residual, rpe_fill_area_mm2, rpe_fill_outside_bmo_mm2 (needs ellipse).
+void rpe_surface(GridSurface bm, OnhResult& r);
+
+// Writes ilm_V, ilm_F (reversed when the signed projected area is negative: ilm_flipped),
+// ilm_filled_vertices, face_projected_area_mm2, ilm_quality and the ILM's notes and QC flags.
+// Returns the face geometry of the oriented ILM.
+[[nodiscard]] mesh::FaceGeometry orient_ilm(const IlmSurface& ilm, OnhResult& r);
+
+// Writes face_height_mm, face_region, faces_outside_rpe, the volumes and has_cup
+// (measure_onh_regions), ilm_filled_in_disc and their notes / QC flags.
+void ilm_regions(const IlmSurface& ilm, const OnhParams& params, OnhResult& r);
+
+// Writes ilm_centre_height_mm, rpe_centre_height_mm, conht_mm (NaN when the vertical line
+// through the BMO centre misses the ILM), bmo_region_area_mm2, bmo_tensor_eigenvalues and
+// bending_energy (NaN without an ILM face inside the BMO), face_envt_strength on request.
+void centre_and_shape(const mesh::FaceGeometry& g, const OnhParams& params, OnhResult& r);
+
+// Writes mrw_points_mm, mrw_mm, bmo_anatomical_deg, the MRW summaries, the 12 sectors (NaN
+// without a point) and mrw_area_mm2.
+void minimum_rim_width(const ScanGeometry& geo, OnhResult& r);
+
+// Height of the topmost crossing of the vertical line through (x, y) with the mesh: what the
+// line meets first coming from the vitreous (SPEC §5.6 CONHT). NaN if it misses the mesh.
+[[nodiscard]] double top_crossing(const mesh::Vertices& V, const mesh::Faces& F, double x,
+                                  double y);
+
+}  // namespace octshape::retina::onh_detail

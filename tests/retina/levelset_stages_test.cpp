@@ -1,0 +1,222 @@
+// The stages of the level-set ILM (libretina/onh/src/levelset_stages.h) that the phantom tests
+// of levelset_test.cpp pin only through the whole pipeline: each against a value worked out
+// by hand from its definition.
+
+#include "../../libretina/onh/src/levelset_stages.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "octshape/error.h"
+
+namespace octshape::retina::levelset_detail {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+DeviceIlm flat_ilm(int nb, int na, int nz, float depth) {
+    DeviceIlm d;
+    d.nb = nb;
+    d.na = na;
+    d.nz = nz;
+    d.h = {0.01, 0.03, 0.004};
+    d.ilm.assign(static_cast<std::size_t>(nb * na), depth);
+    d.valid.assign(static_cast<std::size_t>(nb * na), 1);
+    return d;
+}
+
+TEST(LevelSetStages, FillMissingInterpolatesAlongBscansAndCopiesTheNearestBscan) {
+    // 4 B-scans × 5 A-scans; B-scan 1 and 3 have no value.
+    std::vector<float> g{kNaN, 2.0F, kNaN, kNaN, 8.0F,  // interior gap and leading gap
+                         kNaN, kNaN, kNaN, kNaN, kNaN,  // copies B-scan 0 or 2: tie → 0
+                         1.0F, 1.0F, 1.0F, 1.0F, 1.0F,  //
+                         kNaN, kNaN, kNaN, kNaN, kNaN};  // nearest: B-scan 2
+    ASSERT_TRUE(fill_missing(g, 4, 5));
+    const std::vector<float> row0{2.0F, 2.0F, 4.0F, 6.0F, 8.0F};
+    for (int a = 0; a < 5; ++a) {
+        EXPECT_FLOAT_EQ(g[static_cast<std::size_t>(a)], row0[static_cast<std::size_t>(a)]) << a;
+        EXPECT_FLOAT_EQ(g[static_cast<std::size_t>(5 + a)], row0[static_cast<std::size_t>(a)]) << a;
+        EXPECT_FLOAT_EQ(g[static_cast<std::size_t>(15 + a)], 1.0F) << a;
+    }
+    std::vector<float> none(6, kNaN);
+    EXPECT_FALSE(fill_missing(none, 2, 3));
+}
+
+TEST(LevelSetStages, DepthWindowsSpanTheBoxOfIlmDepthsWidenedByTheMargin) {
+    // ILM at row 50 everywhere but row 80 at (b, a) = (2, 5); lateral radius 0.025 mm =
+    // 2 A-scans (0.01 mm) and 0 B-scans (0.03 mm): the deep column widens a = 3..7 of B-scan 2.
+    DeviceIlm d = flat_ilm(5, 11, 200, 50.0F);
+    d.ilm[2 * 11 + 5] = 80.0F;
+    LevelSetParams p;
+    p.lateral_radius_mm = 0.025;
+    p.margin_mm = 0.018;  // 4.5 rows
+    const Windows w = depth_windows(d, p);
+    std::int64_t off = 0;
+    for (int b = 0; b < 5; ++b) {
+        for (int a = 0; a < 11; ++a) {
+            const auto c = static_cast<std::size_t>(w.column(b, a));
+            const bool deep = b == 2 && a >= 3 && a <= 7;
+            EXPECT_EQ(w.lo[c], 45) << b << "," << a;  // floor(50 − 4.5)
+            // ceil(max + 4.5) + 1 exclusive: 56 (flat), 86 (deep)
+            EXPECT_EQ(w.lo[c] + w.len[c], deep ? 86 : 56) << b << "," << a;
+            EXPECT_EQ(w.offset[c], off);
+            off += w.len[c];
+        }
+    }
+    EXPECT_EQ(w.size, off);
+    EXPECT_EQ(w.offset.back(), off);
+}
+
+TEST(LevelSetStages, DepthWindowsAreClampedToTheRows) {
+    const DeviceIlm d = flat_ilm(3, 4, 20, 1.0F);
+    LevelSetParams p;
+    p.margin_mm = 0.2;  // 50 rows: more than the scan holds
+    const Windows w = depth_windows(d, p);
+    for (std::size_t c = 0; c < w.lo.size(); ++c) {
+        EXPECT_EQ(w.lo[c], 0);
+        EXPECT_EQ(w.len[c], 20);
+    }
+}
+
+TEST(LevelSetStages, BinomialPassKeepsConstantsAndSpreadsADeltaAsTheKernel) {
+    const int rows = 9, na = 9;
+    std::vector<float> buf(static_cast<std::size_t>(rows * na), 3.0F), tmp(buf.size());
+    binomial_pass(buf, tmp, rows, na);
+    for (const float v : buf) EXPECT_FLOAT_EQ(v, 3.0F);
+    std::fill(buf.begin(), buf.end(), 0.0F);
+    buf[4 * na + 4] = 256.0F;
+    binomial_pass(buf, tmp, rows, na);
+    const float k[5] = {1, 4, 6, 4, 1};  // × 256 / 16² = the outer product of [1 4 6 4 1]
+    for (int r = 0; r < rows; ++r) {
+        for (int a = 0; a < na; ++a) {
+            const bool in = std::abs(r - 4) <= 2 && std::abs(a - 4) <= 2;
+            const float want = in ? k[r - 2] * k[a - 2] : 0.0F;
+            EXPECT_FLOAT_EQ(buf[static_cast<std::size_t>(r * na + a)], want) << r << "," << a;
+        }
+    }
+}
+
+TEST(LevelSetStages, DespeckleStoresTheFourthRootOnTheWindowsAndMarksInvalidColumns) {
+    DeviceIlm d = flat_ilm(2, 3, 10, 4.0F);
+    io::Scan scan;
+    scan.bscans.resize(2);
+    for (int b = 0; b < 2; ++b) {
+        auto& px = scan.bscans[static_cast<std::size_t>(b)].pixels;
+        px.resize(30);
+        for (int r = 0; r < 10; ++r) {
+            for (int a = 0; a < 3; ++a) px[static_cast<std::size_t>(r * 3 + a)] = static_cast<float>(r * r * r * r);
+        }
+    }
+    scan.bscans[1].pixels[5 * 3 + 2] = 2e30F;  // B-scan 1, row 5, A-scan 2: invalid
+    LevelSetParams p;
+    p.margin_mm = 0.006;  // 1.5 rows: windows [2, 7)
+    const Windows w = depth_windows(d, p);
+    const std::vector<float> img = despeckle(scan, w, 0, d);
+    for (int b = 0; b < 2; ++b) {
+        for (int a = 0; a < 3; ++a) {
+            const auto c = static_cast<std::size_t>(w.column(b, a));
+            ASSERT_EQ(w.lo[c], 2);
+            ASSERT_EQ(w.len[c], 5);
+            for (int r = 0; r < 5; ++r) {
+                const bool bad = b == 1 && a == 2 && r + 2 == 5;
+                EXPECT_FLOAT_EQ(img[static_cast<std::size_t>(w.offset[c] + r)], bad ? 0.0F : static_cast<float>(r + 2));
+            }
+            EXPECT_EQ(d.valid[c], (b == 1 && a == 2) ? 0 : 1);
+        }
+    }
+}
+
+TEST(LevelSetStages, InitialPhiIsTheSignedVerticalDistanceToTheDeviceIlm) {
+    DeviceIlm d = flat_ilm(2, 2, 40, 20.25F);
+    LevelSetParams p;
+    const Windows w = depth_windows(d, p);
+    const std::vector<float> phi = initial_phi(w, d);
+    for (std::size_t c = 0; c < w.lo.size(); ++c) {
+        for (int r = 0; r < w.len[c]; ++r) {
+            const double want = (20.25 - (w.lo[c] + r)) * d.h.hz;  // > 0 above (vitreous)
+            EXPECT_FLOAT_EQ(phi[static_cast<std::size_t>(w.offset[c] + r)], static_cast<float>(want));
+        }
+    }
+}
+
+// φ of a flat interface half-way between rows 20 and 21 on every column.
+struct FlatCase {
+    DeviceIlm ilm;
+    Windows w;
+    std::vector<float> phi;
+};
+FlatCase flat_case(int nb, int na) {
+    FlatCase f{flat_ilm(nb, na, 60, 20.5F), {}, {}};
+    f.w = depth_windows(f.ilm, LevelSetParams{});
+    f.phi = initial_phi(f.w, f.ilm);
+    return f;
+}
+
+TEST(LevelSetStages, SurfaceOfAFlatInterfaceIsOneGridAcrossTheSlabs) {
+    // 7 B-scans in slabs of 3 (sharing their last B-scan): slabs [0,2], [2,4], [4,6].
+    const int nb = 7, na = 6;
+    const FlatCase f = flat_case(nb, na);
+    const Surface s = surface(f.w, f.phi, f.ilm.h, 3);
+    // One point per column (the shared B-scan planes merged exactly), two triangles per cell.
+    EXPECT_EQ(s.V.rows(), nb * na);
+    EXPECT_EQ(s.F.rows(), 2 * (nb - 1) * (na - 1));
+    for (Eigen::Index i = 0; i < s.V.rows(); ++i) {
+        // φ is ±hz/2 on the rows either side: the crossing is exactly half-way; VTK's float
+        // points round 0.082 mm to ~7e-9 mm.
+        EXPECT_NEAR(s.V(i, 2), -20.5 * f.ilm.h.hz, 1e-8) << i;
+    }
+}
+
+TEST(LevelSetStages, CleanUpClipsInvalidColumnsKeepsTheLargestPartAndOrientsUp) {
+    const int nb = 9, na = 9;
+    FlatCase f = flat_case(nb, na);
+    Surface s = surface(f.w, f.phi, f.ilm.h, 16);
+    // Reverse the faces so that the orientation step has something to do.
+    s.F.col(1).swap(s.F.col(2));
+    // The invalid columns a = 3, 4 cut the grid in two. Each cell [a, a + 1] holds two
+    // triangles whose centroids lie at x/hx = a + 1/3 and a + 2/3 (either diagonal); a face is
+    // clipped when that rounds to 3 or 4: 2.67, 3.33, 3.67, 4.33 — four per row of cells.
+    std::vector<std::uint8_t> valid(static_cast<std::size_t>(nb * na), 1);
+    for (int b = 0; b < nb; ++b) {
+        valid[static_cast<std::size_t>(b * na + 3)] = 0;
+        valid[static_cast<std::size_t>(b * na + 4)] = 0;
+    }
+    const CleanUp c = clean_up(s, valid, nb, na, f.ilm.h);
+    EXPECT_EQ(c.clipped_faces, 4 * (nb - 1));
+    // Left: cells 0, 1 and the face at 2.33 (vertices x ≤ 3); right: the face at 4.67 and
+    // cells 5, 6, 7 (vertices x ≥ 4): disjoint, the right one larger (7 faces per row vs 5).
+    EXPECT_EQ(c.components, 2);
+    EXPECT_EQ(s.F.rows(), 7 * (nb - 1));
+    // VTK keeps the points in float: 0.04 mm to ~4e-9 mm.
+    EXPECT_NEAR(s.V.col(0).minCoeff(), 4.0 * f.ilm.h.hx, 1e-8);
+    const mesh::FaceGeometry g = mesh::face_geometry(s.V, s.F);
+    for (Eigen::Index k = 0; k < s.F.rows(); ++k) EXPECT_GT(g.normals(k, 2), 0.99) << k;
+}
+
+TEST(LevelSetStages, CleanUpWithNothingValidIsAnAnalysisError) {
+    FlatCase f = flat_case(4, 4);
+    Surface s = surface(f.w, f.phi, f.ilm.h, 16);
+    const std::vector<std::uint8_t> none(16, 0);
+    EXPECT_THROW((void)clean_up(s, none, 4, 4, f.ilm.h), AnalysisError);
+}
+
+TEST(LevelSetStages, SmoothOffKeepsThePositions) {
+    FlatCase f = flat_case(4, 5);
+    Surface s = surface(f.w, f.phi, f.ilm.h, 16);
+    const mesh::Vertices V = s.V;
+    const mesh::Faces F = s.F;
+    LevelSetParams p;
+    p.smooth = false;
+    LevelSetResult res;
+    smooth(std::move(s), p, res);
+    EXPECT_TRUE(res.V == V);
+    EXPECT_TRUE(res.V_raw == V);
+    EXPECT_TRUE(res.F == F);
+    EXPECT_EQ(res.rofi_iterations, 0);
+}
+
+}  // namespace
+}  // namespace octshape::retina::levelset_detail

@@ -1,0 +1,119 @@
+// The stages of the ONH analysis (libretina/onh/src/onh_stages.h) whose behaviour the phantom
+// tests of onh_test.cpp do not pin on their own: CONHT's top crossing, the missing values
+// (NaN, JSON null, CSV NA) and the MRW sums, each against values worked out by hand.
+
+#include "../../libretina/onh/src/onh_stages.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include "octshape/retina/onh_report.h"
+
+namespace octshape::retina::onh_detail {
+namespace {
+
+// An n × n grid of squares on [x0, x0 + size]², split into counter-clockwise triangles, at
+// height z; appended to (V, F).
+void add_grid(mesh::Vertices& V, mesh::Faces& F, int n, double x0, double size, double z) {
+    const auto v0 = static_cast<int>(V.rows());
+    const auto f0 = F.rows();
+    V.conservativeResize(v0 + (n + 1) * (n + 1), 3);
+    F.conservativeResize(f0 + 2 * n * n, 3);
+    for (int j = 0; j <= n; ++j) {
+        for (int i = 0; i <= n; ++i) V.row(v0 + j * (n + 1) + i) << x0 + i * size / n, x0 + j * size / n, z;
+    }
+    Eigen::Index f = f0;
+    for (int j = 0; j < n; ++j) {
+        for (int i = 0; i < n; ++i) {
+            const int a = v0 + j * (n + 1) + i;
+            F.row(f++) << a, a + 1, a + n + 2;
+            F.row(f++) << a, a + n + 2, a + n + 1;
+        }
+    }
+}
+
+TEST(OnhStages, TopCrossingIsTheHighestSheetAndNaNWhereTheLineMissesTheMesh) {
+    mesh::Vertices V(0, 3);
+    mesh::Faces F(0, 3);
+    add_grid(V, F, 4, 0.0, 2.0, -0.3);  // lower sheet
+    add_grid(V, F, 2, 0.5, 1.0, 0.7);   // an overhang over [0.5, 1.5]²
+    // Barycentric interpolation of equal heights: exact but for the rounding of l0 + l1 + l2.
+    EXPECT_NEAR(top_crossing(V, F, 1.0, 1.1), 0.7, 1e-15);
+    EXPECT_NEAR(top_crossing(V, F, 0.2, 1.8), -0.3, 1e-15);  // beside the overhang
+    EXPECT_TRUE(std::isnan(top_crossing(V, F, 2.5, 1.0)));  // off the mesh
+}
+
+TEST(OnhStages, ResultDefaultsAreMissingNotZero) {
+    const OnhResult r;
+    for (const double v : {r.cup_volume_mm3, r.conht_mm, r.ilm_centre_height_mm,
+                           r.rpe_centre_height_mm, r.bmo_volume_mm3, r.total_volume_mm3,
+                           r.annular_volume_mm3, r.bending_energy, r.bmo_region_area_mm2,
+                           r.mrw_mean_mm, r.mrw_min_mm, r.mrw_max_mm, r.mrw_area_mm2,
+                           r.bmo_gap_area_mm2, r.bmo_orientation_anatomical_deg}) {
+        EXPECT_TRUE(std::isnan(v));
+    }
+    for (const double v : r.bmo_tensor_eigenvalues) EXPECT_TRUE(std::isnan(v));
+    for (const double v : r.mrw_sector_mm) EXPECT_TRUE(std::isnan(v));
+}
+
+// The surfaces of centre_and_shape: an ILM plane at z = 0.4 over a flat RPE at 0 on [0, 2]².
+OnhResult flat_result() {
+    OnhResult r;
+    add_grid(r.ilm_V, r.ilm_F, 8, 0.0, 2.0, 0.4);
+    r.rpe.cols = r.rpe.rows = 5;
+    r.rpe.dx_mm = r.rpe.dy_mm = 0.5;
+    r.rpe.z.assign(25, 0.0);
+    r.rpe.filled.assign(25, 0);
+    r.ellipse.centre_mm = {1.0, 1.0};
+    r.face_region.assign(static_cast<std::size_t>(r.ilm_F.rows()), 0);
+    return r;
+}
+
+TEST(OnhStages, CentreAndShapeMeasureConhtAndTheTensorOfTheBmoFaces) {
+    OnhResult r = flat_result();
+    for (auto& reg : r.face_region) reg = kRegionBmo;
+    const mesh::FaceGeometry g = mesh::face_geometry(r.ilm_V, r.ilm_F);
+    centre_and_shape(g, OnhParams{}, r);
+    // Interpolations of constant heights: exact to the rounding of their weights.
+    EXPECT_NEAR(r.ilm_centre_height_mm, 0.4, 1e-15);
+    EXPECT_NEAR(r.rpe_centre_height_mm, 0.0, 1e-15);
+    EXPECT_NEAR(r.conht_mm, 0.4, 1e-15);
+    EXPECT_NEAR(r.bmo_region_area_mm2, 4.0, 1e-12);
+    // Every normal is +z: the tensor is diag(0, 0, 1), eigenvalues (1, 0, 0), energy 0.
+    EXPECT_NEAR(r.bmo_tensor_eigenvalues[0], 1.0, 1e-12);
+    EXPECT_NEAR(r.bmo_tensor_eigenvalues[1], 0.0, 1e-12);
+    EXPECT_NEAR(r.bending_energy, 0.0, 1e-12);
+    EXPECT_TRUE(r.qc_flags.empty());
+}
+
+TEST(OnhStages, NoBmoFaceMakesTheTensorMissingAndTheReportWritesNullAndNA) {
+    OnhResult r = flat_result();
+    r.ellipse.centre_mm = {3.0, 1.0};  // the vertical line misses the ILM too
+    const mesh::FaceGeometry g = mesh::face_geometry(r.ilm_V, r.ilm_F);
+    centre_and_shape(g, OnhParams{}, r);
+    EXPECT_EQ(r.bmo_region_area_mm2, 0.0);  // measured: no face
+    EXPECT_TRUE(std::isnan(r.bending_energy));
+    for (const double v : r.bmo_tensor_eigenvalues) EXPECT_TRUE(std::isnan(v));
+    EXPECT_TRUE(std::isnan(r.conht_mm));
+    EXPECT_EQ(r.qc_flags.size(), 2U);  // CONHT undefined, bending energy undefined
+    const nlohmann::ordered_json j = onh_json(r, OnhParams{});
+    const auto& p = j.at("parameters");
+    EXPECT_TRUE(p.at("bending_energy").is_null());
+    EXPECT_TRUE(p.at("conht_mm").is_null());
+    for (const auto& v : p.at("bmo_tensor_eigenvalues")) EXPECT_TRUE(v.is_null());
+    EXPECT_EQ(p.at("bmo_region_area_mm2"), 0.0);
+    const std::vector<std::string> h = onh_csv_header();
+    const std::vector<std::string> v = onh_csv_values(r);
+    ASSERT_EQ(h.size(), v.size());
+    for (std::size_t k = 0; k < h.size(); ++k) {
+        if (h[k] == "bending_energy" || h[k] == "conht_mm") {
+            EXPECT_EQ(v[k], "NA") << h[k];
+        }
+    }
+}
+
+}  // namespace
+}  // namespace octshape::retina::onh_detail
