@@ -7,6 +7,7 @@
 #include <signal.h>
 #include <sys/file.h>
 #include <sys/prctl.h>
+#include <sys/stat.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -22,7 +23,9 @@
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <map>
 #include <memory>
+#include <random>
 #include <nlohmann/json.hpp>
 #include <thread>
 
@@ -31,6 +34,7 @@
 #include "commands/gallery.h"
 #include "commands/macula_eye.h"
 #include "commands/onh_eye.h"
+#include "commands/provenance.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/io/error.h"
 #include "octshape/io/scan_reader.h"
@@ -92,16 +96,66 @@ private:
     int fd_ = -1;
 };
 
-std::string eye_key(const std::string& abs_path) {
-    return io::sha256_hex(abs_path).substr(0, 16);
-}
-
 void make_dir(const fs::path& d) {
     std::error_code ec;
     fs::create_directories(d, ec);
     if (ec || !fs::is_directory(d)) {
         throw OutputError(d.string(), "cannot create directory: " + ec.message());
     }
+}
+
+// OUTDIR/private/: everything that names an input (docs/cohort.md, "Output folder"); only its
+// owner may read it.
+fs::path make_private_dir(const fs::path& out) {
+    const fs::path d = out / "private";
+    make_dir(d);
+    if (::chmod(d.c_str(), 0700) != 0) throw OutputError(d.string(), std::strerror(errno));
+    return d;
+}
+
+// The subject key of a cohort run without a subject option: OUTDIR/private/subject.key, made
+// (64 random hex digits, mode 0600) by the first run and reused by every later one.
+std::string own_subject_key(const fs::path& private_dir) {
+    const fs::path p = private_dir / "subject.key";
+    std::error_code ec;
+    if (fs::exists(p, ec)) {
+        spdlog::info("subject ids: HMAC under the key in {} (made by an earlier run)", p.string());
+        return p.string();
+    }
+    std::random_device rd;
+    std::string key;
+    for (int i = 0; i < 8; ++i) key += fmt::format("{:08x}", rd());
+    const fs::path tmp = private_dir / ".subject.key.tmp";
+    fs::remove(tmp, ec);
+    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    if (fd < 0) throw OutputError(tmp.string(), std::strerror(errno));
+    const std::string line = key + "\n";
+    const bool ok = ::write(fd, line.data(), line.size()) == static_cast<ssize_t>(line.size()) &&
+                    ::fsync(fd) == 0;
+    ::close(fd);
+    if (!ok || ::rename(tmp.c_str(), p.c_str()) != 0) {
+        fs::remove(tmp, ec);
+        throw OutputError(p.string(), "cannot write the subject key");
+    }
+    spdlog::info("subject ids: HMAC under a new random key in {} (keep it with the study's "
+                 "identification list; later runs on this folder reuse it)",
+                 p.string());
+    return p.string();
+}
+
+// A failure reason fit for OUTDIR/failures.csv: the input's path, file name, stem and folder
+// name replaced by "<input>" (they are in OUTDIR/private/failures.csv).
+std::string scrub(std::string reason, const std::string& abs_path) {
+    const fs::path p(abs_path);
+    for (const std::string& s : {abs_path, p.filename().string(), p.stem().string(),
+                                 p.parent_path().filename().string()}) {
+        if (s.size() < 3) continue;  // too short to be a name, and would mangle the reason
+        for (std::size_t at = reason.find(s); at != std::string::npos;
+             at = reason.find(s, at + 7)) {
+            reason.replace(at, s.size(), "<input>");
+        }
+    }
+    return reason;
 }
 
 // Temporary files of writes that a kill interrupted (".NAME.tmp-PID-RANDOM").
@@ -119,6 +173,7 @@ void remove_stale_temporaries(const fs::path& d) {
 // A file that could not be taken in: path, reason, exit code.
 struct Skipped {
     std::string path;
+    std::string key;  // eye_key(path)
     std::string reason;
     int exit_code = 0;
 };
@@ -144,11 +199,11 @@ std::vector<std::string> discover(const std::vector<std::string>& inputs, const 
             if (io::detect_format(abs) != io::FileFormat::kUnknown) {
                 files.push_back(abs);
             } else if (has_export_extension(p)) {
-                skipped.push_back({abs, "not a supported export (unknown content)",
+                skipped.push_back({abs, eye_key(abs), "not a supported export (unknown content)",
                                    static_cast<int>(ExitCode::kDataError)});
             }
         } catch (const InputError& e) {
-            skipped.push_back({abs, e.what(), static_cast<int>(e.exit_code())});
+            skipped.push_back({abs, eye_key(abs), e.what(), static_cast<int>(e.exit_code())});
         }
     };
     for (const auto& in : inputs) {
@@ -163,7 +218,8 @@ std::vector<std::string> discover(const std::vector<std::string>& inputs, const 
         if (ec) throw InputError::unreadable(in, ec.message());
         for (const fs::recursive_directory_iterator end; it != end; it.increment(ec)) {
             if (ec) {
-                skipped.push_back({absolute_path(in), "folder walk stopped: " + ec.message(),
+                skipped.push_back({absolute_path(in), eye_key(absolute_path(in)),
+                                   "folder walk stopped: " + ec.message(),
                                    static_cast<int>(ExitCode::kNoInput)});
                 break;
             }
@@ -209,7 +265,9 @@ int analyse_eye(const CohortOptions& o, const SubjectSource& subjects, const Ite
                 const fs::path& out, std::string& message) {
     try {
         const FileFacts facts = file_facts(item.path);
+        Provenance read;
         const io::HashedScan input = io::read_scan_hashed(item.path);
+        read.mark("read_hash");
         const io::Scan& scan = input.scan;
         retina::ScanType type = retina::ScanType::kMacula;
         std::string why = "--type macula";
@@ -239,6 +297,12 @@ int analyse_eye(const CohortOptions& o, const SubjectSource& subjects, const Ite
                 eo.qc_stem = item.key;
             }
             r = analyse_macula_eye(item.path, facts, input, eo, subjects);
+            // The first reading's time and the run's start, before the analysis's stages.
+            nlohmann::ordered_json p = read.json();
+            for (const auto& [k, v] : r.json["provenance"]["seconds"].items()) {
+                p["seconds"][k] = v;
+            }
+            r.json["provenance"] = p;
         }
         // Atomic, not fsync'ed: the parent syncs the file system once before the tables.
         io::write_text_atomically((out / "eyes" / (item.key + ".json")).string(),
@@ -353,7 +417,7 @@ void record_failure(Item& item, const fs::path& out, const std::string& options_
                     const std::string& reason, int exit_code) {
     nlohmann::ordered_json f;
     f["cohort"] = cohort_record(item.facts, options_text, "unknown");
-    f["reason"] = reason;
+    f["reason"] = scrub(reason, item.path);  // the path is in OUTDIR/private/failures.csv
     f["exit_code"] = exit_code;
     io::write_text_atomically((out / "failures" / (item.key + ".json")).string(),
                               f.dump(2) + "\n", {.durable = false});
@@ -361,16 +425,45 @@ void record_failure(Item& item, const fs::path& out, const std::string& options_
     item.failure = f;
 }
 
-std::string failures_csv(const std::vector<Item>& items, const std::vector<Skipped>& skipped) {
+// OUTDIR/failures.csv (`with_paths` false: eye_key,reason,exit_code, reasons without the
+// input's name) or OUTDIR/private/failures.csv (eye_key,file,reason,exit_code), by eye key.
+std::string failures_csv(const std::vector<Item>& items, const std::vector<Skipped>& skipped,
+                         bool with_paths) {
     std::vector<std::vector<std::string>> rows;
+    const auto add = [&](const std::string& key, const std::string& path,
+                         const std::string& reason, int code) {
+        std::vector<std::string> r{key, scrub(reason, path), std::to_string(code)};
+        if (with_paths) r.insert(r.begin() + 1, path);
+        rows.push_back(std::move(r));
+    };
     for (const auto& it : items) {
         if (!it.failed) continue;
-        rows.push_back({it.path, it.failure.value("reason", std::string()),
-                        std::to_string(it.failure.value("exit_code", 0))});
+        add(it.key, it.path, it.failure.value("reason", std::string()),
+            it.failure.value("exit_code", 0));
     }
-    for (const auto& s : skipped) rows.push_back({s.path, s.reason, std::to_string(s.exit_code)});
+    for (const auto& s : skipped) add(s.key, s.path, s.reason, s.exit_code);
     std::sort(rows.begin(), rows.end());
-    std::string s = retina::csv_line({"file", "reason", "exit_code"});
+    std::string s = retina::csv_line(
+        with_paths ? std::vector<std::string>{"eye_key", "file", "reason", "exit_code"}
+                   : std::vector<std::string>{"eye_key", "reason", "exit_code"});
+    for (const auto& r : rows) s += retina::csv_line(r);
+    return s;
+}
+
+// OUTDIR/private/inputs.csv: eye_key,file,sha256,result (eye | failure) of this run's inputs,
+// by eye key: the only map from the keys of the shared tables back to the files.
+std::string inputs_csv(const std::vector<Item>& items, const std::vector<Skipped>& skipped) {
+    std::vector<std::vector<std::string>> rows;
+    for (const auto& it : items) {
+        std::string sha;
+        if (it.done && it.slim.contains("input") && it.slim["input"].is_object()) {
+            sha = it.slim["input"].value("sha256", std::string());
+        }
+        rows.push_back({it.key, it.path, sha, it.done ? "eye" : (it.failed ? "failure" : "")});
+    }
+    for (const auto& s : skipped) rows.push_back({s.key, s.path, "", "failure"});
+    std::sort(rows.begin(), rows.end());
+    std::string s = retina::csv_line({"eye_key", "file", "sha256", "result"});
     for (const auto& r : rows) s += retina::csv_line(r);
     return s;
 }
@@ -385,21 +478,27 @@ void run(CohortOptions& o, RunContext& ctx) {
     const int jobs = o.jobs > 0 ? o.jobs : std::max(1, cores);
     o.eye.params.tau_mm = o.eye.tau_um * 1e-3;
     o.eye.params.validate();
-    const SubjectSource subjects = SubjectSource::from_options(o.subjects);
-    if (subjects.kind() == SubjectSource::Kind::kNone) {
-        throw UsageError(
-            "cohort needs a subject id source (GEE clusters eyes by subject): "
-            "--subject-key-file F, --subject-key KEY, --subjects map.csv, or --subject-id raw");
+    for (const auto& in : o.inputs) {  // before anything is written
+        std::error_code ec;
+        if (!fs::exists(in, ec)) throw InputError::missing(in);
     }
-    GroupMap groups;
-    if (!o.groups.empty()) groups = GroupMap::load(o.groups);
-
+    io::check_output_directory(o.out);
     const fs::path out(o.out);
     make_dir(out);
     const DirLock lock(out);
     for (const char* d : {"eyes", "failures"}) make_dir(out / d);
     if (o.qc) make_dir(out / "qc");
-    for (const auto& d : {out, out / "eyes", out / "failures", out / "qc"}) {
+    const fs::path private_dir = make_private_dir(out);
+    // Without a subject option the cohort keys the pseudonyms with its own random key.
+    SubjectOptions subject_options = o.subjects;
+    if (subject_options.key.empty() && subject_options.key_file.empty() &&
+        subject_options.map_file.empty() && subject_options.mode.empty()) {
+        subject_options.key_file = own_subject_key(private_dir);
+    }
+    const SubjectSource subjects = SubjectSource::from_options(subject_options);
+    GroupMap groups;
+    if (!o.groups.empty()) groups = GroupMap::load(o.groups, subjects);
+    for (const auto& d : {out, out / "eyes", out / "failures", out / "qc", private_dir}) {
         remove_stale_temporaries(d);
     }
 
@@ -418,6 +517,7 @@ void run(CohortOptions& o, RunContext& ctx) {
 
     std::vector<Skipped> skipped;
     const auto files = discover(o.inputs, out, skipped);
+    std::size_t refingerprinted = 0;  // results made by other code or parameters
     std::vector<Item> items;
     items.reserve(files.size());
     std::vector<std::size_t> pending;
@@ -428,7 +528,7 @@ void run(CohortOptions& o, RunContext& ctx) {
         try {
             it.facts = file_facts(f);
         } catch (const InputError& e) {
-            skipped.push_back({f, e.what(), static_cast<int>(e.exit_code())});
+            skipped.push_back({f, it.key, e.what(), static_cast<int>(e.exit_code())});
             continue;
         }
         const fs::path eye_json = out / "eyes" / (it.key + ".json");
@@ -442,11 +542,16 @@ void run(CohortOptions& o, RunContext& ctx) {
                                              : std::string();
                 const char* picture = type == "onh" ? "_enface.png" : "_thickness.png";
                 const bool qc_ok = !o.qc || fs::exists(out / "qc" / (it.key + picture));
-                if (j.contains("cohort") &&
-                    record_is_current(j["cohort"], it.facts, eye_options_of(type)) &&
-                    (o.type == "auto" || o.type == type) && qc_ok) {
+                const RecordState state = j.contains("cohort")
+                                              ? record_state(j["cohort"], it.facts,
+                                                             eye_options_of(type))
+                                              : RecordState::kFileChanged;
+                if (state == RecordState::kCurrent && (o.type == "auto" || o.type == type) &&
+                    qc_ok) {
                     it.done = true;
                     it.slim = slim(j);
+                } else if (state == RecordState::kFingerprintChanged) {
+                    ++refingerprinted;
                 }
             } catch (const InputError& e) {
                 spdlog::warn("{}: unusable previous result, redoing the eye: {}", f, e.what());
@@ -471,6 +576,11 @@ void run(CohortOptions& o, RunContext& ctx) {
     spdlog::info("{} exports found, {} already done (results or recorded failures), {} to do, "
                  "{} job(s)",
                  items.size(), resumed, pending.size(), jobs);
+    if (refingerprinted > 0) {
+        spdlog::info("{} eye(s) redone: their results were made by other code or parameters "
+                     "(fingerprint differs from this binary's {})",
+                     refingerprinted, version_text());
+    }
 
     const bool bar = ::isatty(STDERR_FILENO) != 0 && spdlog::get_level() <= spdlog::level::info;
     Progress progress(items.size(), pending.size(), bar);
@@ -666,18 +776,26 @@ void run(CohortOptions& o, RunContext& ctx) {
         }
         if (it.failed) ++failed;
     }
+    if (groups.by_file()) {
+        std::map<std::string, std::string> paths;
+        for (const auto& it : items) paths[it.key] = it.path;
+        groups.set_paths(std::move(paths));
+    }
     // One table per scan type (their parameter columns differ): eyes.csv holds the maculae,
     // eyes_onh.csv the optic nerve heads (written when the cohort has any).
-    io::write_text_atomically((out / "eyes.csv").string(),
-                              eyes_csv(eyes, names, "macula", groups));
+    const std::string macula_table = eyes_csv(eyes, names, "macula", groups);
     const bool any_onh = std::any_of(eyes.begin(), eyes.end(), [](const nlohmann::json& e) {
         return e.contains("cohort") && e["cohort"].value("scan_type", std::string()) == "onh";
     });
-    if (any_onh) {
-        io::write_text_atomically((out / "eyes_onh.csv").string(),
-                                  eyes_csv(eyes, names, "onh", groups));
-    }
-    io::write_text_atomically((out / "failures.csv").string(), failures_csv(items, skipped));
+    const std::string onh_table = any_onh ? eyes_csv(eyes, names, "onh", groups) : "";
+    groups.check_matches();  // before any table is written
+    io::write_text_atomically((out / "eyes.csv").string(), macula_table);
+    if (any_onh) io::write_text_atomically((out / "eyes_onh.csv").string(), onh_table);
+    io::write_text_atomically((out / "failures.csv").string(),
+                              failures_csv(items, skipped, false));
+    io::write_text_atomically((private_dir / "failures.csv").string(),
+                              failures_csv(items, skipped, true));
+    io::write_text_atomically((private_dir / "inputs.csv").string(), inputs_csv(items, skipped));
     spdlog::info("{} eyes in {}, {} failed (see {})", eyes.size(), (out / "eyes.csv").string(),
                  failed, (out / "failures.csv").string());
     if (o.qc) {
@@ -696,14 +814,17 @@ void add_cohort_command(CLI::App& app, RunContext& ctx) {
         "cohort",
         "Analyse every supported export under the folders (recursive), N at a time in N worker "
         "processes (a crashed or hung eye is recorded, its worker replaced); resumable and crash "
-        "safe. Writes OUTDIR/eyes/*.json, OUTDIR/eyes.csv, OUTDIR/failures.csv (docs/cohort.md). "
+        "safe. Writes OUTDIR/eyes/*.json, OUTDIR/eyes.csv, OUTDIR/failures.csv, and under "
+        "OUTDIR/private/ all that names an input (paths; the subject key it makes when no subject "
+        "option is given): the rest can be handed over (docs/cohort.md). "
         "Exit 0: all eyes done; 1: some inputs failed (listed in failures.csv)");
     cmd->add_option("inputs", opts->inputs, "Folders (searched recursively) or files")
         ->required();
     cmd->add_option("-o,--output", opts->out, "Output folder")->required();
     cmd->add_option("-j,--jobs", opts->jobs, "Eyes analysed at once (default: one per core)");
     cmd->add_option("--groups", opts->groups,
-                    "Group column from a CSV with header subject_id,group or file,group");
+                    "Group column from a CSV with header subject_id,group, patient_id,group or "
+                    "file,group (absolute path or file name); matching no eye is an error");
     cmd->add_option("--type", opts->type,
                     "auto (decide from the BM segmentation: docs/cohort.md), macula or onh")
         ->capture_default_str();
