@@ -12,6 +12,7 @@
 #include <spdlog/spdlog.h>
 
 #include "commands/command.h"
+#include "commands/provenance.h"
 #include "octshape/error.h"
 #include "octshape/version.h"
 
@@ -50,7 +51,8 @@ int main(int argc, char** argv) {
     CLI::App app{"octshape: 3-D shape parameters of the fovea and optic nerve head from "
                  "Heidelberg Spectralis OCT exports"};
     app.footer(kExitCodes);
-    app.set_version_flag("--version", std::string("octshape ") + octshape::kVersion);
+    // Version, the source revision built (and whether the tree was modified), build type.
+    app.set_version_flag("--version", octshape::app::version_text());
     app.require_subcommand(1);
     bool quiet = false;
     int verbose = 0;
@@ -67,6 +69,7 @@ int main(int argc, char** argv) {
     octshape::app::add_macula_command(app, ctx);
     octshape::app::add_cohort_command(app, ctx);
     octshape::app::add_merge_command(app, ctx);
+    octshape::app::add_pseudonym_command(app, ctx);
     octshape::app::add_stats_command(app, ctx);
     octshape::app::add_gallery_command(app, ctx);
     octshape::app::add_onh_command(app, ctx);

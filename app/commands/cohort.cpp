@@ -16,7 +16,9 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <map>
 #include <memory>
+#include <random>
 #include <nlohmann/json.hpp>
 #include <thread>
 
@@ -25,7 +27,9 @@
 #include "commands/cohort_tables.h"
 #include "commands/cohort_workers.h"
 #include "commands/eye_record.h"
+#include "commands/provenance.h"
 #include "octshape/error.h"
+#include "octshape/io/atomic_file.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/retina/scan_type.h"
 
@@ -102,11 +106,11 @@ std::vector<std::string> discover(const std::vector<std::string>& inputs, const 
             if (io::detect_format(abs) != io::FileFormat::kUnknown) {
                 files.push_back(abs);
             } else if (has_export_extension(p)) {
-                skipped.push_back({abs, "not a supported export (unknown content)",
+                skipped.push_back({abs, eye_key(abs), "not a supported export (unknown content)",
                                    static_cast<int>(ExitCode::kDataError)});
             }
         } catch (const InputError& e) {
-            skipped.push_back({abs, e.what(), static_cast<int>(e.exit_code())});
+            skipped.push_back({abs, eye_key(abs), e.what(), static_cast<int>(e.exit_code())});
         }
     };
     for (const auto& in : inputs) {
@@ -121,7 +125,8 @@ std::vector<std::string> discover(const std::vector<std::string>& inputs, const 
         if (ec) throw InputError::unreadable(in, ec.message());
         for (const fs::recursive_directory_iterator end; it != end; it.increment(ec)) {
             if (ec) {
-                skipped.push_back({absolute_path(in), "folder walk stopped: " + ec.message(),
+                skipped.push_back({absolute_path(in), eye_key(absolute_path(in)),
+                                   "folder walk stopped: " + ec.message(),
                                    static_cast<int>(ExitCode::kNoInput)});
                 break;
             }
@@ -154,13 +159,16 @@ Setup prepare(CohortOptions& o) {
     s.jobs = o.jobs > 0 ? o.jobs : std::max(1, cores);
     o.eye.params.tau_mm = o.eye.tau_um * 1e-3;
     o.eye.params.validate();
-    s.subjects = SubjectSource::from_options(o.subjects);
-    if (s.subjects.kind() == SubjectSource::Kind::kNone) {
-        throw UsageError(
-            "cohort needs a subject id source (GEE clusters eyes by subject): "
-            "--subject-key-file F, --subject-key KEY, --subjects map.csv, or --subject-id raw");
+    for (const auto& in : o.inputs) {  // before anything is written
+        std::error_code ec;
+        if (!fs::exists(in, ec)) throw InputError::missing(in);
     }
-    if (!o.groups.empty()) s.groups = GroupMap::load(o.groups);
+    io::check_output_directory(o.out);
+    // Without a subject option the cohort keys the pseudonyms with its own random key,
+    // OUTDIR/private/subject.key: made by the first command on OUTDIR that needs it (`cohort`,
+    // `cohort --list` before a workflow's jobs, or a `cohort-eye` job), reused by the others.
+    s.subjects = SubjectSource::from_options(cohort_subject_options(o));
+    if (!o.groups.empty()) s.groups = GroupMap::load(o.groups, s.subjects);
     // The eye record's options, and the failure record's (which also depend on --type).
     s.sig = cohort_signatures(o, s.subjects);
     return s;
@@ -170,7 +178,8 @@ Setup prepare(CohortOptions& o) {
 void make_output_dirs(const fs::path& out, bool qc, const std::string& key = "") {
     for (const char* d : {"eyes", "failures"}) make_dir(out / d);
     if (qc) make_dir(out / "qc");
-    for (const auto& d : {out, out / "eyes", out / "failures", out / "qc"}) {
+    const fs::path private_dir = make_private_dir(out);
+    for (const auto& d : {out, out / "eyes", out / "failures", out / "qc", private_dir}) {
         remove_stale_temporaries(d, key);
     }
 }
@@ -212,6 +221,13 @@ void run(CohortOptions& o, RunContext& ctx) {
     spdlog::info("{} exports found, {} already done (results or recorded failures), {} to do, "
                  "{} job(s)",
                  items.size(), resumed, pending.size(), s.jobs);
+    const auto refingerprinted = std::count_if(items.begin(), items.end(),
+                                               [](const Item& it) { return it.refingerprinted; });
+    if (refingerprinted > 0) {
+        spdlog::info("{} eye(s) redone: their results were made by other code or parameters "
+                     "(fingerprint differs from this binary's {})",
+                     refingerprinted, version_text());
+    }
     run_workers(o, s.subjects, items, pending, out, s.sig.failure, s.jobs, lock->fd());
 
     // Every record of this run reaches the disk before the tables that list them (one syncfs
@@ -224,7 +240,9 @@ void run(CohortOptions& o, RunContext& ctx) {
 
 // `cohort --list`: one JSON line per input the run would analyse: its eye key, the scan type
 // the analysis will take ("macula", "onh", or "unknown" when the classifier cannot read or
-// classify it: the eye's job then records the failure) and the file. Writes nothing.
+// classify it: the eye's job then records the failure) and the file. Writes nothing but, when
+// no subject option is given, the cohort's own key OUTDIR/private/subject.key (made once here,
+// before a workflow starts its eye jobs, which then all use it).
 void list(CohortOptions& o) {
     const Setup s = prepare(o);
     const fs::path out(o.out);
@@ -313,7 +331,8 @@ void run_tables(CohortOptions& o, RunContext& ctx) {
 void add_cohort_options(CLI::App* cmd, CohortOptions& o) {
     cmd->add_option("-o,--output", o.out, "Output folder")->required();
     cmd->add_option("--groups", o.groups,
-                    "Group column from a CSV with header subject_id,group or file,group");
+                    "Group column from a CSV with header subject_id,group, patient_id,group or "
+                    "file,group (absolute path or file name); matching no eye is an error");
     cmd->add_option("--type", o.type,
                     "auto (decide from the BM segmentation: docs/cohort.md), macula or onh")
         ->capture_default_str();
@@ -339,7 +358,9 @@ void add_cohort_command(CLI::App& app, RunContext& ctx) {
         "cohort",
         "Analyse every supported export under the folders (recursive), N at a time in N worker "
         "processes (a crashed or hung eye is recorded, its worker replaced); resumable and crash "
-        "safe. Writes OUTDIR/eyes/*.json, OUTDIR/eyes.csv, OUTDIR/failures.csv (docs/cohort.md). "
+        "safe. Writes OUTDIR/eyes/*.json, OUTDIR/eyes.csv, OUTDIR/failures.csv, and under "
+        "OUTDIR/private/ all that names an input (paths; the subject key it makes when no subject "
+        "option is given): the rest can be handed over (docs/cohort.md). "
         "Exit 0: all eyes done; 1: some inputs failed (listed in failures.csv)");
     cmd->add_option("inputs", opts->inputs, "Folders (searched recursively) or files")
         ->required();
@@ -372,7 +393,8 @@ void add_cohort_command(CLI::App& app, RunContext& ctx) {
     auto tab_opts = std::make_shared<CohortOptions>();
     CLI::App* tables = app.add_subcommand(
         "cohort-tables",
-        "Write OUTDIR/eyes.csv, eyes_onh.csv, failures.csv (and with --qc the gallery) from the "
+        "Write OUTDIR/eyes.csv, eyes_onh.csv, failures.csv, private/inputs.csv and "
+        "private/failures.csv (and with --qc the gallery) from the "
         "records `octshape cohort-eye` wrote for the inputs, with the cohort's code: the "
         "workflow's last job. Takes the cohort's inputs and options. Exit 0: all eyes done; 1: "
         "some inputs failed (in failures.csv); 66: an input has no current record yet");

@@ -3,13 +3,21 @@
 
 #include "commands/cohort_eye.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <cerrno>
+#include <cstring>
 #include <new>
+#include <random>
 
-#include "octshape/io/atomic_file.h"
+#include "commands/provenance.h"
 #include "octshape/error.h"
+#include "octshape/io/atomic_file.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/io/sha256.h"
 #include "octshape/retina/scan_type.h"
@@ -20,6 +28,73 @@ namespace fs = std::filesystem;
 
 std::string eye_key(const std::string& abs_path) {
     return io::sha256_hex(abs_path).substr(0, 16);
+}
+
+std::string scrub(std::string reason, const std::string& abs_path) {
+    const fs::path p(abs_path);
+    for (const std::string& s : {abs_path, p.filename().string(), p.stem().string(),
+                                 p.parent_path().filename().string()}) {
+        if (s.size() < 3) continue;  // too short to be a name, and would mangle the reason
+        for (std::size_t at = reason.find(s); at != std::string::npos;
+             at = reason.find(s, at + 7)) {
+            reason.replace(at, s.size(), "<input>");
+        }
+    }
+    return reason;
+}
+
+fs::path make_private_dir(const fs::path& out) {
+    const fs::path d = out / "private";
+    std::error_code ec;
+    fs::create_directories(d, ec);
+    if (ec || !fs::is_directory(d)) {
+        throw OutputError(d.string(), "cannot create directory: " + ec.message());
+    }
+    if (::chmod(d.c_str(), 0700) != 0) throw OutputError(d.string(), std::strerror(errno));
+    return d;
+}
+
+std::string own_subject_key(const fs::path& private_dir) {
+    const fs::path p = private_dir / "subject.key";
+    std::error_code ec;
+    if (fs::exists(p, ec)) {
+        spdlog::info("subject ids: HMAC under the key in {} (made by an earlier run)", p.string());
+        return p.string();
+    }
+    std::random_device rd;
+    std::string key;
+    for (int i = 0; i < 8; ++i) key += fmt::format("{:08x}", rd());
+    // Written under a name of this process, then linked into place: link() never replaces, so
+    // of several jobs making the key at once the first one's is the key of all.
+    const fs::path tmp = private_dir / fmt::format(".subject.key.tmp-{}", ::getpid());
+    fs::remove(tmp, ec);
+    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    if (fd < 0) throw OutputError(tmp.string(), std::strerror(errno));
+    const std::string line = key + "\n";
+    const bool ok = ::write(fd, line.data(), line.size()) == static_cast<ssize_t>(line.size()) &&
+                    ::fsync(fd) == 0;
+    ::close(fd);
+    const bool linked = ok && ::link(tmp.c_str(), p.c_str()) == 0;
+    const bool lost_race = ok && !linked && errno == EEXIST;
+    fs::remove(tmp, ec);
+    if (lost_race) {
+        spdlog::info("subject ids: HMAC under the key in {} (made by a job beside this one)",
+                     p.string());
+        return p.string();
+    }
+    if (!linked) throw OutputError(p.string(), "cannot write the subject key");
+    spdlog::info("subject ids: HMAC under a new random key in {} (keep it with the study's "
+                 "identification list; later runs on this folder reuse it)",
+                 p.string());
+    return p.string();
+}
+
+SubjectOptions cohort_subject_options(const CohortOptions& o) {
+    SubjectOptions so = o.subjects;
+    if (so.key.empty() && so.key_file.empty() && so.map_file.empty() && so.mode.empty()) {
+        so.key_file = own_subject_key(make_private_dir(o.out));
+    }
+    return so;
 }
 
 CohortSignatures cohort_signatures(const CohortOptions& o, const SubjectSource& subjects) {
@@ -47,7 +122,7 @@ std::optional<Item> load_item(const std::string& f, const fs::path& out, const C
     try {
         it.facts = file_facts(f);
     } catch (const InputError& e) {
-        skipped.push_back({f, e.what(), static_cast<int>(e.exit_code())});
+        skipped.push_back({f, it.key, e.what(), static_cast<int>(e.exit_code())});
         return std::nullopt;
     }
     const fs::path eye_json = out / "eyes" / (it.key + ".json");
@@ -61,10 +136,15 @@ std::optional<Item> load_item(const std::string& f, const fs::path& out, const C
                                          : std::string();
             const char* picture = type == "onh" ? "_enface.png" : "_thickness.png";
             const bool qc_ok = !o.qc || fs::exists(out / "qc" / (it.key + picture));
-            if (j.contains("cohort") && record_is_current(j["cohort"], it.facts, sig.eye(type)) &&
-                (o.type == "auto" || o.type == type) && qc_ok) {
+            const RecordState state = j.contains("cohort")
+                                          ? record_state(j["cohort"], it.facts, sig.eye(type))
+                                          : RecordState::kFileChanged;
+            if (state == RecordState::kCurrent && (o.type == "auto" || o.type == type) &&
+                qc_ok) {
                 it.done = true;
                 it.slim = slim(j);
+            } else if (state == RecordState::kFingerprintChanged) {
+                it.refingerprinted = true;
             }
         } catch (const InputError& e) {
             spdlog::warn("{}: unusable previous result, redoing the eye: {}", f, e.what());
@@ -88,7 +168,9 @@ int analyse_eye(const CohortOptions& o, const SubjectSource& subjects, const Ite
                 const fs::path& out, std::string& message) {
     try {
         const FileFacts facts = file_facts(item.path);
+        Provenance read;
         const io::HashedScan input = io::read_scan_hashed(item.path);
+        read.mark("read_hash");
         const io::Scan& scan = input.scan;
         retina::ScanType type = retina::ScanType::kMacula;
         std::string why = "--type macula";
@@ -118,6 +200,12 @@ int analyse_eye(const CohortOptions& o, const SubjectSource& subjects, const Ite
                 eo.qc_stem = item.key;
             }
             r = analyse_macula_eye(item.path, facts, input, eo, subjects);
+            // The first reading's time and the run's start, before the analysis's stages.
+            nlohmann::ordered_json p = read.json();
+            for (const auto& [k, v] : r.json["provenance"]["seconds"].items()) {
+                p["seconds"][k] = v;
+            }
+            r.json["provenance"] = p;
         }
         // Atomic, not fsync'ed: the parent syncs the file system once before the tables.
         io::write_text_atomically((out / "eyes" / (item.key + ".json")).string(),
@@ -139,7 +227,7 @@ void record_failure(Item& item, const fs::path& out, const std::string& options_
                     const std::string& reason, int exit_code) {
     nlohmann::ordered_json f;
     f["cohort"] = cohort_record(item.facts, options_text, "unknown");
-    f["reason"] = reason;
+    f["reason"] = scrub(reason, item.path);  // the path is in OUTDIR/private/failures.csv
     f["exit_code"] = exit_code;
     io::write_text_atomically((out / "failures" / (item.key + ".json")).string(),
                               f.dump(2) + "\n", {.durable = false});

@@ -38,19 +38,39 @@ struct Item {
     FileFacts facts;
     bool done = false;       // a current result exists
     bool failed = false;     // a current failure record exists
+    bool refingerprinted = false;  // its result was made by other code or parameters
     nlohmann::json slim;     // what eyes.csv needs of the result
     nlohmann::json failure;  // the failure record
 };
 
-// A file that could not be taken in: path, reason, exit code.
+// A file that could not be taken in: path, eye key, reason, exit code.
 struct Skipped {
     std::string path;
+    std::string key;  // eye_key(path)
     std::string reason;
     int exit_code = 0;
 };
 
 // The eye key of an absolute path: the first 16 hex digits of its SHA-256.
 [[nodiscard]] std::string eye_key(const std::string& abs_path);
+
+// A failure reason fit for OUTDIR/failures.csv: the input's path, file name, stem and folder
+// name replaced by "<input>" (they are in OUTDIR/private/failures.csv).
+[[nodiscard]] std::string scrub(std::string reason, const std::string& abs_path);
+
+// OUTDIR/private/ (mode 0700): everything that names an input (docs/cohort.md, "Output
+// folder"). Made when missing.
+std::filesystem::path make_private_dir(const std::filesystem::path& out);
+
+// The subject key of a cohort run without a subject option: OUTDIR/private/subject.key, made
+// (64 random hex digits, mode 0600) by the first command that needs it and reused by every
+// later one; safe when several `cohort-eye` jobs make it at once (the first one's is kept).
+// Returns its path.
+std::string own_subject_key(const std::filesystem::path& private_dir);
+
+// The options of a cohort run's subject ids: `o.subjects`, or, when no subject option is given,
+// the cohort's own key (own_subject_key) under OUTDIR/private/.
+[[nodiscard]] SubjectOptions cohort_subject_options(const CohortOptions& o);
 
 // The option texts a record must carry to count as current: an eye's, per scan type (changing
 // an ONH option redoes the ONH eyes only), and a failure's (which also depends on --type, --qc
@@ -70,7 +90,8 @@ struct CohortSignatures {
 [[nodiscard]] nlohmann::json slim(const nlohmann::json& j);
 
 // The resume check of one input: its item, marked done (with its slim result) or failed (with
-// its record) when OUTDIR holds a current record of it. A file that cannot be stat'ed goes to
+// its record) when OUTDIR holds a current record of it; `refingerprinted` when its result was
+// made by other code or parameters (a different fingerprint: redone). A file that cannot be stat'ed goes to
 // `skipped` (nullopt).
 [[nodiscard]] std::optional<Item> load_item(const std::string& file,
                                             const std::filesystem::path& out,

@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <map>
 
 #include "commands/gallery.h"
 #include "octshape/io/atomic_file.h"
@@ -14,23 +15,47 @@ namespace octshape::app {
 
 namespace fs = std::filesystem;
 
-std::string failures_csv(const std::vector<Item>& items, const std::vector<Skipped>& skipped) {
+std::string failures_csv(const std::vector<Item>& items, const std::vector<Skipped>& skipped,
+                         bool with_paths) {
     std::vector<std::vector<std::string>> rows;
+    const auto add = [&](const std::string& key, const std::string& path,
+                         const std::string& reason, int code) {
+        std::vector<std::string> r{key, scrub(reason, path), std::to_string(code)};
+        if (with_paths) r.insert(r.begin() + 1, path);
+        rows.push_back(std::move(r));
+    };
     for (const auto& it : items) {
         if (!it.failed) continue;
-        rows.push_back({it.path, it.failure.value("reason", std::string()),
-                        std::to_string(it.failure.value("exit_code", 0))});
+        add(it.key, it.path, it.failure.value("reason", std::string()),
+            it.failure.value("exit_code", 0));
     }
-    for (const auto& s : skipped) rows.push_back({s.path, s.reason, std::to_string(s.exit_code)});
+    for (const auto& s : skipped) add(s.key, s.path, s.reason, s.exit_code);
     std::sort(rows.begin(), rows.end());
-    std::string s = retina::csv_line({"file", "reason", "exit_code"});
+    std::string s = retina::csv_line(
+        with_paths ? std::vector<std::string>{"eye_key", "file", "reason", "exit_code"}
+                   : std::vector<std::string>{"eye_key", "reason", "exit_code"});
+    for (const auto& r : rows) s += retina::csv_line(r);
+    return s;
+}
+
+std::string inputs_csv(const std::vector<Item>& items, const std::vector<Skipped>& skipped) {
+    std::vector<std::vector<std::string>> rows;
+    for (const auto& it : items) {
+        std::string sha;
+        if (it.done && it.slim.contains("input") && it.slim["input"].is_object()) {
+            sha = it.slim["input"].value("sha256", std::string());
+        }
+        rows.push_back({it.key, it.path, sha, it.done ? "eye" : (it.failed ? "failure" : "")});
+    }
+    for (const auto& s : skipped) rows.push_back({s.key, s.path, "", "failure"});
+    std::sort(rows.begin(), rows.end());
+    std::string s = retina::csv_line({"eye_key", "file", "sha256", "result"});
     for (const auto& r : rows) s += retina::csv_line(r);
     return s;
 }
 
 CohortTables write_cohort_tables(const fs::path& out, const std::vector<Item>& items,
-                                 const std::vector<Skipped>& skipped, const GroupMap& groups,
-                                 bool qc) {
+                                 const std::vector<Skipped>& skipped, GroupMap groups, bool qc) {
     std::vector<nlohmann::json> eyes;
     std::vector<std::string> names;
     std::size_t failed = skipped.size();
@@ -41,18 +66,27 @@ CohortTables write_cohort_tables(const fs::path& out, const std::vector<Item>& i
         }
         if (it.failed) ++failed;
     }
+    if (groups.by_file()) {
+        std::map<std::string, std::string> paths;
+        for (const auto& it : items) paths[it.key] = it.path;
+        groups.set_paths(std::move(paths));
+    }
     // One table per scan type (their parameter columns differ): eyes.csv holds the maculae,
     // eyes_onh.csv the optic nerve heads (written when the cohort has any).
-    io::write_text_atomically((out / "eyes.csv").string(),
-                              eyes_csv(eyes, names, "macula", groups));
+    const std::string macula_table = eyes_csv(eyes, names, "macula", groups);
     const bool any_onh = std::any_of(eyes.begin(), eyes.end(), [](const nlohmann::json& e) {
         return e.contains("cohort") && e["cohort"].value("scan_type", std::string()) == "onh";
     });
-    if (any_onh) {
-        io::write_text_atomically((out / "eyes_onh.csv").string(),
-                                  eyes_csv(eyes, names, "onh", groups));
-    }
-    io::write_text_atomically((out / "failures.csv").string(), failures_csv(items, skipped));
+    const std::string onh_table = any_onh ? eyes_csv(eyes, names, "onh", groups) : "";
+    groups.check_matches();  // before any table is written
+    const fs::path private_dir = make_private_dir(out);
+    io::write_text_atomically((out / "eyes.csv").string(), macula_table);
+    if (any_onh) io::write_text_atomically((out / "eyes_onh.csv").string(), onh_table);
+    io::write_text_atomically((out / "failures.csv").string(),
+                              failures_csv(items, skipped, false));
+    io::write_text_atomically((private_dir / "failures.csv").string(),
+                              failures_csv(items, skipped, true));
+    io::write_text_atomically((private_dir / "inputs.csv").string(), inputs_csv(items, skipped));
     spdlog::info("{} eyes in {}, {} failed (see {})", eyes.size(), (out / "eyes.csv").string(),
                  failed, (out / "failures.csv").string());
     if (qc) {

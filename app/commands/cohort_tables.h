@@ -14,21 +14,28 @@
 
 namespace octshape::app {
 
-// failures.csv: header file,reason,exit_code; one row per failed item and per skipped file,
-// sorted.
+// OUTDIR/failures.csv (`with_paths` false: eye_key,reason,exit_code, reasons without the
+// input's name) or OUTDIR/private/failures.csv (eye_key,file,reason,exit_code): one row per
+// failed item and per skipped file, sorted by eye key.
 [[nodiscard]] std::string failures_csv(const std::vector<Item>& items,
-                                       const std::vector<Skipped>& skipped);
+                                       const std::vector<Skipped>& skipped, bool with_paths);
+
+// OUTDIR/private/inputs.csv: eye_key,file,sha256,result (eye | failure) of the inputs, by eye
+// key: the only map from the keys of the shared tables back to the files.
+[[nodiscard]] std::string inputs_csv(const std::vector<Item>& items,
+                                     const std::vector<Skipped>& skipped);
 
 struct CohortTables {
     std::size_t eyes = 0;    // rows of eyes.csv and eyes_onh.csv
     std::size_t failed = 0;  // rows of failures.csv
 };
 
-// Writes OUTDIR/eyes.csv, OUTDIR/eyes_onh.csv (when an item is an ONH eye), OUTDIR/failures.csv
-// (each atomically and durably) from the items' records, and with `qc` the gallery
-// OUTDIR/qc/index.html. The records must be on disk (the gallery reads them).
+// Writes OUTDIR/eyes.csv, OUTDIR/eyes_onh.csv (when an item is an ONH eye), OUTDIR/failures.csv,
+// OUTDIR/private/failures.csv and OUTDIR/private/inputs.csv (each atomically and durably) from
+// the items' records, and with `qc` the gallery OUTDIR/qc/index.html. The records must be on
+// disk (the gallery reads them). A groups file matching no eye is refused before any table is
+// written.
 CohortTables write_cohort_tables(const std::filesystem::path& out, const std::vector<Item>& items,
-                                 const std::vector<Skipped>& skipped, const GroupMap& groups,
-                                 bool qc);
+                                 const std::vector<Skipped>& skipped, GroupMap groups, bool qc);
 
 }  // namespace octshape::app

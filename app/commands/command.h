@@ -21,6 +21,7 @@ void add_features_command(CLI::App& app, RunContext& ctx);
 void add_meanshape_command(CLI::App& app, RunContext& ctx);
 void add_cohort_command(CLI::App& app, RunContext& ctx);
 void add_merge_command(CLI::App& app, RunContext& ctx);
+void add_pseudonym_command(CLI::App& app, RunContext& ctx);
 // `phantom macula` under the `phantom` parent.
 void add_phantom_macula_command(CLI::App& phantom, RunContext& ctx);
 // `phantom onh` under the `phantom` parent command.

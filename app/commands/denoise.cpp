@@ -25,6 +25,7 @@ struct DenoiseOptions {
     std::string input;
     std::string output;
     std::string method = "rofi";
+    bool record_paths = false;
     std::string similarity;
     bool use_auto = false;
     std::optional<double> sigma_s;
@@ -77,15 +78,15 @@ void run_pointset_denoise(const DenoiseOptions& o) {
     io::write_point_set(o.output, r.V, &r.normals,
                         mesh_provenance("denoise", {o.input}, {input_sha},
                                         {{"method", o.method}, {"parameters", parameters},
-                                         {"threads", o.threads}}));
+                                         {"threads", o.threads}}, o.record_paths));
     spdlog::info("{}: {} iterations of pointset in {:.3f} s (+{:.3f} s set-up), written to {}",
                  o.input, r.iterations, r.seconds_iterations, r.seconds_setup, o.output);
     if (!o.json) return;
     const nlohmann::json j = {
         {"software", std::string("octshape ") + kVersion},
-        {"input", o.input},
+        {"input", shown_path(o.input, o.record_paths)},
         {"input_sha256", input_sha},
-        {"output", o.output},
+        {"output", shown_path(o.output, o.record_paths)},
         {"method", o.method},
         {"parameters", parameters},
         {"points", points.rows()},
@@ -206,16 +207,16 @@ void run_denoise(const DenoiseOptions& o) {
     nlohmann::json options = {{"method", o.method}, {"auto", use_auto}, {"parameters", params},
                               {"threads", o.threads}};
     io::write_mesh(o.output, result.V, in.F, {},
-                   mesh_provenance("denoise", {o.input}, {input_sha}, options));
+                   mesh_provenance("denoise", {o.input}, {input_sha}, options, o.record_paths));
     spdlog::info("{}: {} iterations of {} in {:.3f} s (+{:.3f} s set-up), written to {}",
                  o.input, result.iterations, o.method, result.seconds_iterations,
                  result.seconds_setup, o.output);
     if (o.json) {
         const nlohmann::json j = {
             {"software", std::string("octshape ") + kVersion},
-            {"input", o.input},
+            {"input", shown_path(o.input, o.record_paths)},
             {"input_sha256", input_sha},
-            {"output", o.output},
+            {"output", shown_path(o.output, o.record_paths)},
             {"method", o.method},
             {"auto", use_auto},
             {"parameters", params},
@@ -298,6 +299,7 @@ void add_denoise_command(CLI::App& app, RunContext& /*ctx*/) {
                   "edge-neighbour has its crossed corner moved to its 1-ring centroid, "
                   "docs/algorithms/rofi.md, envt.md)");
     cmd->add_flag("--json", opts->json, "Print the parameters and timings as JSON on stdout");
+    add_record_paths_flag(cmd, opts->record_paths);
     cmd->callback([opts] { run_denoise(*opts); });
 }
 

@@ -1,8 +1,12 @@
 #include "commands/eye_output.h"
 
+#include "commands/eye_record.h"
+
+#include <filesystem>
 #include <iostream>
 
 #include "octshape/io/atomic_file.h"
+#include "octshape/error.h"
 #include "octshape/retina/report_util.h"
 #include "octshape/retina/scan_summary.h"
 #include "octshape/version.h"
@@ -12,24 +16,57 @@ namespace octshape::app {
 nlohmann::ordered_json eye_json_preamble(const std::string& command,
                                          const std::string& file,
                                          const std::string& sha256,
-                                         const io::Scan& scan) {
+                                         const io::Scan& scan,
+                                         bool record_paths) {
     nlohmann::ordered_json j;
     j["octshape_version"] = kVersion;
     j["command"] = command;
-    j["input"] = {{"path", file}, {"sha256", sha256}};
+    j["provenance"] = nlohmann::ordered_json::object();
+    j["input"] = {{"sha256", sha256}};
+    if (record_paths) j["input"]["path"] = file;
     j["scan"] = retina::scan_summary(scan);  // without identifiers
+    if (!record_paths) j["scan"].erase("file");
     return j;
 }
 
-std::vector<std::string> eye_csv_header() {
-    return {"file", "sha256", "eye", "scan_pattern", "num_bscans"};
+std::vector<std::string> eye_csv_header(bool record_paths) {
+    std::vector<std::string> h{"eye_key", "sha256", "eye", "scan_pattern", "num_bscans"};
+    if (record_paths) h.insert(h.begin(), "file");
+    return h;
 }
 
 std::vector<std::string> eye_csv_values(const std::string& file,
                                         const std::string& sha256,
-                                        const io::Scan& scan) {
-    return {file, sha256, std::string(io::to_string(scan.meta.laterality)),
-            std::string(io::to_string(scan.meta.pattern)), std::to_string(scan.num_bscans())};
+                                        const io::Scan& scan,
+                                        bool record_paths) {
+    std::vector<std::string> v{eye_key(absolute_path(file)), sha256,
+                               std::string(io::to_string(scan.meta.laterality)),
+                               std::string(io::to_string(scan.meta.pattern)),
+                               std::to_string(scan.num_bscans())};
+    if (record_paths) v.insert(v.begin(), file);
+    return v;
+}
+
+std::string output_stem(const std::string& json_out, const std::string& csv_out) {
+    for (const std::string& p : {json_out, csv_out}) {
+        if (p.empty() || p == "-") continue;
+        const std::string stem = std::filesystem::path(p).stem().string();
+        if (!stem.empty()) return stem;
+    }
+    return "eye";
+}
+
+void check_eye_outputs(const std::string& json_out, const std::string& csv_out,
+                       const std::string& qc_dir, const std::string& mesh_dir) {
+    if (json_out == "-" && csv_out == "-") {
+        throw UsageError("-o - and --csv - would both write to stdout: choose one");
+    }
+    for (const std::string& p : {json_out, csv_out}) {
+        if (!p.empty()) io::check_output_location(p);
+    }
+    for (const std::string& d : {qc_dir, mesh_dir}) {
+        if (!d.empty()) io::check_output_directory(d);
+    }
 }
 
 void publish_eye_outputs(const std::string& json_out,

@@ -11,20 +11,36 @@
 
 namespace octshape::app {
 
-// {"octshape_version", "command", "input": {"path", "sha256"}, "scan": summary}.
+// {"octshape_version", "command", "provenance": {} (filled by the caller at the end:
+// commands/provenance.h), "input": {"sha256"}, "scan": summary without identifiers and without
+// the file's path}. `record_paths` (`--record-paths`, identifying): "input" and "scan" also
+// hold the input's path.
 [[nodiscard]] nlohmann::ordered_json eye_json_preamble(const std::string& command,
                                                        const std::string& file,
                                                        const std::string& sha256,
-                                                       const io::Scan& scan);
+                                                       const io::Scan& scan,
+                                                       bool record_paths);
 
-// Leading CSV columns of every per-eye row: file, sha256, eye, scan_pattern, num_bscans.
-[[nodiscard]] std::vector<std::string> eye_csv_header();
+// Leading CSV columns of every per-eye row: eye_key, sha256, eye, scan_pattern, num_bscans;
+// with `record_paths` the input's path comes first in a column `file`.
+[[nodiscard]] std::vector<std::string> eye_csv_header(bool record_paths);
 [[nodiscard]] std::vector<std::string> eye_csv_values(const std::string& file,
                                                       const std::string& sha256,
-                                                      const io::Scan& scan);
+                                                      const io::Scan& scan,
+                                                      bool record_paths);
 
-// Writes the CSV (header line + one row) and then the JSON, each atomically; with neither
-// path given, prints the JSON on stdout. Throws OutputError.
+// The stem of the QC pictures and meshes of a single-eye command: the -o file's stem, else
+// the --csv file's, else "eye"; never the input's name (which may be the patient's).
+[[nodiscard]] std::string output_stem(const std::string& json_out, const std::string& csv_out);
+
+// Checks every output location of a single-eye command before the analysis starts (io::
+// check_output_location / check_output_directory; empty = not asked for): throws OutputError,
+// or UsageError when -o and --csv both go to stdout ("-").
+void check_eye_outputs(const std::string& json_out, const std::string& csv_out,
+                       const std::string& qc_dir, const std::string& mesh_dir);
+
+// Writes the CSV (header line + one row) and then the JSON, each atomically ("-": stdout); with
+// neither path given, prints the JSON on stdout. Throws OutputError.
 void publish_eye_outputs(const std::string& json_out,
                          const std::string& csv_out,
                          const nlohmann::ordered_json& j,

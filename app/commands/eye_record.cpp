@@ -9,6 +9,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "commands/provenance.h"
 #include "octshape/error.h"
 #include "octshape/io/csv.h"
 #include "octshape/io/sha256.h"
@@ -204,6 +205,29 @@ std::optional<std::string> SubjectSource::subject_id(const io::Scan& scan,
     return std::nullopt;
 }
 
+std::optional<std::string> SubjectSource::of_patient(const std::string& patient_id) const {
+    const std::string p = trim(patient_id);
+    switch (kind_) {
+        case Kind::kNone:
+            return std::nullopt;
+        case Kind::kRaw:
+            if (p.empty()) return std::nullopt;
+            return p;
+        case Kind::kKeyedHash:
+            if (p.empty()) return std::nullopt;
+            return io::hmac_sha256_hex(key_, p).substr(0, kSubjectHexChars);
+        case Kind::kMap:
+            if (!by_file_.empty() || by_patient_.empty()) {
+                throw UsageError(
+                    "the subject ids come from a map keyed by file: they cannot be derived from "
+                    "a patient ID");
+            }
+            if (auto it = by_patient_.find(p); it != by_patient_.end()) return it->second;
+            return std::nullopt;
+    }
+    return std::nullopt;
+}
+
 std::string patient_key(const io::Scan& scan) {
     const auto& ids = scan.meta.ids;
     if (!trim(ids.patient_id).empty()) return trim(ids.patient_id);
@@ -222,6 +246,10 @@ std::optional<std::string> visit_date(const io::Scan& scan) {
 }
 
 // ---- File facts and the resume record ----------------------------------------------------
+
+std::string eye_key(const std::string& abs_path) {
+    return io::sha256_hex(abs_path).substr(0, 16);
+}
 
 std::string absolute_path(const std::string& file) {
     return fs::absolute(fs::path(file)).lexically_normal().string();
@@ -245,19 +273,20 @@ nlohmann::ordered_json cohort_record(const FileFacts& facts,
                                      const std::string& options_text,
                                      const std::string& scan_type) {
     nlohmann::ordered_json c;
-    c["file"] = facts.path;
+    c["eye_key"] = eye_key(facts.path);
     c["size_bytes"] = facts.size;
     c["mtime_ns"] = facts.mtime_ns;
     c["octshape_version"] = kVersion;
     c["options"] = options_text;
+    c["fingerprint"] = fingerprint(options_text);
     c["scan_type"] = scan_type;
     return c;
 }
 
-bool record_is_current(const nlohmann::json& r,
-                       const FileFacts& facts,
-                       const std::string& options_text) {
-    if (!r.is_object()) return false;
+RecordState record_state(const nlohmann::json& r,
+                         const FileFacts& facts,
+                         const std::string& options_text) {
+    if (!r.is_object()) return RecordState::kFileChanged;
     auto eq = [&](const char* key, const auto& value) {
         const auto it = r.find(key);
         if (it == r.end()) return false;
@@ -267,35 +296,103 @@ bool record_is_current(const nlohmann::json& r,
             return false;
         }
     };
-    return eq("file", facts.path) && eq("size_bytes", facts.size) &&
-           eq("mtime_ns", facts.mtime_ns) && eq("octshape_version", std::string(kVersion)) &&
-           eq("options", options_text);
+    if (!(eq("eye_key", eye_key(facts.path)) && eq("size_bytes", facts.size) &&
+          eq("mtime_ns", facts.mtime_ns))) {
+        return RecordState::kFileChanged;
+    }
+    return eq("fingerprint", fingerprint(options_text)) ? RecordState::kCurrent
+                                                         : RecordState::kFingerprintChanged;
+}
+
+bool record_is_current(const nlohmann::json& r,
+                       const FileFacts& facts,
+                       const std::string& options_text) {
+    return record_state(r, facts, options_text) == RecordState::kCurrent;
 }
 
 // ---- eyes.csv -----------------------------------------------------------------------------
 
-GroupMap GroupMap::load(const std::string& path) {
-    const auto [key_name, rows] = read_map(path, "group", {"subject_id", "file"});
+GroupMap GroupMap::load(const std::string& path, const SubjectSource& subjects) {
+    const auto [key_name, rows] =
+        read_map(path, "group", {"subject_id", "patient_id", "file"});
     GroupMap g;
-    g.by_subject_ = key_name == "subject_id";
-    for (const auto& [k, v] : rows) g.map_[k] = v;
+    g.path_ = path;
+    g.key_ = key_name == "file" ? "file" : "subject_id";
+    for (const auto& [k, v] : rows) {
+        if (key_name == "patient_id") {
+            // Translated now: the patient ID itself is never kept or written.
+            if (const auto s = subjects.of_patient(k)) g.map_[*s] = v;
+        } else {
+            g.map_[k] = v;
+        }
+    }
     return g;
 }
 
-std::string GroupMap::group_of(const std::string& subject_id, const std::string& file) const {
-    if (by_subject_) {
+std::string GroupMap::group_of(const std::string& subject_id, const std::string& key) const {
+    if (path_.empty()) return "NA";
+    ++asked_;
+    const std::string g = lookup(subject_id, key);
+    if (g != "NA") ++matched_;
+    return g;
+}
+
+std::string GroupMap::lookup(const std::string& subject_id, const std::string& key) const {
+    if (key_ == "subject_id") {
         const auto it = map_.find(subject_id);
         return it == map_.end() ? "NA" : it->second;
     }
-    if (auto it = map_.find(file); it != map_.end()) return it->second;
-    if (auto it = map_.find(fs::path(file).filename().string()); it != map_.end()) {
+    const auto p = paths_.find(key);
+    if (p == paths_.end()) return "NA";
+    if (auto it = map_.find(p->second); it != map_.end()) return it->second;
+    if (auto it = map_.find(fs::path(p->second).filename().string()); it != map_.end()) {
         return it->second;
     }
     return "NA";
 }
 
+void GroupMap::check_matches() const {
+    if (path_.empty() || asked_ == 0) return;
+    if (matched_ == 0) {
+        throw InputError::corrupt(path_, "the groups file matches none of the " +
+                                             std::to_string(asked_) + " eyes (keyed by " +
+                                             key_ + ")");
+    }
+    if (matched_ < asked_) {
+        spdlog::warn("{}: the groups file matches {} of {} eyes; the others get group NA", path_,
+                     matched_, asked_);
+    }
+}
+
+std::map<std::string, std::string> load_input_paths(const std::string& path) {
+    std::istringstream in(slurp_input(path));
+    std::string line;
+    std::size_t line_no = 0;
+    bool header = false;
+    std::map<std::string, std::string> paths;
+    while (std::getline(in, line)) {
+        ++line_no;
+        if (trim(line).empty()) continue;
+        const auto f = split_csv(line);
+        if (!header) {
+            if (f.size() < 2 || f[0] != "eye_key" || f[1] != "file") {
+                throw InputError::corrupt(path, "header must begin with eye_key,file");
+            }
+            header = true;
+            continue;
+        }
+        if (f.size() < 2 || f[0].empty()) {
+            throw InputError::corrupt(path, "line " + std::to_string(line_no) +
+                                                ": expected eye_key,file");
+        }
+        paths[f[0]] = f[1];
+    }
+    if (!header) throw InputError::corrupt(path, "empty file (no header)");
+    return paths;
+}
+
 std::vector<std::string> eyes_common_header() {
-    return {"subject_id", "eye", "visit_date", "scan_type", "file", "sha256", "group"};
+    return {"subject_id", "eye", "visit_date", "scan_type", "eye_key", "sha256", "group"};
 }
 
 void attach_cohort_record(nlohmann::ordered_json& j,
@@ -333,7 +430,8 @@ std::vector<std::string> eyes_type_header(const std::string& scan_type) {
 std::string eyes_csv(const std::vector<nlohmann::json>& eyes,
                      const std::vector<std::string>& names,
                      const std::string& scan_type,
-                     const GroupMap& groups) {
+                     const GroupMap& groups,
+                     bool fingerprint_column) {
     const auto type_cols = eyes_type_header(scan_type);
     std::vector<std::vector<std::string>> rows;
     for (std::size_t i = 0; i < eyes.size(); ++i) {
@@ -354,25 +452,27 @@ std::string eyes_csv(const std::vector<nlohmann::json>& eyes,
         }
         std::vector<std::string> row;
         const std::string subject = str_or_na(c->value("subject_id", nlohmann::json()));
-        const std::string file = str_or_na(c->value("file", nlohmann::json()));
+        const std::string key = str_or_na(c->value("eye_key", nlohmann::json()));
         row.push_back(subject);
         row.push_back(str_or_na(c->value("eye", nlohmann::json())));
         row.push_back(str_or_na(c->value("visit_date", nlohmann::json())));
         row.push_back(scan_type);
-        row.push_back(file);
+        row.push_back(key);
         row.push_back(sha);
-        row.push_back(groups.group_of(subject, file));
+        row.push_back(groups.group_of(subject, key));
         for (const auto& col : type_cols) {
             row.push_back(str_or_na(csv->value(col, nlohmann::json())));
         }
+        if (fingerprint_column) row.push_back(str_or_na(c->value("fingerprint", nlohmann::json())));
         rows.push_back(std::move(row));
     }
-    // subject_id, eye, visit_date, file: indices 0, 1, 2, 4.
+    // subject_id, eye, visit_date, eye_key: indices 0, 1, 2, 4.
     std::stable_sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) {
         return std::tie(a[0], a[1], a[2], a[4]) < std::tie(b[0], b[1], b[2], b[4]);
     });
     std::vector<std::string> header = eyes_common_header();
     header.insert(header.end(), type_cols.begin(), type_cols.end());
+    if (fingerprint_column) header.push_back("fingerprint");
     std::string out = io::csv_line(header);
     for (const auto& r : rows) out += io::csv_line(r);
     return out;

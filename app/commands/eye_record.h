@@ -44,6 +44,9 @@ public:
     // Identifies the settings without revealing the key (part of the resume signature):
     // e.g. "hmac:" + HMAC(key, "octshape subject key check")[0..16].
     [[nodiscard]] std::string fingerprint() const { return fingerprint_; }
+    // The subject id of a patient ID (`octshape pseudonym`, groups files keyed by patient ID);
+    // nullopt when the source has none for it. Throws UsageError for a source keyed by file.
+    [[nodiscard]] std::optional<std::string> of_patient(const std::string& patient_id) const;
 
 private:
     Kind kind_ = Kind::kNone;
@@ -62,6 +65,11 @@ inline constexpr std::size_t kSubjectHexChars = 16;
 // ISO date of the visit (VisitDate, else the exam time's date); nullopt if the export has none.
 [[nodiscard]] std::optional<std::string> visit_date(const io::Scan& scan);
 
+// The eye key of an input: the first 16 hex digits of SHA-256 of its absolute, normalised path.
+// It names the eye's records and QC pictures and is the eyes table's key column, so that no
+// output meant for sharing holds a file or folder name (docs/cohort.md).
+[[nodiscard]] std::string eye_key(const std::string& absolute_path);
+
 // ---- File facts and the resume record ----------------------------------------------------
 
 struct FileFacts {
@@ -73,12 +81,22 @@ struct FileFacts {
 [[nodiscard]] FileFacts file_facts(const std::string& file);
 [[nodiscard]] std::string absolute_path(const std::string& file);
 
-// The "cohort" object of a per-eye JSON (and of a failure record).
+// The "cohort" object of a per-eye JSON (and of a failure record): the eye key (never the
+// path), the file's size and mtime, the version, the parameter text and its fingerprint
+// (commands/provenance.h), the scan type.
 [[nodiscard]] nlohmann::ordered_json cohort_record(const FileFacts& facts,
                                                    const std::string& options_text,
                                                    const std::string& scan_type);
-// True when `record` (a "cohort" object) was made from this file state with these options by
-// this octshape version: the eye need not be redone.
+// Whether a record still stands for this file and this binary's parameters.
+enum class RecordState {
+    kCurrent,             // same eye key, file size and mtime, same fingerprint
+    kFileChanged,         // another file (key), or the file changed (size, mtime)
+    kFingerprintChanged,  // same file, but other code or parameters made it
+};
+[[nodiscard]] RecordState record_state(const nlohmann::json& record,
+                                       const FileFacts& facts,
+                                       const std::string& options_text);
+// True when `record` (a "cohort" object) is kCurrent: the eye need not be redone.
 [[nodiscard]] bool record_is_current(const nlohmann::json& record,
                                      const FileFacts& facts,
                                      const std::string& options_text);
@@ -105,20 +123,40 @@ void attach_cohort_record(nlohmann::ordered_json& j,
 
 // ---- eyes.csv -----------------------------------------------------------------------------
 
-// `--groups map.csv`: header `subject_id,group` or `file,group` (file = absolute path or file
-// name). Throws InputError when unreadable or malformed.
+// `--groups map.csv`: header `subject_id,group`, `patient_id,group` (a clinician's private
+// file: each patient ID is turned into its subject id with `subjects`, so no table needs the
+// ID) or `file,group` (absolute path or file name; needs the inputs' paths, which only
+// `octshape cohort` has: set_paths). Throws InputError when unreadable or malformed,
+// UsageError when `subjects` cannot turn patient IDs into subject ids.
 class GroupMap {
 public:
     GroupMap() = default;
-    static GroupMap load(const std::string& path);
-    // "NA" when unmapped (or no map).
+    static GroupMap load(const std::string& path, const SubjectSource& subjects);
+    // Eye key -> absolute path of the inputs (for a map keyed by file).
+    void set_paths(std::map<std::string, std::string> paths) { paths_ = std::move(paths); }
+    [[nodiscard]] bool by_file() const { return key_ == "file"; }
+    [[nodiscard]] bool empty() const { return path_.empty(); }
+    // "NA" when unmapped (or no map). Counts the eyes asked about and those matched.
     [[nodiscard]] std::string group_of(const std::string& subject_id,
-                                       const std::string& file) const;
+                                       const std::string& eye_key) const;
+    // After the tables are built: a map that matched none of the eyes asked about (if any) is
+    // an InputError naming the file; a partial match is one warning with the counts.
+    void check_matches() const;
 
 private:
-    bool by_subject_ = true;
+    std::string path_;
+    std::string key_ = "subject_id";  // subject_id | file (patient IDs are turned into subjects)
     std::map<std::string, std::string> map_;
+    std::map<std::string, std::string> paths_;
+    [[nodiscard]] std::string lookup(const std::string& subject_id,
+                                     const std::string& eye_key) const;
+    mutable std::size_t asked_ = 0;
+    mutable std::size_t matched_ = 0;
 };
+
+// Eye key -> input path from a private inputs table (header eye_key,file[,...]: the cohort's
+// OUTDIR/private/inputs.csv, or the workflow's). Throws InputError when unreadable/malformed.
+[[nodiscard]] std::map<std::string, std::string> load_input_paths(const std::string& path);
 
 // The leading columns of every eyes table.
 [[nodiscard]] std::vector<std::string> eyes_common_header();
@@ -126,13 +164,16 @@ private:
 // retina::onh_csv_header()).
 [[nodiscard]] std::vector<std::string> eyes_type_header(const std::string& scan_type);
 
-// Builds the CSV (header + rows sorted by subject_id, eye, visit_date, file) of the eyes of
+// Builds the CSV (header + rows sorted by subject_id, eye, visit_date, eye_key) of the eyes of
 // `scan_type` among `eyes` (per-eye JSON objects with a "cohort" record and a "csv_row").
-// Throws InputError naming `names[i]` when an object lacks what the table needs.
+// Throws InputError naming `names[i]` when an object lacks what the table needs. Checks the
+// `fingerprint_column`: a last column with
+// each eye's fingerprint (`octshape merge --allow-mixed`).
 [[nodiscard]] std::string eyes_csv(const std::vector<nlohmann::json>& eyes,
                                    const std::vector<std::string>& names,
                                    const std::string& scan_type,
-                                   const GroupMap& groups);
+                                   const GroupMap& groups,
+                                   bool fingerprint_column = false);
 
 // Reads per-eye JSON files (InputError when unreadable or not JSON).
 [[nodiscard]] nlohmann::json read_json_file(const std::string& path);

@@ -17,6 +17,7 @@ namespace {
 struct FeaturesOptions {
     std::string input;
     std::string output;
+    bool record_paths = false;
     std::optional<double> radius_mm;
     int threads = 1;
 };
@@ -39,7 +40,7 @@ void run_features(const FeaturesOptions& o) {
                     {"feature_strength", f.strength},
                     {"mean_curvature_per_mm", f.mean_curvature}},
                    mesh_provenance("features", {o.input}, {io::sha256_file(o.input)},
-                                   {{"radius_mm", f.radius}, {"threads", o.threads}}));
+                                   {{"radius_mm", f.radius}, {"threads", o.threads}}, o.record_paths));
     spdlog::info("{}: features of {} faces (radius {:.4g} mm) written to {}", o.input,
                  in.F.rows(), f.radius, o.output);
 }
@@ -53,6 +54,7 @@ void add_features_command(CLI::App& app, RunContext& /*ctx*/) {
         "Per-face ENVT eigenvalues, feature strength s_f = l2 + l3 and dual-mesh mean "
         "curvature, written as face scalars");
     cmd->add_option("input", opts->input, "Mesh (.ply .obj .off .stl .vtp)")->required();
+    add_record_paths_flag(cmd, opts->record_paths);
     cmd->add_option("-o,--output", opts->output, "Output mesh with face scalars (.vtp or .ply)")
         ->required();
     cmd->add_option("--radius", opts->radius_mm, "Neighbourhood radius (default 2 c_a)");

@@ -185,15 +185,15 @@ GalleryResult write_qc_gallery(const fs::path& outdir) {
     }
     GalleryResult res;
 
-    // eyes.csv rows by file and by sha256 (subject, visit, group when the JSON lacks them).
-    std::map<std::string, std::map<std::string, std::string>> csv_by_file;
+    // eyes.csv rows by eye key and by sha256 (subject, visit, group when the JSON lacks them).
+    std::map<std::string, std::map<std::string, std::string>> csv_by_key;
     std::map<std::string, std::map<std::string, std::string>> csv_by_sha;
     if (fs::is_regular_file(outdir / "eyes.csv", ec)) {
         const auto t = retina::read_eye_table_file((outdir / "eyes.csv").string());
         for (const auto& row : t.rows) {
             std::map<std::string, std::string> m;
             for (std::size_t c = 0; c < t.header.size(); ++c) m[t.header[c]] = row[c];
-            if (m.count("file") != 0) csv_by_file[m["file"]] = m;
+            if (m.count("eye_key") != 0) csv_by_key[m["eye_key"]] = m;
             if (m.count("sha256") != 0) csv_by_sha[m["sha256"]] = m;
         }
     }
@@ -220,14 +220,12 @@ GalleryResult write_qc_gallery(const fs::path& outdir) {
         EyeRow row;
         row.key = path.stem().string();
         const std::string type = j.value("command", std::string());
-        std::string file;
         std::string sha;
         if (j.contains("input") && j["input"].is_object()) {
-            file = j["input"].value("path", std::string());
             sha = j["input"].value("sha256", std::string());
         }
         const std::map<std::string, std::string>* csv = nullptr;
-        if (const auto it = csv_by_file.find(file); it != csv_by_file.end()) {
+        if (const auto it = csv_by_key.find(row.key); it != csv_by_key.end()) {
             csv = &it->second;
         } else if (const auto is = csv_by_sha.find(sha); is != csv_by_sha.end()) {
             csv = &is->second;
@@ -244,7 +242,6 @@ GalleryResult write_qc_gallery(const fs::path& outdir) {
             row.fields["eye"] = text_of(j["scan"].value("eye", json()));
         }
         if (row.fields["scan_type"].empty()) row.fields["scan_type"] = type;
-        row.fields["file"] = fs::path(file).filename().string();
         if (j.contains("parameters") && j["parameters"].is_object()) {
             const json& p = j["parameters"];
             const auto kt = key_parameters().find(type);
@@ -309,8 +306,7 @@ GalleryResult write_qc_gallery(const fs::path& outdir) {
       << "<link rel=\"icon\" href=\"data:,\">\n"
       << "<title>octshape QC gallery</title>\n<style>" << kCss << "</style>\n</head>\n<body>\n"
       << "<h1>octshape QC gallery</h1>\n"
-      << "<p>" << escape(fs::absolute(outdir).lexically_normal().string()) << " &middot; "
-      << res.eyes << " eyes, " << res.failures << " failures &middot; octshape " << kVersion
+      << "<p>" << res.eyes << " eyes, " << res.failures << " failures &middot; octshape " << kVersion
       << ". Click a column header to sort (again to reverse).</p>\n";
 
     h << "<h2 id=\"failures-title\">Failures (" << res.failures << ")</h2>\n";
@@ -328,8 +324,9 @@ GalleryResult write_qc_gallery(const fs::path& outdir) {
         h << "</tbody>\n</table>\n";
     }
 
-    const std::vector<std::string> fixed{"eye_key", "subject_id", "eye", "visit_date",
-                                         "group",   "scan_type",  "file"};
+    // No file or folder name: the page is shared (docs/cohort.md, "Output folder").
+    const std::vector<std::string> fixed{"eye_key", "subject_id", "eye",
+                                         "visit_date", "group", "scan_type"};
     h << "<h2>Eyes (" << res.eyes << ")</h2>\n"
       << "<table id=\"eyes\" class=\"sortable\">\n<thead><tr>";
     h << "<th data-col=\"eye_key\">eye_key</th><th data-col=\"pictures\">pictures</th>";

@@ -5,6 +5,8 @@
 #include <sstream>
 
 #include <nlohmann/json.hpp>
+
+#include "commands/provenance.h"
 #include <spdlog/spdlog.h>
 
 #include "commands/command.h"
@@ -20,6 +22,7 @@ using nlohmann::json;
 struct InfoOptions {
     std::string file;
     bool json = false;
+    bool record_paths = false;
     bool identifiers = false;
 };
 
@@ -119,12 +122,21 @@ void add_info_command(CLI::App& app, RunContext& /*ctx*/) {
     cmd->add_flag("--show-identifiers", opts->identifiers,
                   "Also print patient/visit identifiers, date of birth and exam dates "
                   "(private: off by default)");
+    cmd->add_flag("--record-paths", opts->record_paths,
+                  "--json: also write the file's path (identifying: export names often hold the "
+                  "patient's name)");
     cmd->callback([opts] {
         const io::HashedScan input = io::read_scan_hashed(opts->file);
         json j = retina::scan_summary(input.scan, {.identifiers = opts->identifiers});
         j["sha256"] = input.sha256;
         j["octshape_version"] = kVersion;
         if (opts->json) {
+            // The file is identified by its SHA-256; its name (often the patient's) only on
+            // request.
+            if (!opts->record_paths) j.erase("file");
+            nlohmann::ordered_json p = Provenance().json();
+            p.erase("seconds");
+            j["provenance"] = p;
             std::cout << j.dump(2) << '\n';
         } else {
             print_text(j, std::cout);

@@ -9,6 +9,7 @@
 #include "commands/eye_output.h"
 #include "commands/eye_record.h"
 #include "commands/macula_eye.h"
+#include "octshape/io/atomic_file.h"
 
 namespace octshape::app {
 namespace {
@@ -22,9 +23,15 @@ struct MaculaOptions {
 };
 
 void run(const MaculaOptions& o) {
+    check_eye_outputs(o.json_out, o.csv_out, o.eye.qc_dir, "");  // before the analysis
+    // A failed run takes back what it published (the QC pictures, the CSV).
+    io::OutputJournal journal;
     const SubjectSource subjects = SubjectSource::from_options(o.subjects);
-    const MaculaEye r = analyse_macula_eye(o.file, o.eye, subjects);
+    MaculaEyeOptions eye = o.eye;
+    eye.qc_stem = output_stem(o.json_out, o.csv_out);  // never the input's (patient's) name
+    const MaculaEye r = analyse_macula_eye(o.file, eye, subjects);
     publish_eye_outputs(o.json_out, o.csv_out, r.json, r.csv_header, r.csv_row);
+    journal.commit();
 }
 
 }  // namespace
@@ -41,7 +48,13 @@ void add_macula_command(CLI::App& app, RunContext& /*ctx*/) {
     cmd->add_option("--csv", opts->csv_out, "Write one CSV row (with header) here");
     cmd->add_option("--qc", opts->eye.qc_dir,
                     "Write QC pictures here: STEM_thickness.png (map, centre, rim/slope/pit-flat "
-                    "disks) and STEM_profiles.png (half-lines with their fitted Beziers)");
+                    "disks) and STEM_profiles.png (half-lines with their fitted Beziers); STEM = "
+                    "the -o file's stem, else --csv's, else 'eye'");
+    cmd->add_flag("--record-paths", opts->eye.record_paths,
+                  "Also write the input's path into the JSON and CSV (identifying: export and "
+                  "folder names often hold the patient's name; by default the SHA-256 "
+                  "identifies the input)");
+
     add_macula_analysis_options(cmd, opts->eye);
     cmd->add_flag("!--no-type-check", opts->eye.check_scan_type,
                   "Analyse the scan even if it looks like an optic nerve head volume (a long BM "

@@ -7,6 +7,7 @@
 
 #include "commands/eye_output.h"
 #include "commands/macula_qc.h"
+#include "commands/provenance.h"
 #include "octshape/error.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/retina/cube_report.h"
@@ -17,7 +18,11 @@
 namespace octshape::app {
 
 std::string macula_options_text(const MaculaEyeOptions& o) {
+    // Every field of CubeParams, the defaults the command line does not expose included (the
+    // local-fit threshold, the fit's rounds and tolerance, the QC threshold), and the
+    // classifier's, which decides the analysis in a cohort: the fingerprint's parameter text.
     const auto& p = o.params;
+    const retina::ScanTypeParams classifier;
     std::ostringstream s;
     s.precision(17);
     s << "macula half_lines=" << p.num_half_lines << " radius_mm=" << p.radius_mm
@@ -26,7 +31,16 @@ std::string macula_options_text(const MaculaEyeOptions& o) {
       << " tie_tolerance_mm=" << p.tie_tolerance_mm
       << " centre_smoothing_mm=" << p.centre_smoothing_mm
       << " centre_fit_radius_mm=" << p.centre_fit_radius_mm << " max_rounds=" << p.max_rounds
-      << " energy_tolerance=" << p.energy_tolerance << " rim_point=" << o.rim_point;
+      << " energy_tolerance=" << p.energy_tolerance << " rim_point=" << o.rim_point
+      << " rmse_warning_um=" << p.rmse_warning_um
+      << " local_fit_min_noise_um=" << p.local_fit_min_noise_um << " centre_mm=";
+    if (p.centre_mm) {
+      s << p.centre_mm->x() << "," << p.centre_mm->y();
+    } else {
+      s << "search";
+    }
+    s << " classifier_min_gap_mm=" << classifier.min_gap_mm
+      << " classifier_min_bscans=" << classifier.min_bscans;
     return s.str();
 }
 
@@ -58,8 +72,16 @@ MaculaEye analyse_macula_eye(const std::string& file,
                              MaculaEyeOptions options,
                              const SubjectSource& subjects) {
     const FileFacts facts = file_facts(file);  // before reading: a missing file says so
-    return analyse_macula_eye(file, facts, io::read_scan_hashed(file), std::move(options),
-                              subjects);
+    Provenance read;
+    const io::HashedScan input = io::read_scan_hashed(file);
+    read.mark("read_hash");
+    MaculaEye r = analyse_macula_eye(file, facts, input, std::move(options), subjects);
+    // The reading's time first, as it came first.
+    nlohmann::ordered_json seconds = read.json()["seconds"];
+    for (const auto& [k, v] : r.json["provenance"]["seconds"].items()) seconds[k] = v;
+    r.json["provenance"]["utc"] = read.json()["utc"];
+    r.json["provenance"]["seconds"] = seconds;
+    return r;
 }
 
 MaculaEye analyse_macula_eye(const std::string& file,
@@ -67,6 +89,7 @@ MaculaEye analyse_macula_eye(const std::string& file,
                              const io::HashedScan& input,
                              MaculaEyeOptions o,
                              const SubjectSource& subjects) {
+    Provenance prov;
     const io::Scan& scan = input.scan;
     const std::string& sha = input.sha256;
     o.params.tau_mm = o.tau_um * 1e-3;
@@ -80,20 +103,21 @@ MaculaEye analyse_macula_eye(const std::string& file,
         }
     }
     const retina::CubeResult r = retina::analyse_macula(scan, o.params);
+    prov.mark("analysis");
     for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", file, f);
     for (const auto& n : r.notes) spdlog::info("{}: {}", file, n);
 
     MaculaEye out;
     auto& j = out.json;
-    j = eye_json_preamble("macula", file, sha, scan);
+    j = eye_json_preamble("macula", file, sha, scan, o.record_paths);
     const auto cube = retina::cube_json(r, o.params);
     for (const auto& [k, v] : cube.items()) j[k] = v;
     const std::string eye(io::to_string(scan.meta.laterality));
 
     const auto cols = retina::cube_csv_header();
     const auto vals = retina::cube_csv_values(r);
-    out.csv_header = eye_csv_header();
-    out.csv_row = eye_csv_values(file, sha, scan);
+    out.csv_header = eye_csv_header(o.record_paths);
+    out.csv_row = eye_csv_values(file, sha, scan, o.record_paths);
     out.csv_header.insert(out.csv_header.end(), cols.begin(), cols.end());
     out.csv_row.insert(out.csv_row.end(), vals.begin(), vals.end());
     attach_cohort_record(j, cols, vals, facts,
@@ -101,10 +125,10 @@ MaculaEye analyse_macula_eye(const std::string& file,
                          scan, subjects, file);
 
     if (!o.qc_dir.empty()) {
-        const std::string stem =
-            o.qc_stem.empty() ? std::filesystem::path(file).stem().string() : o.qc_stem;
-        write_macula_qc(r, o.qc_dir, stem);
+        write_macula_qc(r, o.qc_dir, o.qc_stem.empty() ? std::string("eye") : o.qc_stem);
+        prov.mark("qc_pictures");
     }
+    j["provenance"] = prov.json();
     spdlog::info("{}: {} eye, CFT {:.4f} mm, rim height {:.4f} mm, RMSE {:.2f} um", file, eye,
                  r.cft_mm, r.rim_height_mm, r.rmse_um);
     return out;

@@ -18,7 +18,8 @@ struct MaculaEyeOptions {
     double tau_um = 5.0;        // pit-flat threshold above CFT (um), the user option
     std::string rim_point = "crest";  // params.rim_point, the user option (crest | maximum)
     std::string qc_dir;         // empty: no QC pictures
-    std::string qc_stem;        // QC file names DIR/STEM_*.png; empty: the input's file stem
+    std::string qc_stem;        // QC file names DIR/STEM_*.png; empty: "eye" (never the input's name)
+    bool record_paths = false;  // --record-paths: the input's path in the JSON and CSV (identifying)
     // Refuse (AnalysisError) a volume that retina::classify_scan calls an ONH scan: a CuBe fit
     // of an optic disc gives numbers, but meaningless ones. The cohort classifies first.
     bool check_scan_type = true;

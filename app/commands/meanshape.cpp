@@ -26,6 +26,7 @@ namespace {
 struct MeanShapeOptions {
     std::vector<std::string> inputs;
     std::string output;
+    bool record_paths = false;
     int max_iterations = io::IcpParams{}.max_iterations;
     int refine_iterations = io::IcpParams{}.refine_iterations;
     int threads = 1;
@@ -46,7 +47,7 @@ void run_meanshape(const MeanShapeOptions& o) {
     const mesh::Surface reference{first.V, first.F};
     std::vector<mesh::Surface> aligned;
     nlohmann::json surfaces = nlohmann::json::array();
-    surfaces.push_back({{"input", o.inputs[0]},
+    surfaces.push_back({{"input", shown_path(o.inputs[0], o.record_paths)},
                         {"vertices", first.V.rows()},
                         {"icp_iterations", 0},
                         {"icp_refine_iterations", 0},
@@ -62,7 +63,7 @@ void run_meanshape(const MeanShapeOptions& o) {
                      "residual {:.4g} mm",
                      o.inputs[s], r.iterations, r.refine_iterations, r.rotation_deg,
                      r.rms_distance);
-        surfaces.push_back({{"input", o.inputs[s]},
+        surfaces.push_back({{"input", shown_path(o.inputs[s], o.record_paths)},
                             {"vertices", m.V.rows()},
                             {"icp_iterations", r.iterations},
                             {"icp_refine_iterations", r.refine_iterations},
@@ -93,12 +94,13 @@ void run_meanshape(const MeanShapeOptions& o) {
         mesh_provenance("meanshape", o.inputs, hashes,
                         {{"icp_max_iterations", o.max_iterations},
                          {"icp_refine_iterations", o.refine_iterations},
-                         {"threads", o.threads}}));
+                         {"threads", o.threads}},
+                        o.record_paths));
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const nlohmann::json j = {{"software", std::string("octshape ") + kVersion},
-                              {"output", o.output},
-                              {"reference", o.inputs[0]},
+                              {"output", shown_path(o.output, o.record_paths)},
+                              {"reference", shown_path(o.inputs[0], o.record_paths)},
                               {"surfaces", surfaces},
                               {"mean_sd_mm", result.sd.size() > 0 ? result.sd.mean() : 0.0},
                               {"max_sd_mm", result.sd.size() > 0 ? result.sd.maxCoeff() : 0.0},
@@ -120,6 +122,7 @@ void add_meanshape_command(CLI::App& app, RunContext& /*ctx*/) {
     cmd->add_option("inputs", opts->inputs,
                     "Surfaces (.ply .obj .off .stl .vtp); the first is the reference")
         ->required();
+    add_record_paths_flag(cmd, opts->record_paths);
     cmd->add_option("-o,--output", opts->output, "Mean shape with sd_mm (.vtp or .ply)")
         ->required();
     cmd->add_option("--max-iterations", opts->max_iterations,

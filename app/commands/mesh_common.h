@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 #include "octshape/error.h"
@@ -29,21 +30,39 @@ inline io::MeshData read_valid_mesh(const std::filesystem::path& path) {
 }
 
 // The provenance of an output mesh (io::write_mesh): one line of JSON with the software
-// version, the command, every input with its SHA-256 (`hashes`, in the order of `inputs`) and
+// version, the command, every input by its SHA-256 (`hashes`, in the order of `inputs`; the
+// path too only with `record_paths`, --record-paths: a file name may name the patient) and
 // the options used.
 inline std::string mesh_provenance(const std::string& command,
                                    const std::vector<std::string>& inputs,
                                    const std::vector<std::string>& hashes,
-                                   const nlohmann::json& options) {
+                                   const nlohmann::json& options,
+                                   bool record_paths = false) {
     nlohmann::json in = nlohmann::json::array();
     for (std::size_t i = 0; i < inputs.size(); ++i) {
-        in.push_back({{"path", inputs[i]}, {"sha256", hashes.at(i)}});
+        nlohmann::json e = {{"sha256", hashes.at(i)}};
+        if (record_paths) e["path"] = inputs[i];
+        in.push_back(e);
     }
     return nlohmann::json{{"software", std::string("octshape ") + kVersion},
                           {"command", command},
                           {"inputs", in},
                           {"options", options}}
         .dump();
+}
+
+// A path field of a command's JSON: the path with --record-paths (identifying: a file name may
+// name the patient), else null; the SHA-256 beside it identifies the file.
+inline nlohmann::json shown_path(const std::string& path, bool record_paths) {
+    return record_paths ? nlohmann::json(path) : nlohmann::json(nullptr);
+}
+
+// --record-paths on a command (docs/outputs.md, "Privacy").
+inline void add_record_paths_flag(CLI::App* cmd, bool& record_paths) {
+    cmd->add_flag("--record-paths", record_paths,
+                  "Also write the input and output paths into the JSON (identifying: a file or "
+                  "folder name may name the patient; by default each input is identified by its "
+                  "SHA-256 only)");
 }
 
 }  // namespace octshape::app

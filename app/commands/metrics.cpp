@@ -22,6 +22,7 @@ struct MetricsOptions {
     std::string reference;
     std::string input;  // the denoiser's input: flips created / kept / fixed
     bool json = false;
+    bool record_paths = false;
 };
 
 bool same_triangulation(const io::MeshData& a, const io::MeshData& b) {
@@ -32,9 +33,9 @@ void run_metrics(const MetricsOptions& o) {
     const io::MeshData m = read_valid_mesh(o.mesh);
     const io::MeshData r = read_valid_mesh(o.reference);
     nlohmann::json j = {{"software", std::string("octshape ") + kVersion},
-                        {"mesh", o.mesh},
+                        {"mesh", shown_path(o.mesh, o.record_paths)},
                         {"mesh_sha256", io::sha256_file(o.mesh)},
-                        {"reference", o.reference},
+                        {"reference", shown_path(o.reference, o.record_paths)},
                         {"reference_sha256", io::sha256_file(o.reference)},
                         {"vertices", m.V.rows()},
                         {"faces", m.F.rows()}};
@@ -63,7 +64,7 @@ void run_metrics(const MetricsOptions& o) {
                                  "a denoiser need the mesh it was given)");
             }
             const mesh::FlipTransitions t = mesh::flip_transitions(m.V, in.V, r.V, m.F);
-            j["input"] = o.input;
+            j["input"] = shown_path(o.input, o.record_paths);
             j["input_flipped_faces"] = t.input;
             j["flipped_faces_created"] = t.created;
             j["flipped_faces_kept"] = t.kept;
@@ -107,6 +108,7 @@ void add_metrics_command(CLI::App& app, RunContext& /*ctx*/) {
                     "The denoiser's input (same triangulation): also count the flipped faces "
                     "it created, kept and fixed");
     cmd->add_flag("--json", opts->json, "Print JSON instead of tab-separated lines");
+    add_record_paths_flag(cmd, opts->record_paths);
     cmd->callback([opts] { run_metrics(*opts); });
 }
 

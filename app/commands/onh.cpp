@@ -10,6 +10,7 @@
 #include "commands/eye_output.h"
 #include "commands/eye_record.h"
 #include "commands/onh_eye.h"
+#include "octshape/io/atomic_file.h"
 
 namespace octshape::app {
 namespace {
@@ -23,10 +24,16 @@ struct OnhOptions {
 };
 
 void run(const OnhOptions& o) {
+    check_eye_outputs(o.json_out, o.csv_out, o.eye.qc_dir, o.eye.mesh_dir);  // before the analysis
+    // A failed run takes back what it published (pictures, meshes, the CSV).
+    io::OutputJournal journal;
     const SubjectSource subjects = SubjectSource::from_options(o.subjects);
     const FileFacts facts = file_facts(o.file);  // before reading: a missing file says so
-    const EyeResult r = analyse_onh_eye(o.file, facts, o.eye, subjects);
+    OnhEyeOptions eye = o.eye;
+    eye.qc_stem = output_stem(o.json_out, o.csv_out);  // never the input's (patient's) name
+    const EyeResult r = analyse_onh_eye(o.file, facts, eye, subjects);
     publish_eye_outputs(o.json_out, o.csv_out, r.json, r.csv_header, r.csv_row);
+    journal.commit();
 }
 
 }  // namespace
@@ -46,7 +53,13 @@ void add_onh_command(CLI::App& app, RunContext& /*ctx*/) {
     cmd->add_option("--qc", opts->eye.qc_dir,
                     "Write QC pictures here: STEM_enface.png (height map, BMO points, ellipse, "
                     "disc), STEM_bscans.png (B-scans through the disc, ILM used vs device ILM, "
-                    "MRW vectors), STEM_mrw.png (MRW against the anatomical angle)");
+                    "MRW vectors), STEM_mrw.png (MRW against the anatomical angle); STEM = the -o "
+                    "file's stem, else --csv's, else 'eye'");
+    cmd->add_flag("--record-paths", opts->eye.record_paths,
+                  "Also write the input's path into the JSON and CSV (identifying: export and "
+                  "folder names often hold the patient's name; by default the SHA-256 "
+                  "identifies the input)");
+
     cmd->add_option("--mesh-out", opts->eye.mesh_dir,
                     "Write STEM_ilm and STEM_rpe surfaces here with per-face scalars");
     cmd->add_option("--mesh-format", opts->eye.mesh_format, "Mesh file format: vtp or ply")

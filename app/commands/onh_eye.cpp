@@ -10,10 +10,14 @@
 #include "commands/eye_output.h"
 #include "commands/mesh_common.h"
 #include "commands/onh_qc.h"
+#include "commands/provenance.h"
 #include "octshape/error.h"
 #include "octshape/io/mesh_io.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/retina/bmo.h"
+#include "octshape/retina/levelset.h"
+#include "octshape/retina/scan_type.h"
+#include "octshape/io/sha256.h"
 #include "octshape/retina/onh_report.h"
 
 namespace octshape::app {
@@ -53,13 +57,44 @@ void write_meshes(const retina::OnhResult& r, const OnhEyeOptions& o, const std:
 }  // namespace
 
 std::string onh_options_text(const OnhEyeOptions& o) {
+    // Every effective parameter: the command-line ones, the BMO file by its SHA-256 (never its
+    // path), and the code defaults of the level set and its RoFi smoothing, which the ILM
+    // depends on: the fingerprint's parameter text.
     const auto& p = o.params;
+    const retina::LevelSetParams ls;
+    const retina::ScanTypeParams classifier;
     std::ostringstream s;
     s.precision(17);
-    s << "onh ilm=" << o.ilm << " bmo_file=" << o.bmo_file << " bmo_points=" << p.bmo_points
+    std::string bmo = "automatic";
+    if (!o.bmo_file.empty()) {
+        try {
+            bmo = "sha256:" + io::sha256_file(o.bmo_file);
+        } catch (const Error&) {
+            bmo = "unreadable";  // the analysis reports it with the file's name
+        }
+    }
+    s << "onh ilm=" << o.ilm << " bmo=" << bmo << " bmo_points=" << p.bmo_points
       << " disc_radius_mm=" << p.disc_radius_mm
       << " min_gap_area_mm2=" << p.detection.min_gap_area_mm2
+      << " local_features=" << p.local_features
       << " mesh=" << (o.mesh_dir.empty() ? std::string("none") : o.mesh_format);
+    s << " levelset(lateral_radius_mm=" << ls.lateral_radius_mm << " margin_mm=" << ls.margin_mm
+      << " despeckle_passes=" << ls.despeckle_passes << " mu_mm=" << ls.mu_mm
+      << " lambda_vitreous=" << ls.lambda_vitreous << " lambda_tissue=" << ls.lambda_tissue
+      << " region_means=" << static_cast<int>(ls.region_means)
+      << " band_layers=" << ls.band_layers << " reinit_interval=" << ls.reinit_interval
+      << " cfl=" << ls.cfl << " max_iterations=" << ls.max_iterations
+      << " tile_mm=" << ls.tile_mm << " patience=" << ls.patience
+      << " slab_bscans=" << ls.slab_bscans << " smooth=" << ls.smooth << ")";
+    const auto& r = ls.rofi;
+    s << " rofi(sigma_s=" << r.sigma_s << " lambda_i=" << r.lambda_i
+      << " iterations=" << r.iterations << " lambda_decay=" << r.lambda_decay
+      << " radius_factor=" << r.radius_factor << " sigma_c_factor=" << r.sigma_c_factor
+      << " similarity=" << static_cast<int>(r.similarity)
+      << " pair_weights=" << static_cast<int>(r.pair_weights)
+      << " fix_boundary=" << r.fix_boundary << " repair_folds=" << r.repair_folds << ")";
+    s << " classifier_min_gap_mm=" << classifier.min_gap_mm
+      << " classifier_min_bscans=" << classifier.min_bscans;
     return s.str();
 }
 
@@ -90,6 +125,7 @@ EyeResult analyse_onh_eye(const std::string& file,
                           const FileFacts& facts,
                           OnhEyeOptions o,
                           const SubjectSource& subjects) {
+    Provenance prov;
     o.params.local_features = !o.mesh_dir.empty();  // the ENVT map is a mesh scalar only
     o.params.validate();
     const retina::IlmSource source = retina::ilm_source_from_string(o.ilm);
@@ -102,6 +138,7 @@ EyeResult analyse_onh_eye(const std::string& file,
     io::HashedScan input = io::read_scan_hashed(file, read);
     io::Scan& scan = input.scan;
     const std::string& sha = input.sha256;
+    prov.mark("read_hash");
     try {
         retina::require_onh_volume(scan);
     } catch (const AnalysisError& e) {
@@ -110,13 +147,15 @@ EyeResult analyse_onh_eye(const std::string& file,
     std::optional<std::vector<retina::BmoPoint>> bmo;
     if (!o.bmo_file.empty()) bmo = retina::read_bmo_csv(o.bmo_file, scan.meta, scan.num_bscans());
     // The scan's record as read (pixels_loaded included), before the level set may free them.
-    nlohmann::ordered_json preamble = eye_json_preamble("onh", file, sha, scan);
+    nlohmann::ordered_json preamble = eye_json_preamble("onh", file, sha, scan, o.record_paths);
     // Without QC pictures nothing reads the pixels after the level set: it frees them, and
     // the eye's peak memory stays below twice the volume's (docs/algorithms/levelset.md).
     const retina::IlmSurface ilm = o.qc_dir.empty()
                                        ? retina::build_ilm_surface_releasing_pixels(scan, source)
                                        : retina::build_ilm_surface(scan, source);
+    prov.mark("ilm_surface");
     const retina::OnhResult r = retina::analyse_onh(scan, ilm, o.params, bmo);
+    prov.mark("analysis");
     for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", file, f);
     for (const auto& n : r.notes) spdlog::info("{}: {}", file, n);
 
@@ -125,24 +164,34 @@ EyeResult analyse_onh_eye(const std::string& file,
     j = std::move(preamble);
     const nlohmann::ordered_json body = retina::onh_json(r, o.params);
     for (const auto& [k, v] : body.items()) j[k] = v;
-    if (!o.bmo_file.empty()) j["options"]["bmo_file"] = o.bmo_file;
+    if (!o.bmo_file.empty()) {
+        // The user's BMO file by its content; its path (which may name the patient) only on
+        // request.
+        j["options"]["bmo_file_sha256"] = io::sha256_file(o.bmo_file);
+        if (o.record_paths) j["options"]["bmo_file"] = o.bmo_file;
+    }
     const auto cols = retina::onh_csv_header();
     const auto vals = retina::onh_csv_values(r);
-    out.csv_header = eye_csv_header();
-    out.csv_row = eye_csv_values(file, sha, scan);
+    out.csv_header = eye_csv_header(o.record_paths);
+    out.csv_row = eye_csv_values(file, sha, scan, o.record_paths);
     out.csv_header.insert(out.csv_header.end(), cols.begin(), cols.end());
     out.csv_row.insert(out.csv_row.end(), vals.begin(), vals.end());
     attach_cohort_record(j, cols, vals, facts,
                          onh_options_text(o) + " subjects=" + subjects.fingerprint(), "onh", scan,
                          subjects, file);
 
-    const std::string stem =
-        o.qc_stem.empty() ? std::filesystem::path(file).stem().string() : o.qc_stem;
-    if (!o.qc_dir.empty()) write_onh_qc(scan, r, o.params, o.qc_dir, stem);
+    const std::string stem = o.qc_stem.empty() ? std::string("eye") : o.qc_stem;
+    if (!o.qc_dir.empty()) {
+        write_onh_qc(scan, r, o.params, o.qc_dir, stem);
+        prov.mark("qc_pictures");
+    }
     if (!o.mesh_dir.empty()) {
         write_meshes(r, o, stem,
-                     mesh_provenance("onh", {file}, {sha}, {{"options", onh_options_text(o)}}));
+                     mesh_provenance("onh", {file}, {sha}, {{"options", onh_options_text(o)}},
+                                     o.record_paths));
+        prov.mark("meshes");
     }
+    j["provenance"] = prov.json();
     spdlog::info(
         "{}: {} eye, ILM {}, BMO area {:.4f} mm2, cup {:.4f} mm3, CONHT {:.4f} mm, "
         "MRW {:.4f} mm",

@@ -17,7 +17,8 @@ struct OnhEyeOptions {
     std::string ilm = "levelset";  // ILM source: levelset | device
     std::string bmo_file;          // user BMO points (CSV); empty: automatic detection
     std::string qc_dir;            // empty: no QC pictures
-    std::string qc_stem;           // QC/mesh file names DIR/STEM_*; empty: the input's stem
+    std::string qc_stem;           // QC/mesh file names DIR/STEM_*; empty: "eye" (never the input's name)
+    bool record_paths = false;     // --record-paths: input and BMO file paths in the outputs
     std::string mesh_dir;          // empty: no meshes
     std::string mesh_format = "vtp";
 };

@@ -3,7 +3,7 @@
 #
 # Reads an octshape eyes.csv and
 #  1. for every numeric parameter fits geepack::geeglm(param ~ group, id = subject,
-#     corstr = "exchangeable") on one scan per eye (the first by visit_date, then file), with
+#     corstr = "exchangeable") on one scan per eye (the first by visit_date, then eye_key), with
 #     the rows sorted by subject as geeglm requires, and prints estimate, robust SE and Wald
 #     p-value of every group contrast against the reference group;
 #  2. with --retest, computes psych::ICC on the eyes scanned more than once (the same eyes,
@@ -45,16 +45,16 @@ if (is.na(opt$file)) stop("usage: Rscript octshape_gee.R eyes.csv [options]")
 d <- read.csv(opt$file, na.strings = c("NA", ""), stringsAsFactors = FALSE,
               check.names = FALSE,
               colClasses = c(subject_id = "character", eye = "character",
-                             visit_date = "character", file = "character"))
-id_cols <- c("subject_id", "eye", "visit_date", "scan_type", "file", "sha256", "group",
+                             visit_date = "character", eye_key = "character"))
+id_cols <- c("subject_id", "eye", "visit_date", "scan_type", "eye_key", "sha256", "group",
              opt$group_col)
 params <- names(d)[vapply(names(d), function(n) {
   !(n %in% id_cols) && is.numeric(d[[n]]) && any(!is.na(d[[n]]))
 }, logical(1))]
 
 # ---- 1. GEE per parameter -------------------------------------------------------------------
-# One scan per eye: the first by visit_date, then file (as `octshape stats`).
-d <- d[order(d$subject_id, d$eye, d$visit_date, d$file, method = "radix"), ]  # byte order
+# One scan per eye: the first by visit_date, then eye_key (as `octshape stats`).
+d <- d[order(d$subject_id, d$eye, d$visit_date, d$eye_key, method = "radix"), ]  # byte order
 eyes <- d[!duplicated(d[, c("subject_id", "eye")]), ]
 if (!(opt$group_col %in% names(eyes))) stop("no column '", opt$group_col, "' in ", opt$file)
 eyes <- eyes[!is.na(eyes[[opt$group_col]]) & !is.na(eyes$subject_id), ]
@@ -105,7 +105,7 @@ if (opt$retest) {
   repeated <- names(counts)[counts >= 2]
   if (length(repeated) == 0) stop("--retest: no eye has two scans")
   k <- min(counts[repeated])
-  # The first k scans of each repeated eye, in visit_date then file order (d is sorted so).
+  # The first k scans of each repeated eye, in visit_date then eye_key order (d is sorted so).
   icc_rows <- list()
   for (p in params) {
     m <- do.call(rbind, lapply(repeated, function(r) d[d$key_ == r, p][seq_len(k)]))

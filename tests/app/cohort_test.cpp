@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -89,9 +90,23 @@ std::map<std::string, std::int64_t> json_mtimes(const fs::path& dir) {
 
 std::vector<std::string> expected_header() {
     std::vector<std::string> h{"subject_id", "eye",    "visit_date", "scan_type",
-                               "file",       "sha256", "group"};
+                               "eye_key",    "sha256", "group"};
     for (const auto& c : retina::cube_csv_header()) h.push_back(c);
     return h;
+}
+
+// Eye key -> file name, from OUTDIR/private/inputs.csv (the only map from keys to files).
+std::map<std::string, std::string> names_by_key(const fs::path& out) {
+    std::map<std::string, std::string> m;
+    const auto rows = read_csv(out / "private" / "inputs.csv");
+    EXPECT_FALSE(rows.empty());
+    if (rows.empty()) return m;
+    EXPECT_EQ(rows[0], (std::vector<std::string>{"eye_key", "file", "sha256", "result"}));
+    for (std::size_t i = 1; i < rows.size(); ++i) {
+        EXPECT_EQ(rows[i][0], io::sha256_hex(rows[i][1]).substr(0, 16));
+        m[rows[i][0]] = fs::path(rows[i][1]).filename().string();
+    }
+    return m;
 }
 
 // A folder with three macula eyes, an ONH volume, a circle scan, a hostile file, a truncated
@@ -130,30 +145,47 @@ TEST(CohortCli, AnalysesEveryEyeAndRecordsEveryBadFile) {
     const auto eyes = read_csv(out / "eyes.csv");
     ASSERT_EQ(eyes.size(), 4U);  // header + 3 macula eyes
     EXPECT_EQ(eyes[0], expected_header());
+    const auto name = names_by_key(out);
     std::set<std::string> files;
+    std::vector<std::string> keys;  // in row order
     for (std::size_t i = 1; i < eyes.size(); ++i) {
         ASSERT_EQ(eyes[i].size(), eyes[0].size());
         EXPECT_EQ(eyes[i][3], "macula");
         EXPECT_EQ(eyes[i][6], "NA");  // no groups given
-        EXPECT_EQ(eyes[i][5], io::sha256_file(eyes[i][4]));
+        ASSERT_EQ(name.count(eyes[i][4]), 1U) << eyes[i][4];
+        files.insert(name.at(eyes[i][4]));
+        keys.push_back(eyes[i][4]);
         EXPECT_EQ(eyes[i][0].size(), 16U);  // the pseudonym: 16 hex digits
-        files.insert(fs::path(eyes[i][4]).filename().string());
     }
     EXPECT_EQ(files, (std::set<std::string>{"a_od.vol", "b_os.vol", "c_od.vol"}));
-    // Sorted by subject, eye, visit date, file: one phantom subject, so OD (a, c) before OS (b).
-    EXPECT_EQ(fs::path(eyes[1][4]).filename(), "a_od.vol");
-    EXPECT_EQ(fs::path(eyes[2][4]).filename(), "c_od.vol");
-    EXPECT_EQ(fs::path(eyes[3][4]).filename(), "b_os.vol");
+    const std::map<std::string, fs::path> path_of{{"a_od.vol", c.in / "a_od.vol"},
+                                                  {"b_os.vol", c.in / "sub" / "b_os.vol"},
+                                                  {"c_od.vol", c.in / "sub" / "deeper" / "c_od.vol"}};
+    for (std::size_t i = 1; i < eyes.size(); ++i) {
+        EXPECT_EQ(eyes[i][5], io::sha256_file(path_of.at(name.at(eyes[i][4])).string()));
+    }
+    // Sorted by subject, eye, visit date, eye key: one phantom subject, so OD (a, c; in key
+    // order) before OS (b).
+    EXPECT_EQ(name.at(keys[2]), "b_os.vol");
+    EXPECT_LT(keys[0], keys[1]);
     EXPECT_EQ(eyes[3][1], "OS");
 
     std::map<std::string, std::string> fail;  // file name -> exit code
     const auto failures = read_csv(out / "failures.csv");
     ASSERT_FALSE(failures.empty());
-    EXPECT_EQ(failures[0], (std::vector<std::string>{"file", "reason", "exit_code"}));
+    EXPECT_EQ(failures[0], (std::vector<std::string>{"eye_key", "reason", "exit_code"}));
+    const auto private_failures = read_csv(out / "private" / "failures.csv");
+    ASSERT_EQ(private_failures.size(), failures.size());
     for (std::size_t i = 1; i < failures.size(); ++i) {
         ASSERT_EQ(failures[i].size(), 3U);
         EXPECT_FALSE(failures[i][1].empty());
-        fail[fs::path(failures[i][0]).filename().string()] = failures[i][2];
+        ASSERT_EQ(name.count(failures[i][0]), 1U) << failures[i][0];
+        fail[name.at(failures[i][0])] = failures[i][2];
+        // The private table: the same row with the path.
+        EXPECT_EQ(private_failures[i][0], failures[i][0]);
+        EXPECT_EQ(fs::path(private_failures[i][1]).filename(), name.at(failures[i][0]));
+        EXPECT_EQ(private_failures[i][3], failures[i][2]);
+        EXPECT_EQ(failures[i][1].find(".vol"), std::string::npos) << failures[i][1];
     }
     EXPECT_EQ(fail, (std::map<std::string, std::string>{{"circle.vol", "69"},
                                                         {"eyepy.vol", "65"},
@@ -168,7 +200,7 @@ TEST(CohortCli, AnalysesEveryEyeAndRecordsEveryBadFile) {
               std::vector<std::string>(header.begin(), header.begin() + 7));
     ASSERT_EQ(onh[1].size(), onh[0].size());
     EXPECT_EQ(onh[1][3], "onh");
-    EXPECT_EQ(fs::path(onh[1][4]).filename(), "onh.vol");
+    EXPECT_EQ(name.at(onh[1][4]), "onh.vol");
 
     // One JSON per eye, named by its key; no identifier anywhere; no temporary left.
     std::size_t n_json = 0;
@@ -179,9 +211,10 @@ TEST(CohortCli, AnalysesEveryEyeAndRecordsEveryBadFile) {
         EXPECT_EQ(text.find("FAKE-PHANTOM"), std::string::npos);
         const json j = json::parse(text);
         EXPECT_EQ(j["command"], j["cohort"]["scan_type"]);
-        EXPECT_EQ(j["cohort"]["file"], j["input"]["path"]);
-        EXPECT_EQ(e.path().stem().string(),
-                  io::sha256_hex(j["cohort"]["file"].get<std::string>()).substr(0, 16));
+        EXPECT_FALSE(j["cohort"].contains("file"));
+        EXPECT_FALSE(j["input"].contains("path"));
+        EXPECT_EQ(e.path().stem().string(), j["cohort"]["eye_key"]);
+        EXPECT_EQ(name.count(j["cohort"]["eye_key"].get<std::string>()), 1U);
     }
     EXPECT_EQ(n_json, 4U);  // 3 maculae + 1 ONH
     EXPECT_EQ(slurp(out / "eyes.csv").find("FAKE-PHANTOM"), std::string::npos);
@@ -228,7 +261,7 @@ TEST(CohortCli, ResumeRedoesNothingUnlessFileOptionOrVersionChanged) {
                   fs::copy_options::overwrite_existing);
     EXPECT_EQ(test::run_octshape(cmd).exit_code, 1);
     EXPECT_EQ(read_csv(out / "eyes.csv").size(), 5U);
-    EXPECT_EQ(slurp(out / "failures.csv").find("truncated.vol"), std::string::npos);
+    EXPECT_EQ(slurp(out / "private" / "failures.csv").find("truncated.vol"), std::string::npos);
 
     // A changed macula option redoes every macula eye (and every recorded failure); the ONH
     // eye, whose options did not change, keeps its result.
@@ -245,14 +278,19 @@ TEST(CohortCli, ResumeRedoesNothingUnlessFileOptionOrVersionChanged) {
         }
     }
 
-    // A record from another octshape version is redone.
+    // A record made by other code (another fingerprint: e.g. another revision) is redone, and
+    // the run says how many.
     const fs::path rec = out / "eyes" / (key_a + ".json");
     json j = json::parse(slurp(rec));
-    j["cohort"]["octshape_version"] = "0.0.0-other";
+    const std::string fp = j["cohort"]["fingerprint"];
+    j["cohort"]["fingerprint"] = "0123456789abcdef";
     spit(rec, j.dump(2));
     const auto r5 = test::run_octshape(cmd + " --tau-um 6");
     EXPECT_NE(r5.err.find("1 to do"), std::string::npos) << r5.err;
-    EXPECT_NE(json::parse(slurp(rec))["cohort"]["octshape_version"], "0.0.0-other");
+    EXPECT_NE(r5.err.find("1 eye(s) redone: their results were made by other code"),
+              std::string::npos)
+        << r5.err;
+    EXPECT_EQ(json::parse(slurp(rec))["cohort"]["fingerprint"], fp);
 }
 
 TEST(CohortCli, MergeAndPerScanMaculaGiveTheCohortCsvByteForByte) {
@@ -365,11 +403,12 @@ TEST(CohortEye, EachInputAloneThenTheTablesGiveTheCohortsFolderByteForByte) {
     const auto made = test::run_octshape(tables);
     ASSERT_EQ(made.exit_code, 1) << made.err;  // as the cohort: some inputs failed
 
-    for (const char* t : {"eyes.csv", "eyes_onh.csv", "failures.csv"}) {
+    for (const char* t : {"eyes.csv", "eyes_onh.csv", "failures.csv", "private/inputs.csv",
+                          "private/failures.csv"}) {
         EXPECT_EQ(slurp(out / t), slurp(ref / t)) << t;
         EXPECT_FALSE(slurp(ref / t).empty()) << t;
     }
-    for (const char* d : {"eyes", "failures", "qc"}) {
+    for (const char* d : {"eyes", "failures", "qc", "private"}) {
         const auto want = folder_files(ref / d);
         const auto got = folder_files(out / d);
         EXPECT_FALSE(want.empty()) << d;
@@ -386,6 +425,71 @@ TEST(CohortEye, EachInputAloneThenTheTablesGiveTheCohortsFolderByteForByte) {
         test::run_octshape("cohort-eye " + q(files.back()) + " -o " + q(out) + opts);
     EXPECT_EQ(again.exit_code, 0) << again.err;
     EXPECT_EQ(json_mtimes(out / "eyes"), before);
+}
+
+// Without a subject option the workflow's folder keys the subject ids as the cohort's does, with
+// one key of its own, OUTDIR/private/subject.key: `cohort --list` (run once before the jobs)
+// makes it, every `cohort-eye` job and `cohort-tables` use it, and a later `octshape cohort` on
+// the folder finds every record current under it. A job that finds no key makes it too.
+TEST(CohortEye, WithoutASubjectOptionTheJobsShareTheKeyListMade) {
+    test::TempDir dir;
+    const fs::path in = dir / "in";
+    fs::create_directories(in);
+    io::Scan s = macula_scan(retina::MaculaFamily::kBezier, io::Laterality::kOD, 5);
+    s.meta.ids.patient_id = "PATIENT-0001";
+    io::write_vol_file(s, (in / "p1.vol").string());
+    s.meta.ids.patient_id = "PATIENT-2";
+    io::write_vol_file(s, (in / "p2.vol").string());
+    const fs::path out = dir / "out";
+    const fs::path key = out / "private" / "subject.key";
+    const auto listed = test::run_octshape("cohort " + q(in) + " -o " + q(out) + " --list");
+    ASSERT_EQ(listed.exit_code, 0) << listed.err;
+    ASSERT_TRUE(fs::exists(key)) << listed.err;
+    struct stat st {};
+    ASSERT_EQ(::stat(key.c_str(), &st), 0);
+    EXPECT_EQ(st.st_mode & 0777, 0600U);
+    ASSERT_EQ(::stat((out / "private").c_str(), &st), 0);
+    EXPECT_EQ(st.st_mode & 0777, 0700U);
+    const std::string made = slurp(key);
+    EXPECT_EQ(made.size(), 65U);  // 64 hex digits and a newline
+    for (const char* f : {"p1.vol", "p2.vol"}) {
+        const auto e = test::run_octshape("cohort-eye " + q(in / f) + " -o " + q(out));
+        EXPECT_EQ(e.exit_code, 0) << f << ": " << e.err;
+    }
+    const auto t = test::run_octshape("cohort-tables " + q(in) + " -o " + q(out));
+    ASSERT_EQ(t.exit_code, 0) << t.err;
+    EXPECT_EQ(slurp(key), made);  // nobody made another
+    const std::string table = slurp(out / "eyes.csv");
+    const auto rows = read_csv(out / "eyes.csv");
+    ASSERT_EQ(rows.size(), 3U);
+    // The subject ids are the HMAC under the key list made: what `pseudonym` gives with it.
+    const auto ps = test::run_octshape("pseudonym --subject-key-file " + q(key) + " PATIENT-0001");
+    ASSERT_EQ(ps.exit_code, 0) << ps.err;
+    const auto name = names_by_key(out);
+    bool seen = false;
+    for (std::size_t i = 1; i < rows.size(); ++i) {
+        if (name.at(rows[i][4]) != "p1.vol") continue;
+        seen = true;
+        EXPECT_EQ(ps.out, rows[i][0] + "\n");
+    }
+    EXPECT_TRUE(seen);
+    const auto cohort = test::run_octshape("cohort " + q(in) + " -o " + q(out));
+    ASSERT_EQ(cohort.exit_code, 0) << cohort.err;
+    EXPECT_NE(cohort.err.find("0 to do"), std::string::npos) << cohort.err;
+    EXPECT_EQ(slurp(out / "eyes.csv"), table);
+
+    // A job on a folder without a key makes it; the tables and a second job use that one.
+    const fs::path out2 = dir / "out2";
+    const auto e2 = test::run_octshape("cohort-eye " + q(in / "p1.vol") + " -o " + q(out2));
+    ASSERT_EQ(e2.exit_code, 0) << e2.err;
+    const std::string made2 = slurp(out2 / "private" / "subject.key");
+    EXPECT_EQ(made2.size(), 65U);
+    EXPECT_NE(made2, made);  // a new random key
+    const auto e3 = test::run_octshape("cohort-eye " + q(in / "p2.vol") + " -o " + q(out2));
+    ASSERT_EQ(e3.exit_code, 0) << e3.err;
+    ASSERT_EQ(test::run_octshape("cohort-tables " + q(in) + " -o " + q(out2)).exit_code, 0);
+    EXPECT_EQ(slurp(out2 / "private" / "subject.key"), made2);
+    EXPECT_NE(slurp(out2 / "eyes.csv"), table);  // other ids under another key
 }
 
 TEST(CohortCli, SubjectIdsAreKeyedHashesMapsOrRawOnRequest) {
@@ -405,10 +509,47 @@ TEST(CohortCli, SubjectIdsAreKeyedHashesMapsOrRawOnRequest) {
     const auto rows = read_csv(dir / "o1" / "eyes.csv");
     ASSERT_EQ(rows.size(), 3U);
     std::map<std::string, std::string> by_file;
-    for (std::size_t i = 1; i < rows.size(); ++i) {
-        by_file[fs::path(rows[i][4]).filename().string()] = rows[i][0];
-    }
+    const auto name = names_by_key(dir / "o1");
+    for (std::size_t i = 1; i < rows.size(); ++i) by_file[name.at(rows[i][4])] = rows[i][0];
     EXPECT_EQ(by_file["p1.vol"], "6354535f92b5bbf6");
+    // `octshape pseudonym` gives the same pseudonym (patient IDs as arguments or on stdin).
+    const auto ps = test::run_octshape("pseudonym --subject-key Jefe PATIENT-0001 PATIENT-2");
+    EXPECT_EQ(ps.exit_code, 0) << ps.err;
+    EXPECT_EQ(ps.out, "6354535f92b5bbf6\n" + by_file["p2.vol"] + "\n");
+    spit(dir / "ids.txt", "PATIENT-0001\n");
+    const std::string stdin_cmd = q(test::exe()) + " pseudonym --subject-key Jefe < " +
+                                  q(dir / "ids.txt") + " > " + q(dir / "ps.txt");
+    ASSERT_EQ(std::system(stdin_cmd.c_str()), 0);
+    EXPECT_EQ(slurp(dir / "ps.txt"), "6354535f92b5bbf6\n");
+    EXPECT_EQ(test::run_octshape("pseudonym PATIENT-0001").exit_code, 64);  // no key
+
+    // Groups keyed by patient ID (the clinician's private file) or by file name; a groups
+    // file that matches no eye is an error naming it; a partial match is one warning.
+    spit(dir / "by_patient.csv", "patient_id,group\nPATIENT-0001,control\nPATIENT-2,case\n");
+    spit(dir / "by_name.csv", "file,group\np1.vol,control\n");
+    spit(dir / "nomatch.csv", "subject_id,group\nnobody,control\n");
+    const std::string base = "cohort " + q(dir / "in") + " -o " + q(dir / "o1") +
+                             " --subject-key Jefe --groups ";
+    const auto g1 = test::run_octshape(base + q(dir / "by_patient.csv"));
+    ASSERT_EQ(g1.exit_code, 0) << g1.err;
+    EXPECT_EQ(g1.err.find("warning"), std::string::npos) << g1.err;
+    for (const auto& row : read_csv(dir / "o1" / "eyes.csv")) {
+        if (row[0] == "6354535f92b5bbf6") {
+            EXPECT_EQ(row[6], "control");
+        }
+        if (row[0] == by_file["p2.vol"]) {
+            EXPECT_EQ(row[6], "case");
+        }
+    }
+    EXPECT_EQ(slurp(dir / "o1" / "eyes.csv").find("PATIENT"), std::string::npos);
+    const auto g2 = test::run_octshape(base + q(dir / "by_name.csv"));
+    ASSERT_EQ(g2.exit_code, 0) << g2.err;
+    EXPECT_NE(g2.err.find("matches 1 of 2 eyes"), std::string::npos) << g2.err;
+    const auto g3 = test::run_octshape(base + q(dir / "nomatch.csv"));
+    EXPECT_EQ(g3.exit_code, 65);
+    EXPECT_NE(g3.err.find("nomatch.csv: corrupt: the groups file matches none of the 2 eyes"),
+              std::string::npos)
+        << g3.err;
     EXPECT_NE(by_file["p2.vol"], by_file["p1.vol"]);
     EXPECT_EQ(slurp(dir / "o1" / "eyes.csv").find("PATIENT-2"), std::string::npos);
 
@@ -426,13 +567,47 @@ TEST(CohortCli, SubjectIdsAreKeyedHashesMapsOrRawOnRequest) {
     EXPECT_EQ(rows2[2][0], "S02");
     EXPECT_EQ(rows2[2][6], "glaucoma, early");  // quoted in the file (RFC 4180)
 
-    // Raw only on explicit request; no source at all is a usage error.
+    // Raw only on explicit request.
     const auto r3 = test::run_octshape("cohort " + q(dir / "in") + " -o " + q(dir / "o3") +
                                        " --subject-id raw");
     ASSERT_EQ(r3.exit_code, 0) << r3.err;
     EXPECT_NE(slurp(dir / "o3" / "eyes.csv").find("PATIENT-2"), std::string::npos);
-    EXPECT_EQ(test::run_octshape("cohort " + q(dir / "in") + " -o " + q(dir / "o4")).exit_code,
-              64);
+
+    // No subject option: the cohort's own random key, OUTDIR/private/subject.key (mode 0600,
+    // in a folder only its owner may enter), said once; reused on the next run, said once.
+    const std::string own = "cohort " + q(dir / "in") + " -o " + q(dir / "o6");
+    const auto k1 = test::run_octshape(own);
+    ASSERT_EQ(k1.exit_code, 0) << k1.err;
+    const fs::path key = dir / "o6" / "private" / "subject.key";
+    struct stat st {};
+    ASSERT_EQ(::stat(key.c_str(), &st), 0);
+    EXPECT_EQ(st.st_mode & 0777, 0600U);
+    ASSERT_EQ(::stat((dir / "o6" / "private").c_str(), &st), 0);
+    EXPECT_EQ(st.st_mode & 0777, 0700U);
+    EXPECT_EQ(slurp(key).size(), 65U);  // 64 hex digits and a newline
+    const auto count = [](const std::string& text, const std::string& what) {
+        std::size_t n = 0;
+        for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+        return n;
+    };
+    EXPECT_EQ(count(k1.err, "subject ids: HMAC under a new random key"), 1U) << k1.err;
+    const std::string own_csv = slurp(dir / "o6" / "eyes.csv");
+    const auto k2 = test::run_octshape(own);
+    ASSERT_EQ(k2.exit_code, 0) << k2.err;
+    EXPECT_EQ(count(k2.err, "made by an earlier run"), 1U) << k2.err;
+    EXPECT_NE(k2.err.find("0 to do"), std::string::npos) << k2.err;
+    EXPECT_EQ(slurp(dir / "o6" / "eyes.csv"), own_csv);
+    const auto own_ps = test::run_octshape("pseudonym --subject-key-file " + q(key) +
+                                           " PATIENT-0001");
+    const auto own_rows = read_csv(dir / "o6" / "eyes.csv");
+    ASSERT_EQ(own_rows.size(), 3U);
+    const auto own_names = names_by_key(dir / "o6");
+    for (std::size_t i = 1; i < own_rows.size(); ++i) {
+        if (own_names.at(own_rows[i][4]) == "p1.vol") {
+            EXPECT_EQ(own_ps.out, own_rows[i][0] + "\n");
+        }
+    }
+    EXPECT_NE(own_ps.out, "6354535f92b5bbf6\n");  // another key, another pseudonym
     EXPECT_EQ(test::run_octshape("cohort " + q(dir / "in") + " -o " + q(dir / "o4") +
                                  " --subject-key a --subject-id raw")
                   .exit_code,
@@ -441,6 +616,7 @@ TEST(CohortCli, SubjectIdsAreKeyedHashesMapsOrRawOnRequest) {
                                  " --subject-key a")
                   .exit_code,
               66);
+    EXPECT_FALSE(fs::exists(dir / "o5"));  // checked before anything is written
 }
 
 // ---- Kill and resume ----------------------------------------------------------------------

@@ -75,7 +75,7 @@ TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
     const auto hv = split_csv_line(header);
     const auto rv = split_csv_line(row);
     ASSERT_EQ(hv.size(), rv.size());
-    EXPECT_EQ(hv.front(), "file");
+    EXPECT_EQ(hv.front(), "eye_key");  // no file name by default (--record-paths adds it)
     int checked = 0;
     for (std::size_t i = 0; i < hv.size(); ++i) {
         for (const char* key : {"cup_volume_mm3", "conht_mm", "mrw_mean_mm", "bmo_area_mm2"}) {
@@ -91,20 +91,20 @@ TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
     }
     EXPECT_EQ(checked, 5);
 
-    for (const char* name : {"onh_enface.png", "onh_bscans.png", "onh_mrw.png"}) {
+    for (const char* name : {"eye_enface.png", "eye_bscans.png", "eye_mrw.png"}) {
         const std::string png = slurp(dir / "qc" / name);
         ASSERT_GT(png.size(), 1000U) << name;
         EXPECT_EQ(png.substr(1, 3), "PNG") << name;
     }
-    const io::MeshData ilm = io::read_mesh(dir / "mesh" / "onh_ilm.vtp");
+    const io::MeshData ilm = io::read_mesh(dir / "mesh" / "eye_ilm.vtp");
     EXPECT_EQ(ilm.F.rows(), 2 * 48 * 191);
     const auto provenance = nlohmann::json::parse(ilm.provenance);
     EXPECT_EQ(provenance.at("command"), "onh");
     EXPECT_EQ(provenance.at("inputs")[0].at("sha256"), io::sha256_file(vol.string()));
     EXPECT_EQ(ilm.V.rows(), 49 * 192);
-    const io::MeshData rpe = io::read_mesh(dir / "mesh" / "onh_rpe.vtp");
+    const io::MeshData rpe = io::read_mesh(dir / "mesh" / "eye_rpe.vtp");
     EXPECT_EQ(rpe.V.rows(), 49 * 192);
-    const std::string vtp = slurp(dir / "mesh" / "onh_ilm.vtp");
+    const std::string vtp = slurp(dir / "mesh" / "eye_ilm.vtp");
     for (const char* scalar : {"height_above_rpe_mm", "region", "envt_strength"}) {
         EXPECT_NE(vtp.find(scalar), std::string::npos) << scalar;
     }

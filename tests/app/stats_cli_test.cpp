@@ -20,7 +20,7 @@ namespace fs = std::filesystem;
 // Group "a": eyes 1.0 and 3.0 (S1 OD scanned twice: 1.0 then 1.5); group "b": 4.0, 6.0, 8.0.
 // Retest: S1 OD [1.0, 1.5], S3 OD [6.0, 6.25].
 const char* kEyes =
-    "subject_id,eye,visit_date,scan_type,file,sha256,group,x_mm\n"
+    "subject_id,eye,visit_date,scan_type,eye_key,sha256,group,x_mm\n"
     "S1,OD,2024-01-01,macula,/d/1.vol,h,a,1.0\n"
     "S1,OD,2024-01-01,macula,/d/2.vol,h,a,1.5\n"
     "S1,OS,2024-01-01,macula,/d/3.vol,h,a,3.0\n"
@@ -81,7 +81,7 @@ TEST(StatsCli, ExitCodes) {
     spit(dir / "bad.csv", "subject_id,eye\nS1\n");
     EXPECT_EQ(run_octshape("stats " + (dir / "bad.csv").string()).exit_code, 65);
     spit(dir / "one.csv",
-          "subject_id,eye,visit_date,file,x\nS1,OD,2024-01-01,/a,1\nS2,OD,2024-01-01,/b,2\n");
+          "subject_id,eye,visit_date,eye_key,x\nS1,OD,2024-01-01,/a,1\nS2,OD,2024-01-01,/b,2\n");
     EXPECT_EQ(run_octshape("stats " + (dir / "one.csv").string()).exit_code, 0);
     EXPECT_EQ(run_octshape("stats --retest " + (dir / "one.csv").string()).exit_code, 69);
     spit(dir / "eyes.csv", kEyes);

@@ -4,6 +4,9 @@
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
+
+#include <sys/stat.h>
 
 #include <gtest/gtest.h>
 
@@ -82,6 +85,58 @@ TEST(AtomicFile, MissingDirectoryIsAnOutputError) {
 TEST(AtomicFile, DirectoryAsDestinationIsAnOutputError) {
     test::TempDir dir;
     EXPECT_THROW(write_text_atomically(dir.path().string(), "x"), OutputError);
+}
+
+TEST(AtomicFile, AJournalTakesBackWhatAFailedRunPublished) {
+    test::TempDir dir;
+    write_text_atomically((dir / "old.csv").string(), "old");
+    try {
+        OutputJournal journal;
+        write_text_atomically((dir / "a.png").string(), "picture");
+        write_text_atomically((dir / "old.csv").string(), "new");
+        {
+            OutputJournal inner;  // a nested journal hands its files to the outer one
+            write_text_atomically((dir / "b.png").string(), "picture");
+            inner.commit();
+        }
+        EXPECT_TRUE(fs::exists(dir / "b.png"));
+        throw std::runtime_error("the run fails after its pictures");
+    } catch (const std::runtime_error&) {
+    }
+    for (const char* n : {"a.png", "b.png", "old.csv"}) EXPECT_FALSE(fs::exists(dir / n)) << n;
+    {
+        OutputJournal journal;
+        write_text_atomically((dir / "kept.json").string(), "{}");
+        journal.commit();
+    }
+    EXPECT_EQ(read_all(dir / "kept.json"), "{}");
+}
+
+TEST(AtomicFile, ASymlinkIsWrittenThroughAndAFifoInto) {
+    test::TempDir dir;
+    write_text_atomically((dir / "target.txt").string(), "old");
+    fs::create_symlink(dir / "target.txt", dir / "link.txt");
+    write_text_atomically((dir / "link.txt").string(), "new");
+    EXPECT_TRUE(fs::is_symlink(dir / "link.txt"));
+    EXPECT_EQ(read_all(dir / "target.txt"), "new");
+    // The path writer (VTK's formats) into a FIFO: a reader gets the bytes, the FIFO stays.
+    const fs::path fifo = dir / "f";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    std::string got;
+    std::thread reader([&] { got = read_all(fifo); });
+    write_path_atomically(fifo.string(), [](const std::string& tmp) {
+        std::ofstream(tmp) << "mesh";
+    });
+    reader.join();
+    EXPECT_EQ(got, "mesh");
+    EXPECT_TRUE(fs::is_fifo(fifo));
+    EXPECT_THROW(check_output_location((dir / "nope" / "x").string()), OutputError);
+    EXPECT_THROW(check_output_location(dir.path().string()), OutputError);
+    EXPECT_NO_THROW(check_output_location("-"));
+    EXPECT_NO_THROW(check_output_location((dir / "link.txt").string()));
+    EXPECT_THROW(check_output_directory((dir / "target.txt").string()), OutputError);
+    EXPECT_NO_THROW(check_output_directory((dir / "new" / "deeper").string()));
+    EXPECT_FALSE(fs::exists(dir / "new"));  // checked, not created
 }
 
 }  // namespace

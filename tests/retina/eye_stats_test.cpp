@@ -19,7 +19,7 @@ EyeTable parse(const std::string& s) {
 
 // Two groups; subject S1 has its OD scanned twice at one visit and once more a week later.
 const char* kTable =
-    "subject_id,eye,visit_date,scan_type,file,sha256,group,cft_mm,note,qc_flags\n"
+    "subject_id,eye,visit_date,scan_type,eye_key,sha256,group,cft_mm,note,qc_flags\n"
     "S1,OD,2024-03-14,macula,/a/s1_od_2.vol,x,ctl,0.230,\"a, b\",\n"
     "S1,OD,2024-03-14,macula,/a/s1_od_1.vol,x,ctl,0.220,,\n"
     "S1,OD,2024-03-21,macula,/a/s1_od_3.vol,x,ctl,0.260,,\n"
@@ -74,7 +74,7 @@ TEST(GroupStats, FirstScanPerEye) {
     EXPECT_EQ(g.groups[2].rows, 2U);  // S1 OD (first scan only), S1 OS
     ASSERT_EQ(g.parameters.size(), 1U);
     const auto& p = g.parameters[0].per_group;
-    // ctl: S1 OD's first scan by visit then file is s1_od_1 (0.220), S1 OS 0.240.
+    // ctl: S1 OD's first scan by visit then eye key is s1_od_1 (0.220), S1 OS 0.240.
     EXPECT_EQ(p[2].n, 2U);
     EXPECT_NEAR(p[2].mean, 0.230, 1e-15);
     EXPECT_NEAR(p[2].sd, std::sqrt(2 * 0.01 * 0.01), 1e-15);
@@ -102,7 +102,7 @@ TEST(GroupStats, AllScansAndNoGroupColumn) {
 
 TEST(RetestStats, AnyVisitUsesTheFewestScansOfARepeatedEye) {
     // Repeated eyes: S1 OD (3 scans) and S2 OD (2): k = 2, S1 OD's first two scans by
-    // visit then file are 0.220 (s1_od_1) and 0.230 (s1_od_2). Matrix [[0.22, 0.23],
+    // visit then eye key are 0.220 (s1_od_1) and 0.230 (s1_od_2). Matrix [[0.22, 0.23],
     // [0.25, 0.254]]: hand-computed ANOVA below.
     const RetestStats r = retest_stats(parse(kTable), {}, "group");
     EXPECT_EQ(r.k, 2);
@@ -137,7 +137,7 @@ TEST(RetestStats, SameVisitAndExplicitSessions) {
 }
 
 TEST(RetestStats, NoRepeatsIsAnAnalysisError) {
-    EXPECT_THROW((void)retest_stats(parse("subject_id,eye,visit_date,file,x\nS1,OD,d,f,1\n"
+    EXPECT_THROW((void)retest_stats(parse("subject_id,eye,visit_date,eye_key,x\nS1,OD,d,f,1\n"
                                           "S1,OS,d,g,2\n"),
                                     {}, "group"),
                  AnalysisError);

@@ -51,12 +51,18 @@ reference_cohort() {  # reference_cohort IN OUT REF
 untimed() { sed -E 's/"analysis_seconds": [-+.0-9eE]+/"analysis_seconds": T/' "$1"; }
 compare_outputs() {  # compare_outputs A B
   local a=$1 b=$2 n=0 d f
-  for f in eyes.csv eyes_onh.csv failures.csv; do
+  for f in eyes.csv eyes_onh.csv failures.csv private/inputs.csv private/failures.csv; do
     cmp "$a/$f" "$b/$f" || { echo "$f differs"; diff "$a/$f" "$b/$f" | head; exit 1; }
   done
+  # private/ holds the same files (no subject.key: the tests give a key) with the same modes.
+  diff <(cd "$a/private" && ls -A) <(cd "$b/private" && ls -A) || { echo "private/ differs"; exit 1; }
+  [ "$(stat -c %a "$b/private")" = 700 ] || { echo "private/ is not mode 700"; exit 1; }
   grep -q ',control,' "$b/eyes.csv" || { echo "groups missing"; exit 1; }
-  grep -q 'truncated.vol' "$b/failures.csv" || { echo "truncated.vol not in failures"; exit 1; }
-  grep -q 'unknown.vol' "$b/failures.csv" || { echo "unknown.vol not in failures"; exit 1; }
+  # The failed inputs: by path in private/failures.csv only, by eye key in failures.csv.
+  for f in truncated.vol unknown.vol; do
+    grep -q "$f" "$b/private/failures.csv" || { echo "$f not in private/failures.csv"; exit 1; }
+    ! grep -q "$f" "$b/failures.csv" || { echo "$f named in failures.csv"; exit 1; }
+  done
   for d in eyes failures qc; do
     diff <(cd "$a/$d" && ls -A) <(cd "$b/$d" && ls -A) || { echo "$d/ holds other files"; exit 1; }
     for f in "$a/$d"/*; do

@@ -41,12 +41,12 @@ struct Ids {
     int subject = -1;
     int eye = -1;
     int visit = -1;
-    int file = -1;
+    int file = -1;  // the eye_key column (it replaced the file name: docs/cohort.md)
     explicit Ids(const EyeTable& t)
         : subject(require_column(t, "subject_id")),
           eye(require_column(t, "eye")),
           visit(require_column(t, "visit_date")),
-          file(require_column(t, "file")) {}
+          file(require_column(t, "eye_key")) {}
 };
 
 // Row indices grouped by key, each group in visit_date then file order (ISO dates sort as
@@ -81,7 +81,7 @@ EyeTable read_eye_table_file(const std::string& path) { return io::read_csv_file
 
 const std::vector<std::string>& eye_table_id_columns() {
     static const std::vector<std::string> kIds{"subject_id", "eye",    "visit_date", "scan_type",
-                                               "file",       "sha256", "group"};
+                                               "eye_key",    "sha256", "group"};
     return kIds;
 }
 

@@ -4,7 +4,7 @@
 // repeated scans of the same eye (Tables 7.1 and 8.1).
 //
 // eyes.csv (docs/outputs.md): one header line, columns subject_id, eye, visit_date, scan_type,
-// file, sha256, group, then the parameters; "NA" (or an empty field) is missing.
+// eye_key, sha256, group, then the parameters; "NA" (or an empty field) is missing.
 
 #include <cstddef>
 #include <istream>
@@ -38,7 +38,7 @@ using EyeTable = io::CsvTable;
 
 struct GroupStatsParams {
     std::string group_column = "group";  // absent column -> one group "all"
-    // false: one scan per eye (subject_id + eye), the first by visit_date then file, as the
+    // false: one scan per eye (subject_id + eye), the first by visit_date then eye_key, as the
     // R recipe does; true: every row counts.
     bool all_scans = false;
     void validate() const;  // throws UsageError naming the bad field
@@ -64,12 +64,12 @@ struct GroupStats {
 };
 
 // Per group and parameter: n, mean (SD), min, max. Throws InputError::corrupt if a required
-// identifier column (subject_id, eye, visit_date, file) is missing.
+// identifier column (subject_id, eye, visit_date, eye_key) is missing.
 [[nodiscard]] GroupStats group_stats(const EyeTable& t, const GroupStatsParams& p);
 
 struct RetestParams {
     // false: repeats are all scans of the same eye (subject_id + eye) over any visit, in
-    // visit_date then file order; true: only scans of the same visit (subject_id + eye +
+    // visit_date then eye_key order; true: only scans of the same visit (subject_id + eye +
     // visit_date) are repeats of each other.
     bool same_visit = false;
     // k, the scans per eye used; 0 = the smallest number of scans among the eyes scanned more
