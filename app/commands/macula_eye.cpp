@@ -58,7 +58,10 @@ MaculaEye analyse_macula_eye(const std::string& file,
                              MaculaEyeOptions options,
                              const SubjectSource& subjects) {
     const FileFacts facts = file_facts(file);  // before reading: a missing file says so
-    return analyse_macula_eye(file, facts, io::read_scan_hashed(file), std::move(options),
+    // The QC B-scan shows the pixels: read them with the rest when pictures are asked for.
+    io::ReadOptions read;
+    read.pixels = !options.qc_dir.empty();
+    return analyse_macula_eye(file, facts, io::read_scan_hashed(file, read), std::move(options),
                               subjects);
 }
 
@@ -103,7 +106,15 @@ MaculaEye analyse_macula_eye(const std::string& file,
     if (!o.qc_dir.empty()) {
         const std::string stem =
             o.qc_stem.empty() ? std::filesystem::path(file).stem().string() : o.qc_stem;
-        write_macula_qc(r, o.qc_dir, stem);
+        if (scan.pixels_loaded) {
+            write_macula_qc(r, scan, o.qc_dir, stem);
+        } else {
+            // A scan read without pixels (the cohort reads headers and segmentation only):
+            // read it again with them for the B-scan picture.
+            io::ReadOptions read;
+            read.pixels = true;
+            write_macula_qc(r, io::read_scan(file, read), o.qc_dir, stem);
+        }
     }
     spdlog::info("{}: {} eye, CFT {:.4f} mm, rim height {:.4f} mm, RMSE {:.2f} um", file, eye,
                  r.cft_mm, r.rim_height_mm, r.rmse_um);
