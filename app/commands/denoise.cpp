@@ -183,7 +183,8 @@ void run_denoise(const DenoiseOptions& o) {
                   {"similarity", p.similarity == mesh::Similarity::kTukey ? "tukey" : "gaussian"},
                   {"repair_folds", p.repair_folds},
                   {"stop", p.stop == mesh::RofiStop::kNone ? "none" : "white_residual"}};
-        result = mesh::rofi_denoise(in.V, in.F, p);
+        result = run_on_mesh(o.input, o.radius_factor.has_value(),
+                             [&] { return mesh::rofi_denoise(in.V, in.F, p); });
     } else {
         mesh::EnvtParams p;
         if (use_auto) p = mesh::auto_envt_params(noise);
@@ -195,7 +196,8 @@ void run_denoise(const DenoiseOptions& o) {
         p.validate();
         params = {{"tau", p.tau}, {"iterations", p.iterations}, {"rho_rad", p.rho},
                   {"damping", p.damping}, {"fold_repair_interval", p.fold_repair_interval}};
-        result = mesh::envt_denoise(in.V, in.F, p);
+        result = run_on_mesh(o.input, o.radius_mm.has_value(),
+                             [&] { return mesh::envt_denoise(in.V, in.F, p); });
     }
     for (const auto& w : result.warnings) spdlog::warn("{}: {}", o.input, w);
     params["radius_mm"] = result.radius;
@@ -203,6 +205,7 @@ void run_denoise(const DenoiseOptions& o) {
         params["sigma_c_mm"] =
             params["sigma_c_factor"].get<double>() * result.mean_centroid_distance;
     }
+    require_finite_result(o.input, result.V);
     const std::string input_sha = io::sha256_file(o.input);
     nlohmann::json options = {{"method", o.method}, {"auto", use_auto}, {"parameters", params},
                               {"threads", o.threads}};

@@ -32,7 +32,14 @@ void run_features(const FeaturesOptions& o) {
     p.threads = o.threads;
     p.validate();
     const io::MeshData in = read_valid_mesh(o.input);
-    const mesh::FaceFeatures f = mesh::face_features(in.V, in.F, p);
+    const mesh::FaceFeatures f = run_on_mesh(o.input, o.radius_mm.has_value(),
+                                             [&] { return mesh::face_features(in.V, in.F, p); });
+    for (const auto* values : {&f.strength, &f.mean_curvature}) {
+        if (!values->allFinite() || !f.eigenvalues.allFinite()) {
+            throw Error(o.input + ": a face feature is not finite (nothing written; please "
+                        "report this input)");
+        }
+    }
     io::write_mesh(o.output, in.V, in.F,
                    {{"envt_lambda1", f.eigenvalues.col(0)},
                     {"envt_lambda2", f.eigenvalues.col(1)},

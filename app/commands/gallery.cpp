@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -90,6 +91,39 @@ std::string text_of(const json& j) {
     return "";
 }
 
+// A parameter's column header: its name in words with the unit in brackets (cft_mm ->
+// "cft (mm)").
+std::string param_label(const std::string& name) {
+    static const std::vector<std::pair<std::string, std::string>> units{
+        {"_mm3", "mm3"}, {"_mm2", "mm2"}, {"_mm", "mm"}, {"_deg", "deg"}, {"_um", "um"}};
+    std::string base = name;
+    std::string unit;
+    for (const auto& [suffix, u] : units) {
+        if (base.size() > suffix.size() && base.ends_with(suffix)) {
+            base.resize(base.size() - suffix.size());
+            unit = u;
+            break;
+        }
+    }
+    std::replace(base.begin(), base.end(), '_', ' ');
+    return unit.empty() ? base : base + " (" + unit + ")";
+}
+
+// 4 significant digits for the table (the full value stays in data-v for sorting).
+std::string short_value(const std::string& v) {
+    char* end = nullptr;
+    const double d = std::strtod(v.c_str(), &end);
+    if (v.empty() || end != v.c_str() + v.size() || !std::isfinite(d)) return v;
+    return fmt::format("{:.4g}", d);
+}
+
+// What a picture shows, from its name KEY_KIND.png ("thickness", "profiles", ...).
+std::string picture_kind(const std::string& key, const std::string& png) {
+    std::string k = png.substr(std::min(png.size(), key.size() + 1));
+    if (k.ends_with(".png")) k.resize(k.size() - 4);
+    return k;
+}
+
 struct EyeRow {
     std::string key;
     std::map<std::string, std::string> fields;  // subject_id, eye, visit_date, group, ...
@@ -109,19 +143,26 @@ json read_json(const fs::path& p) {
 }
 
 const char* kCss = R"(
-body{font:14px/1.35 system-ui,sans-serif;margin:1.2em;color:#222}
-h1{font-size:1.4em} h2{font-size:1.15em;margin-top:1.5em}
-table{border-collapse:collapse;margin:.5em 0}
-th,td{border:1px solid #ccc;padding:3px 6px;vertical-align:top}
-th{background:#eee;cursor:pointer;user-select:none;position:sticky;top:0}
+body{font:13px/1.3 system-ui,sans-serif;margin:.6em .8em;color:#222}
+header h1{font-size:1.2em;margin:0 0 .2em} header p{margin:0 0 .5em;color:#555}
+table{border-collapse:collapse}
+th,td{border:1px solid #ccc;padding:2px 5px;vertical-align:top}
+th{background:#eee;cursor:pointer;user-select:none;position:sticky;top:0;z-index:1;
+   font-weight:600;white-space:normal;max-width:6.5em}
 th.asc::after{content:" \25B2"} th.desc::after{content:" \25BC"}
-td.num{text-align:right;font-variant-numeric:tabular-nums}
-tr.flagged td{background:#fff6e0}
-table.failures th{background:#f6d5d5} table.failures td{background:#fdf0f0}
-.flags{color:#a04000;font-size:.9em}
-td{white-space:nowrap} td.flags{white-space:normal;min-width:8em}
-img{max-height:130px;display:inline-block;margin:1px;border:1px solid #999}
-.none{color:#2a7a2a}
+td{white-space:nowrap} td.num{text-align:right;font-variant-numeric:tabular-nums}
+td.flags{white-space:normal;min-width:10em;max-width:22em;color:#a04000}
+td.key{font-family:monospace;font-size:12px}
+tr.failed td{background:#fbe3e3} tr.failed td.status{color:#b00000;font-weight:700}
+tr.flagged td{background:#fff3d6} tr.flagged td.status{color:#a04000;font-weight:700}
+tr.passed td.status{color:#2a7a2a}
+tr.pics td{border-top:none;padding:3px 5px 8px;background:#fafafa}
+tr.failed + tr.pics td{display:none}
+a.thumb img{height:210px;max-width:440px;object-fit:contain;margin:0 4px 0 0;
+   border:1px solid #999;vertical-align:top;background:#222}
+#viewer{position:fixed;inset:0;background:rgba(0,0,0,.85);overflow:auto;z-index:9;
+   cursor:zoom-out;text-align:center}
+#viewer img{max-width:none;margin:1em auto;background:#fff}
 )";
 
 // Sorting: click a header (again: reverse); numbers sort numerically, NA last. `#sort=COL` or
@@ -133,22 +174,27 @@ const char* kScript = R"(
     var v = td.getAttribute('data-v');
     return v === null ? td.textContent.trim() : v;
   }
+  // Rows come in pairs: the eye's cells, then its pictures (tr.pics); they move together.
   function sortTable(table, col, desc) {
     var body = table.tBodies[0];
-    var rows = Array.prototype.slice.call(body.rows);
-    rows.sort(function (a, b) {
-      var x = key(a.cells[col]), y = key(b.cells[col]);
+    var rows = Array.prototype.filter.call(body.rows, function (r) {
+      return r.className.indexOf('pics') < 0;
+    });
+    var pics = rows.map(function (r) { return r.nextElementSibling; });
+    var order = rows.map(function (r, i) { return i; });
+    order.sort(function (i, j) {
+      var x = key(rows[i].cells[col]), y = key(rows[j].cells[col]);
       var nx = parseFloat(x), ny = parseFloat(y);
       var ax = x === '' || x === 'NA', ay = y === '' || y === 'NA';
-      if (ax || ay) { return ax === ay ? 0 : (ax ? 1 : -1); }
+      if (ax || ay) { return ax === ay ? i - j : (ax ? 1 : -1); }
       var c = (!isNaN(nx) && !isNaN(ny) && isFinite(x) && isFinite(y)) ? nx - ny
             : (x < y ? -1 : (x > y ? 1 : 0));
-      return desc ? -c : c;
+      return (desc ? -c : c) || i - j;
     });
-    rows.forEach(function (r) { body.appendChild(r); });
+    order.forEach(function (i) { body.appendChild(rows[i]); body.appendChild(pics[i]); });
     var ths = table.tHead.rows[0].cells;
-    for (var i = 0; i < ths.length; i++) { ths[i].className = ''; }
-    ths[col].className = desc ? 'desc' : 'asc';
+    for (var i = 0; i < ths.length; i++) { ths[i].classList.remove('asc', 'desc'); }
+    ths[col].classList.add(desc ? 'desc' : 'asc');
   }
   var tables = document.querySelectorAll('table.sortable');
   tables.forEach(function (table) {
@@ -156,10 +202,23 @@ const char* kScript = R"(
     for (var i = 0; i < ths.length; i++) {
       (function (col) {
         ths[col].addEventListener('click', function () {
-          sortTable(table, col, ths[col].className === 'asc');
+          sortTable(table, col, ths[col].classList.contains('asc'));
         });
       })(i);
     }
+  });
+  // A click on a thumbnail shows the picture at full size; a click or Escape closes it.
+  var viewer = document.getElementById('viewer');
+  document.querySelectorAll('a.thumb').forEach(function (a) {
+    a.addEventListener('click', function (ev) {
+      ev.preventDefault();
+      viewer.firstElementChild.src = a.getAttribute('href');
+      viewer.hidden = false;
+    });
+  });
+  viewer.addEventListener('click', function () { viewer.hidden = true; });
+  document.addEventListener('keydown', function (ev) {
+    if (ev.key === 'Escape') { viewer.hidden = true; }
   });
   var m = /^#sort=(-?)(.+)$/.exec(window.location.hash);
   var eyes = document.getElementById('eyes');
@@ -177,7 +236,7 @@ const char* kScript = R"(
 
 }  // namespace
 
-GalleryResult write_qc_gallery(const fs::path& outdir) {
+GalleryResult write_qc_gallery(const fs::path& outdir, bool allow_empty) {
     std::error_code ec;
     if (!fs::is_directory(outdir, ec)) {
         if (!fs::exists(outdir, ec)) throw InputError::missing(outdir.string());
@@ -301,67 +360,132 @@ GalleryResult write_qc_gallery(const fs::path& outdir) {
     res.failures = failures.rows.size();
     res.eyes = eyes.size();
 
+    if (!allow_empty && eyes.empty() && failures.rows.empty()) {
+        throw InputError(InputError::Kind::kMissing, outdir.string(),
+                         "nothing to show: no eyes/*.json and no failures.csv rows (run "
+                         "octshape cohort --qc first)");
+    }
+
+    // One table, failures first, then flagged eyes (most flags first), then the rest, each
+    // by eye key; a column header click re-sorts. Status: 0 failed, 1 flagged, 2 passed.
+    struct Line {
+        int status = 2;
+        std::string key;
+        const EyeRow* eye = nullptr;
+        std::string reason;  // failures
+    };
+    std::vector<Line> lines;
+    const int key_col = failures.column("eye_key");
+    const int file_col = failures.column("file");
+    const int reason_col = failures.column("reason");
+    const int code_col = failures.column("exit_code");
+    for (const auto& row : failures.rows) {
+        Line l;
+        l.status = 0;
+        if (key_col >= 0) l.key = row[static_cast<std::size_t>(key_col)];
+        std::string reason = reason_col >= 0 ? row[static_cast<std::size_t>(reason_col)] : "";
+        // Error messages start with the file's path: the page shows no file names.
+        if (file_col >= 0) {
+            const std::string& f = row[static_cast<std::size_t>(file_col)];
+            if (!f.empty() && reason.rfind(f + ": ", 0) == 0) reason = reason.substr(f.size() + 2);
+        }
+        if (code_col >= 0) reason += " (exit " + row[static_cast<std::size_t>(code_col)] + ")";
+        l.reason = reason;
+        lines.push_back(std::move(l));
+    }
+    for (const auto& e : eyes) {
+        Line l;
+        l.status = e.flags.empty() ? 2 : 1;
+        l.key = e.key;
+        l.eye = &e;
+        lines.push_back(std::move(l));
+    }
+    std::stable_sort(lines.begin(), lines.end(), [](const Line& a, const Line& b) {
+        const std::size_t fa = a.eye != nullptr ? a.eye->flags.size() : 0;
+        const std::size_t fb = b.eye != nullptr ? b.eye->flags.size() : 0;
+        if (a.status != b.status) return a.status < b.status;
+        if (fa != fb) return fa > fb;
+        return a.key < b.key;
+    });
+
     std::ostringstream h;
     h << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
       << "<link rel=\"icon\" href=\"data:,\">\n"
       << "<title>octshape QC gallery</title>\n<style>" << kCss << "</style>\n</head>\n<body>\n"
-      << "<h1>octshape QC gallery</h1>\n"
-      << "<p>" << res.eyes << " eyes, " << res.failures << " failures &middot; octshape " << kVersion
-      << ". Click a column header to sort (again to reverse).</p>\n";
+      << "<header><h1>octshape QC gallery</h1><p>" << res.eyes << " eyes, " << res.failures
+      << " failures &middot; octshape " << kVersion
+      << " &middot; sorted by QC: failed, flagged, passed. Click a column header to sort "
+         "(again to reverse), a picture to see it full size.</p></header>\n";
 
-    h << "<h2 id=\"failures-title\">Failures (" << res.failures << ")</h2>\n";
-    if (failures.rows.empty()) {
-        h << "<p class=\"none\">No failures.</p>\n";
-    } else {
-        h << "<table id=\"failures\" class=\"failures sortable\">\n<thead><tr>";
-        for (const auto& c : failures.header) h << "<th>" << escape(c) << "</th>";
-        h << "</tr></thead>\n<tbody>\n";
-        for (const auto& r : failures.rows) {
-            h << "<tr class=\"failure\">";
-            for (const auto& v : r) h << "<td>" << escape(v) << "</td>";
-            h << "</tr>\n";
-        }
-        h << "</tbody>\n</table>\n";
-    }
-
-    // No file or folder name: the page is shared (docs/cohort.md, "Output folder").
-    const std::vector<std::string> fixed{"eye_key", "subject_id", "eye",
-                                         "visit_date", "group", "scan_type"};
-    h << "<h2>Eyes (" << res.eyes << ")</h2>\n"
-      << "<table id=\"eyes\" class=\"sortable\">\n<thead><tr>";
-    h << "<th data-col=\"eye_key\">eye_key</th><th data-col=\"pictures\">pictures</th>";
-    for (std::size_t c = 1; c < fixed.size(); ++c) {
-        h << "<th data-col=\"" << escape(fixed[c]) << "\">" << escape(fixed[c]) << "</th>";
+    const std::vector<std::pair<std::string, std::string>> fixed{
+        {"eye", "eye"}, {"scan_type", "scan"}};
+    const std::vector<std::pair<std::string, std::string>> trailing{
+        {"subject_id", "subject"}, {"visit_date", "visit"}, {"group", "group"}};
+    const std::size_t columns = 4 + fixed.size() + param_columns.size() + trailing.size();
+    h << "<table id=\"eyes\" class=\"sortable\">\n<thead><tr>"
+      << "<th data-col=\"status\" class=\"asc\">QC</th>"
+      << "<th data-col=\"qc_flags\">QC flags / failure</th>"
+      << "<th data-col=\"eye_key\">eye key</th>";
+    for (const auto& [col, label] : fixed) {
+        h << "<th data-col=\"" << escape(col) << "\">" << escape(label) << "</th>";
     }
     for (const auto& c : param_columns) {
-        h << "<th data-col=\"" << escape(c) << "\">" << escape(c) << "</th>";
+        h << "<th data-col=\"" << escape(c) << "\" class=\"num\">" << escape(param_label(c))
+          << "</th>";
     }
-    h << "<th data-col=\"qc_flags\">qc_flags</th></tr></thead>\n<tbody>\n";
-    for (const auto& e : eyes) {
-        h << "<tr class=\"eye" << (e.flags.empty() ? "" : " flagged") << "\" data-key=\""
-          << escape(e.key) << "\">";
-        h << "<td>" << escape(e.key) << "</td><td data-v=\"" << e.pictures.size() << "\">";
-        for (const auto& p : e.pictures) {
-            const std::string u = url_name(p);
-            h << "<a href=\"" << u << "\"><img src=\"" << u << "\" alt=\"" << escape(p)
-              << "\" loading=\"lazy\"></a>";
+    h << "<th data-col=\"pictures\">pictures</th>";
+    for (const auto& [col, label] : trailing) {
+        h << "<th data-col=\"" << escape(col) << "\">" << escape(label) << "</th>";
+    }
+    h << "</tr></thead>\n<tbody>\n";
+    static const char* kStatus[] = {"failed", "flagged", "passed"};
+    for (const Line& l : lines) {
+        const EyeRow* e = l.eye;
+        h << "<tr class=\"row " << kStatus[l.status] << (l.status == 0 ? " failure" : "")
+          << "\"" << (e != nullptr ? " data-key=\"" + escape(e->key) + "\"" : std::string())
+          << ">";
+        h << "<td class=\"status\" data-v=\"" << l.status << "\">" << kStatus[l.status] << "</td>";
+        std::string flags = l.reason;
+        if (e != nullptr) {
+            for (const auto& f : e->flags) flags += (flags.empty() ? "" : "; ") + f;
         }
-        h << "</td>";
-        for (std::size_t c = 1; c < fixed.size(); ++c) {
-            const auto it = e.fields.find(fixed[c]);
-            h << "<td>" << escape(it == e.fields.end() ? "" : it->second) << "</td>";
-        }
+        h << "<td class=\"flags\" data-v=\""
+          << (e != nullptr ? std::to_string(e->flags.size()) : escape(flags)) << "\">"
+          << escape(flags) << "</td>";
+        h << "<td class=\"key\">" << escape(l.key) << "</td>";
+        const auto field = [&](const std::string& c) {
+            if (e == nullptr) return std::string();
+            const auto it = e->fields.find(c);
+            return it == e->fields.end() ? std::string() : it->second;
+        };
+        for (const auto& fc : fixed) h << "<td>" << escape(field(fc.first)) << "</td>";
         for (const auto& c : param_columns) {
-            const auto it = e.params.find(c);
-            const std::string v = it == e.params.end() ? "NA" : it->second;
-            h << "<td class=\"num\" data-v=\"" << escape(v) << "\">" << escape(v) << "</td>";
+            std::string v = "NA";
+            if (e != nullptr) {
+                const auto it = e->params.find(c);
+                if (it != e->params.end()) v = it->second;
+            }
+            h << "<td class=\"num param\" data-v=\"" << escape(v) << "\">" << escape(short_value(v))
+              << "</td>";
         }
-        std::string flags;
-        for (const auto& f : e.flags) flags += (flags.empty() ? "" : "; ") + f;
-        h << "<td class=\"flags\" data-v=\"" << e.flags.size() << "\">" << escape(flags)
-          << "</td></tr>\n";
+        h << "<td data-v=\"" << (e != nullptr ? e->pictures.size() : 0) << "\">"
+          << (e != nullptr ? e->pictures.size() : 0) << "</td>";
+        for (const auto& tc : trailing) h << "<td>" << escape(field(tc.first)) << "</td>";
+        h << "</tr>\n";
+        // The pictures under their eye, across the whole table (moved with the row on sorting).
+        h << "<tr class=\"pics\"><td colspan=\"" << columns << "\">";
+        if (e != nullptr) {
+            for (const auto& p : e->pictures) {
+                const std::string u = url_name(p);
+                h << "<a class=\"thumb\" href=\"" << u << "\"><img src=\"" << u
+                  << "\" alt=\"QC picture " << escape(picture_kind(e->key, p)) << "\"></a>";
+            }
+        }
+        h << "</td></tr>\n";
     }
-    h << "</tbody>\n</table>\n<script>" << kScript << "</script>\n</body>\n</html>\n";
+    h << "</tbody>\n</table>\n"
+      << "<div id=\"viewer\" hidden><img alt=\"full size\"></div>\n"
+      << "<script>" << kScript << "</script>\n</body>\n</html>\n";
 
     const fs::path qc = outdir / "qc";
     fs::create_directories(qc, ec);
@@ -379,7 +503,7 @@ void add_gallery_command(CLI::App& app, RunContext& /*ctx*/) {
     cmd->add_option("outdir", *outdir, "A cohort output directory (eyes/, eyes.csv, qc/)")
         ->required();
     cmd->callback([outdir] {
-        const GalleryResult r = write_qc_gallery(*outdir);
+        const GalleryResult r = write_qc_gallery(*outdir, /*allow_empty=*/false);
         spdlog::info("{}: QC gallery with {} eyes, {} failures, {} pictures",
                      (fs::path(*outdir) / "qc" / "index.html").string(), r.eyes, r.failures,
                      r.pictures);

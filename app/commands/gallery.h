@@ -18,6 +18,8 @@ struct GalleryResult {
 // visit and group where present), OUTDIR/failures.csv (file,reason,exit_code; optional) and
 // lists OUTDIR/qc/<eye_key>_*.png; writes OUTDIR/qc/index.html atomically. Throws InputError
 // when OUTDIR or a JSON file cannot be read, OutputError when the page cannot be written.
-GalleryResult write_qc_gallery(const std::filesystem::path& outdir);
+// allow_empty = false (the `gallery` command): nothing to show (no eye, no failure) is an
+// InputError (kMissing, exit 66) and no page is written.
+GalleryResult write_qc_gallery(const std::filesystem::path& outdir, bool allow_empty = true);
 
 }  // namespace octshape::app

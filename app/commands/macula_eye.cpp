@@ -72,8 +72,11 @@ MaculaEye analyse_macula_eye(const std::string& file,
                              MaculaEyeOptions options,
                              const SubjectSource& subjects) {
     const FileFacts facts = file_facts(file);  // before reading: a missing file says so
+    // The QC B-scan shows the pixels: read them with the rest when pictures are asked for.
+    io::ReadOptions read_options;
+    read_options.pixels = !options.qc_dir.empty();
     Provenance read;
-    const io::HashedScan input = io::read_scan_hashed(file);
+    const io::HashedScan input = io::read_scan_hashed(file, read_options);
     read.mark("read_hash");
     MaculaEye r = analyse_macula_eye(file, facts, input, std::move(options), subjects);
     // The reading's time first, as it came first.
@@ -125,7 +128,16 @@ MaculaEye analyse_macula_eye(const std::string& file,
                          scan, subjects, file);
 
     if (!o.qc_dir.empty()) {
-        write_macula_qc(r, o.qc_dir, o.qc_stem.empty() ? std::string("eye") : o.qc_stem);
+        const std::string stem = o.qc_stem.empty() ? std::string("eye") : o.qc_stem;
+        if (scan.pixels_loaded) {
+            write_macula_qc(r, scan, o.qc_dir, stem);
+        } else {
+            // A scan read without pixels (the cohort reads headers and segmentation only):
+            // read it again with them for the B-scan picture.
+            io::ReadOptions read;
+            read.pixels = true;
+            write_macula_qc(r, io::read_scan(file, read), o.qc_dir, stem);
+        }
         prov.mark("qc_pictures");
     }
     j["provenance"] = prov.json();

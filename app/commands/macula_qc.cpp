@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <vector>
@@ -19,26 +20,66 @@ const cv::Scalar kSlope(0, 200, 255);      // yellow
 const cv::Scalar kFlat(255, 255, 255);     // white
 const cv::Scalar kInterior(60, 180, 60);   // green
 const cv::Scalar kExterior(220, 120, 30);  // blue
+const cv::Scalar kCentre(255, 0, 255);     // magenta
+const cv::Scalar kIlm(60, 200, 60);        // green
+const cv::Scalar kBm(230, 150, 40);        // blue
+const cv::Scalar kFit(0, 220, 255);        // yellow
+const cv::Scalar kText(230, 230, 230);
+const cv::Scalar kPanel(30, 30, 30);
 
-cv::Mat thickness_picture(const retina::CubeResult& r) {
+// A dark strip of `h` pixels with the title on it.
+cv::Mat title_strip(int w, int h, const std::string& title) {
+    cv::Mat s(h, w, CV_8UC3, kPanel);
+    outlined_text(s, title, {8, h - 10}, 0.55, cv::Scalar(255, 255, 255));
+    return s;
+}
+
+cv::Mat stack(const std::vector<cv::Mat>& parts) {
+    int w = 0;
+    for (const auto& p : parts) w = std::max(w, p.cols);
+    std::vector<cv::Mat> padded;
+    for (const auto& p : parts) {
+        cv::Mat q(p.rows, w, CV_8UC3, kPanel);
+        p.copyTo(q(cv::Rect(0, 0, p.cols, p.rows)));
+        padded.push_back(q);
+    }
+    cv::Mat out;
+    cv::vconcat(padded, out);
+    return out;
+}
+
+std::string summary_line(const retina::CubeResult& r) {
+    return "CFT " + printf_number("%.0f um", r.cft_mm * 1e3) + "   rim height " +
+           printf_number("%.0f um", r.rim_height_mm * 1e3) + "   pit depth " +
+           printf_number("%.0f um", r.pit_depth_mm * 1e3) + "   max slope " +
+           printf_number("%.1f deg", r.max_pit_slope_deg) + "   fit RMSE " +
+           printf_number("%.2f um", r.rmse_um);
+}
+
+// The thickness colour range: from just below CFT to just above the highest valid thickness.
+std::pair<double, double> thickness_range(const retina::CubeResult& r) {
+    double lo = r.cft_mm - 0.02;
+    double hi = lo + 0.1;
+    for (const double v : r.map.mm) {
+        if (!std::isnan(v)) hi = std::max(hi, v);
+    }
+    return {lo, hi + 0.01};
+}
+
+// A volume's thickness map, with colour bar (um), 1 mm scale bar, the disks and the centre.
+cv::Mat thickness_map_picture(const retina::CubeResult& r, const std::string& title) {
     const retina::ThicknessMap& m = r.map;
     const double width_mm = (m.cols - 1) * m.dx_mm;
-    const double height_mm = std::max(m.rows - 1, 1) * (m.rows > 1 ? m.dy_mm : m.dx_mm);
+    const double height_mm = (m.rows - 1) * m.dy_mm;
     const int W = 800;
     const double px_per_mm = W / width_mm;
     const int H = std::max(40, static_cast<int>(std::lround(height_mm * px_per_mm)));
-    // Colour scale from just below CFT to just above the highest valid thickness.
-    double lo = r.cft_mm - 0.02;
-    double hi = lo + 0.1;
-    for (const double v : m.mm) {
-        if (!std::isnan(v)) hi = std::max(hi, v);
-    }
-    hi += 0.01;
+    const auto [lo, hi] = thickness_range(r);
     cv::Mat grey(H, W, CV_8UC1);
     cv::Mat valid(H, W, CV_8UC1);
     for (int y = 0; y < H; ++y) {
         // Image row 0 at the top = largest grid y (superior for the usual placement).
-        const double gy = m.rows > 1 ? (H - 1 - y) / px_per_mm : 0.0;
+        const double gy = (H - 1 - y) / px_per_mm;
         for (int x = 0; x < W; ++x) {
             const double v = m.sample(x / px_per_mm, gy);
             valid.at<uchar>(y, x) = std::isnan(v) ? 0 : 255;
@@ -67,13 +108,6 @@ cv::Mat thickness_picture(const retina::CubeResult& r) {
     poly(r.rim, kRim);
     poly(r.slope, kSlope);
     poly(r.pit_flat, kFlat);
-    if (r.line_scan) {
-        for (const auto& h : r.half_lines) {
-            if (!h.valid) continue;
-            const Eigen::Vector2d q = r.centre_mm + h.rim_radius_mm * h.direction;
-            cv::circle(img, to_px(q.x(), q.y()), 6, kRim, 2, cv::LINE_AA);
-        }
-    }
     // Anatomical labels at the ends of the nasal (0 deg) and superior (90 deg) half-lines.
     for (const auto& h : r.half_lines) {
         const char* label = h.angle_deg == 0.0 ? "N" : (h.angle_deg == 90.0 ? "S" : nullptr);
@@ -82,34 +116,75 @@ cv::Mat thickness_picture(const retina::CubeResult& r) {
         outlined_text(img, label, to_px(e.x(), e.y()) + cv::Point(-7, 7), 0.7,
                       cv::Scalar(255, 255, 255));
     }
-    const cv::Point c = to_px(r.centre_mm.x(), r.centre_mm.y());
-    cv::drawMarker(img, c, cv::Scalar(255, 0, 255), cv::MARKER_CROSS, 18, 2);
-    // Legend strip.
-    cv::Mat out(H + 70, W, CV_8UC3, cv::Scalar(30, 30, 30));
-    img.copyTo(out(cv::Rect(0, 0, W, H)));
-    outlined_text(out,
-                  "thickness " + printf_number("%.2f", lo) + " (dark) - " +
-                      printf_number("%.2f", hi) + " mm (yellow); grey = missing; + centre (" +
-                      r.centre_source + ")",
-                  {8, H + 22}, 0.5, cv::Scalar(230, 230, 230));
-    outlined_text(out, "rim", {8, H + 52}, 0.6, kRim);
-    outlined_text(out, "slope", {60, H + 52}, 0.6, kSlope);
-    outlined_text(out, "pit flat", {135, H + 52}, 0.6, kFlat);
-    outlined_text(out,
-                  "CFT " + printf_number("%.3f", r.cft_mm) + " mm  rim " +
-                      printf_number("%.3f", r.rim_height_mm) + " mm  slope " +
-                      printf_number("%.1f", r.max_pit_slope_deg) + " deg  RMSE " +
-                      printf_number("%.2f", r.rmse_um) + " um",
-                  {250, H + 52}, 0.5, cv::Scalar(230, 230, 230));
-    return out;
+    cv::drawMarker(img, to_px(r.centre_mm.x(), r.centre_mm.y()), kCentre, cv::MARKER_CROSS, 18, 2);
+    scale_bar(img, {14, H - 16}, px_per_mm, cv::Scalar(255, 255, 255));
+
+    const int bar_w = 130;
+    cv::Mat body(H + 40, W + bar_w, CV_8UC3, kPanel);
+    img.copyTo(body(cv::Rect(0, 30, W, H)));
+    colour_bar(body, cv::Rect(W + 18, 30 + 6, 22, H - 12), lo, hi, cv::COLORMAP_VIRIDIS,
+               "thickness (um)", 1e3, "%.0f");
+    cv::Mat legend(74, W + bar_w, CV_8UC3, kPanel);
+    draw_legend(legend, {8, 22},
+                {{LegendItem::kLine, kRim, "rim"},
+                 {LegendItem::kLine, kSlope, "steepest slope"},
+                 {LegendItem::kLine, kFlat, "pit flat"},
+                 {LegendItem::kCross, kCentre, "centre (" + r.centre_source + ")"},
+                 {LegendItem::kLine, cv::Scalar(200, 200, 200), "half-lines"},
+                 {LegendItem::kDot, cv::Scalar(60, 60, 60), "missing"}},
+                0.45, kText, W + bar_w - 8);
+    plain_text(legend, summary_line(r), {8, 60}, 0.45, kText);
+    return stack({title_strip(W + bar_w, 34, title), body, legend});
 }
 
-cv::Mat profiles_picture(const retina::CubeResult& r) {
+// A line scan: thickness along the line (one row is no map), with the rim points and centre.
+cv::Mat thickness_line_picture(const retina::CubeResult& r, const std::string& title) {
+    const retina::ThicknessMap& m = r.map;
+    const int W = 930;
+    const int H = 400;
+    cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
+    const auto [lo, hi] = thickness_range(r);
+    Axes a;
+    a.plot = cv::Rect(70, 30, W - 100, H - 120);
+    a.x0 = 0.0;
+    a.x1 = (m.cols - 1) * m.dx_mm;
+    a.y0 = lo;
+    a.y1 = hi;
+    draw_axes(img, a, "position along the line (mm)", "thickness (um)", "%.1f", "%.0f", 1e3,
+              0.45, 8, 5);
+    std::vector<cv::Point> pts;
+    for (int c = 0; c < m.cols; ++c) {
+        const double v = m.at(0, c);
+        if (std::isnan(v)) {
+            if (pts.size() > 1) cv::polylines(img, pts, false, cv::Scalar(60, 60, 60), 1, cv::LINE_AA);
+            pts.clear();
+            continue;
+        }
+        pts.push_back(a.px(c * m.dx_mm, v));
+    }
+    if (pts.size() > 1) cv::polylines(img, pts, false, cv::Scalar(60, 60, 60), 1, cv::LINE_AA);
+    for (const auto& h : r.half_lines) {
+        if (!h.valid) continue;
+        const double x = r.centre_mm.x() + h.rim_radius_mm * h.direction.x();
+        cv::circle(img, a.px(x, h.rim_height_mm), 6, kRim, 2, cv::LINE_AA);
+    }
+    cv::drawMarker(img, a.px(r.centre_mm.x(), r.cft_mm), kCentre, cv::MARKER_CROSS, 18, 2);
+    draw_legend(img, {70, H - 12},
+                {{LegendItem::kLine, cv::Scalar(60, 60, 60), "thickness ILM-BM"},
+                 {LegendItem::kRing, kRim, "rim points"},
+                 {LegendItem::kCross, kCentre, "centre, CFT (" + r.centre_source + ")"}},
+                0.45, cv::Scalar(40, 40, 40), W - 10);
+    cv::Mat foot(30, W, CV_8UC3, kPanel);
+    plain_text(foot, summary_line(r), {8, 20}, 0.45, kText);
+    return stack({title_strip(W, 34, title), img, foot});
+}
+
+cv::Mat profiles_picture(const retina::CubeResult& r, const std::string& title) {
     const int n = static_cast<int>(r.half_lines.size());
     const int cols = n <= 2 ? 2 : 6;
     const int rows = (n + cols - 1) / cols;
-    const int pw = 260;
-    const int ph = 170;
+    const int pw = 300;
+    const int ph = 200;
     cv::Mat img(rows * ph, cols * pw, CV_8UC3, cv::Scalar(255, 255, 255));
     double hmin = 1e9;
     double hmax = -1e9;
@@ -122,65 +197,198 @@ cv::Mat profiles_picture(const retina::CubeResult& r) {
         }
         rmax = std::max(rmax, h.r_mm.back());
     }
+    if (!(hmax > hmin)) {
+        hmin = 0.0;
+        hmax = 0.5;
+    }
     hmin -= 0.01;
     hmax += 0.01;
     for (int i = 0; i < n; ++i) {
         const auto& h = r.half_lines[static_cast<std::size_t>(i)];
         const int ox = (i % cols) * pw;
         const int oy = (i / cols) * ph;
-        const cv::Rect plot(ox + 30, oy + 24, pw - 40, ph - 44);
-        cv::rectangle(img, plot, cv::Scalar(200, 200, 200), 1);
-        auto to_px = [&](double rr, double hh) {
-            return cv::Point(
-                plot.x + static_cast<int>(std::lround(rr / rmax * plot.width)),
-                plot.y + plot.height -
-                    static_cast<int>(std::lround((hh - hmin) / (hmax - hmin) * plot.height)));
-        };
+        Axes a;
+        a.plot = cv::Rect(ox + 46, oy + 26, pw - 60, ph - 66);
+        a.x0 = 0.0;
+        a.x1 = rmax;
+        a.y0 = hmin;
+        a.y1 = hmax;
+        draw_axes(img, a, "r (mm)", "um", "%.1f", "%.0f", 1e3, 0.35, 4, 5);
         if (h.valid) {
             for (const auto* fit : {&h.interior, &h.exterior}) {
                 std::vector<cv::Point> pts;
                 for (int k = 0; k <= 100; ++k) {
                     const Eigen::Vector2d q = retina::bezier_point(fit->control, k / 100.0);
-                    pts.push_back(to_px(q.x(), q.y()));
+                    pts.push_back(a.px(q.x(), q.y()));
                 }
-                cv::polylines(img, pts, false, fit == &h.interior ? kInterior : kExterior, 1,
+                cv::polylines(img, pts, false, fit == &h.interior ? kInterior : kExterior, 2,
                               cv::LINE_AA);
             }
         }
         for (std::size_t k = 0; k < h.h_mm.size(); k += 2) {
-            if (!std::isnan(h.h_mm[k]))
-                cv::circle(img, to_px(h.r_mm[k], h.h_mm[k]), 1, cv::Scalar(60, 60, 60), -1);
+            if (!std::isnan(h.h_mm[k])) {
+                cv::circle(img, a.px(h.r_mm[k], h.h_mm[k]), 1, cv::Scalar(60, 60, 60), -1);
+            }
         }
         if (h.valid) {
-            cv::circle(img, to_px(h.rim_radius_mm, h.rim_height_mm), 4, kRim, -1);
-            cv::circle(img, to_px(h.slope_point.x(), h.slope_point.y()), 3, cv::Scalar(0, 160, 220),
-                       -1);
+            cv::circle(img, a.px(h.rim_radius_mm, h.rim_height_mm), 4, kRim, -1);
+            cv::circle(img, a.px(h.slope_point.x(), h.slope_point.y()), 3,
+                       cv::Scalar(0, 160, 220), -1);
         }
-        const std::string title =
+        const std::string t =
             printf_number("%.0f deg", h.angle_deg) +
             (h.valid ? "  RMSE " + printf_number("%.2f um", h.rmse_um) : "  FAILED");
-        cv::putText(img, title, {ox + 30, oy + 17}, cv::FONT_HERSHEY_SIMPLEX, 0.45,
+        cv::putText(img, t, {ox + 46, oy + 18}, cv::FONT_HERSHEY_SIMPLEX, 0.45,
                     h.valid ? cv::Scalar(0, 0, 0) : cv::Scalar(0, 0, 200), 1, cv::LINE_AA);
-        cv::putText(img, printf_number("%.2f", hmax), {ox + 2, plot.y + 8},
-                    cv::FONT_HERSHEY_SIMPLEX, 0.3, cv::Scalar(90, 90, 90), 1, cv::LINE_AA);
-        cv::putText(img, printf_number("%.2f", hmin), {ox + 2, plot.y + plot.height},
-                    cv::FONT_HERSHEY_SIMPLEX, 0.3, cv::Scalar(90, 90, 90), 1, cv::LINE_AA);
-        cv::putText(img, printf_number("r %.1f mm", rmax),
-                    {plot.x + plot.width - 52, plot.y + plot.height + 14}, cv::FONT_HERSHEY_SIMPLEX,
-                    0.3, cv::Scalar(90, 90, 90), 1, cv::LINE_AA);
     }
-    return img;
+    cv::Mat legend(56, img.cols, CV_8UC3, cv::Scalar(255, 255, 255));
+    plain_text(legend,
+               "thickness (um, y) against the distance r from the centre (mm, x) along each "
+               "half-line (anatomical angle: 0 nasal, 90 superior)",
+               {8, 18}, 0.45, cv::Scalar(20, 20, 20));
+    draw_legend(legend, {8, 44},
+                {{LegendItem::kDot, cv::Scalar(60, 60, 60), "samples"},
+                 {LegendItem::kLine, kInterior, "interior Bezier fit"},
+                 {LegendItem::kLine, kExterior, "exterior Bezier fit"},
+                 {LegendItem::kDot, kRim, "rim point"},
+                 {LegendItem::kDot, cv::Scalar(0, 160, 220), "steepest slope"}},
+                0.45, cv::Scalar(20, 20, 20), img.cols - 8);
+    return stack({title_strip(img.cols, 34, title), legend, img});
+}
+
+// The fitted thickness h(r) along the half-line in direction `sign` (+1: +x) at grid x, or NaN.
+double fitted_thickness(const retina::CubeResult& r, int sign, double x_mm) {
+    for (const auto& h : r.half_lines) {
+        if (!h.valid || std::fabs(h.direction.y()) > 1e-6 || h.direction.x() * sign <= 0.0) {
+            continue;
+        }
+        const double rr = (x_mm - r.centre_mm.x()) * sign;
+        if (rr < 0.0 || rr > h.r_mm.back()) return std::numeric_limits<double>::quiet_NaN();
+        // The Bezier segments are monotone in r: bisect for the parameter giving rr.
+        for (const auto* fit : {&h.interior, &h.exterior}) {
+            const double r0 = retina::bezier_point(fit->control, 0.0).x();
+            const double r1 = retina::bezier_point(fit->control, 1.0).x();
+            if (rr < std::min(r0, r1) || rr > std::max(r0, r1)) continue;
+            double t0 = 0.0;
+            double t1 = 1.0;
+            for (int it = 0; it < 40; ++it) {
+                const double tm = 0.5 * (t0 + t1);
+                const double rm = retina::bezier_point(fit->control, tm).x();
+                if ((rm < rr) == (r0 < r1)) {
+                    t0 = tm;
+                } else {
+                    t1 = tm;
+                }
+            }
+            return retina::bezier_point(fit->control, 0.5 * (t0 + t1)).y();
+        }
+    }
+    return std::numeric_limits<double>::quiet_NaN();
+}
+
+// The B-scan through the centre with the device ILM and BM and the fitted profile drawn from
+// BM up by the fitted thickness (along the nasal and temporal half-lines, which lie on it).
+cv::Mat bscan_picture(const retina::CubeResult& r, const io::Scan& scan, const std::string& title) {
+    const int nb = scan.num_bscans();
+    const int b = r.line_scan || r.map.dy_mm <= 0.0
+                      ? 0
+                      : std::clamp(static_cast<int>(std::lround(r.centre_mm.y() / r.map.dy_mm)),
+                                   0, nb - 1);
+    const io::BScan& bs = scan.bscans[static_cast<std::size_t>(b)];
+    const int w = scan.meta.size_x;
+    const int h = scan.meta.size_z;
+    const bool pixels = bs.pixels.size() == static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+    const cv::Mat grey = bscan_grey(bs, w, h);
+    // Shown at 900 px wide, the depth stretched by the same factor as the width (pixels keep
+    // the device's aspect: one row per depth pixel).
+    const int W = 900;
+    const double sx = static_cast<double>(W) / w;
+    const int H = std::max(120, static_cast<int>(std::lround(h * sx * 0.5)));
+    const double sz = static_cast<double>(H) / h;
+    cv::Mat big;
+    cv::resize(grey, big, cv::Size(W, H), 0, 0, cv::INTER_AREA);
+    cv::Mat img;
+    cv::cvtColor(big, img, cv::COLOR_GRAY2BGR);
+    auto line_of = [&](int k) -> const std::vector<float>* {
+        return bs.has_line(k) ? &bs.seg[static_cast<std::size_t>(k)] : nullptr;
+    };
+    // A-scan a and depth pixel z (values at pixel centres) to picture pixels.
+    auto pt = [&](double a, double z) {
+        return cv::Point(static_cast<int>(std::lround((a + 0.5) * sx)),
+                         static_cast<int>(std::lround((z + 0.5) * sz)));
+    };
+    auto draw = [&](const std::vector<float>* line, cv::Scalar c) {
+        if (line == nullptr) return;
+        for (std::size_t a = 0; a + 1 < line->size(); ++a) {
+            if (!io::is_valid((*line)[a]) || !io::is_valid((*line)[a + 1])) continue;
+            cv::line(img, pt(static_cast<double>(a), (*line)[a]),
+                     pt(static_cast<double>(a + 1), (*line)[a + 1]), c, 1, cv::LINE_AA);
+        }
+    };
+    const auto* bm = line_of(static_cast<int>(io::Layer::kBM));
+    draw(bm, kBm);
+    draw(line_of(static_cast<int>(io::Layer::kILM)), kIlm);
+    if (bm != nullptr && scan.meta.scale_z_mm > 0.0) {
+        for (const int sign : {1, -1}) {
+            std::vector<cv::Point> pts;
+            for (int a = 0; a < w && a < static_cast<int>(bm->size()); ++a) {
+                const double t = fitted_thickness(r, sign, a * r.map.dx_mm);
+                if (std::isnan(t) || !io::is_valid((*bm)[static_cast<std::size_t>(a)])) {
+                    if (pts.size() > 1) cv::polylines(img, pts, false, kFit, 2, cv::LINE_AA);
+                    pts.clear();
+                    continue;
+                }
+                pts.push_back(pt(a, (*bm)[static_cast<std::size_t>(a)] - t / scan.meta.scale_z_mm));
+            }
+            if (pts.size() > 1) cv::polylines(img, pts, false, kFit, 2, cv::LINE_AA);
+        }
+    }
+    const int cx = static_cast<int>(std::lround((r.centre_mm.x() / r.map.dx_mm + 0.5) * sx));
+    cv::line(img, {cx, 0}, {cx, H - 1}, kCentre, 1, cv::LINE_AA);
+    outlined_text(img,
+                  "B-scan " + std::to_string(b + 1) + " of " + std::to_string(nb) +
+                      " (through the centre)" + (pixels ? "" : "; the export has no pixels"),
+                  {10, 24}, 0.55, cv::Scalar(255, 255, 255));
+    scale_bar(img, {14, H - 14}, W / (w * scan.meta.scale_x_mm), cv::Scalar(255, 255, 255));
+
+    // Axes around the picture: x in mm, depth in um (from the top of the B-scan).
+    cv::Mat framed(H + 72, W + 90, CV_8UC3, cv::Scalar(255, 255, 255));
+    img.copyTo(framed(cv::Rect(70, 24, W, H)));
+    Axes a;
+    a.plot = cv::Rect(70, 24, W, H);
+    // Grid x = a · ScaleX at the centre of A-scan a; depth z · ScaleZ at the centre of row z.
+    a.x0 = -0.5 * scan.meta.scale_x_mm;
+    a.x1 = (w - 0.5) * scan.meta.scale_x_mm;
+    a.y0 = -(h - 0.5) * scan.meta.scale_z_mm;  // y up: depth 0 at the top
+    a.y1 = 0.5 * scan.meta.scale_z_mm;
+    draw_axes(framed, a, "x along the B-scan (mm)", "depth (um, from the top)", "%.1f", "%.0f",
+              -1e3, 0.42, 8, 5);
+    img.copyTo(framed(cv::Rect(70, 24, W, H)));  // the grid lines stay outside the picture
+    cv::rectangle(framed, a.plot, cv::Scalar(60, 60, 60), 1);
+    cv::Mat legend(40, framed.cols, CV_8UC3, kPanel);
+    draw_legend(legend, {8, 26},
+                {{LegendItem::kLine, kIlm, "ILM (device)"},
+                 {LegendItem::kLine, kBm, "BM (device)"},
+                 {LegendItem::kLine, kFit, "fitted profile (BM + fitted thickness)"},
+                 {LegendItem::kLine, kCentre, "centre"}},
+                0.45, kText, framed.cols - 8);
+    return stack({title_strip(framed.cols, 34, title), framed, legend});
 }
 
 }  // namespace
 
-void write_macula_qc(const retina::CubeResult& r, const std::string& dir, const std::string& stem) {
+void write_macula_qc(const retina::CubeResult& r, const io::Scan& scan, const std::string& dir,
+                     const std::string& stem) {
     std::error_code ec;
     std::filesystem::create_directories(dir, ec);
     if (ec) throw OutputError(dir, "cannot create the QC directory: " + ec.message());
     const std::filesystem::path d(dir);
-    save_png(thickness_picture(r), (d / (stem + "_thickness.png")).string());
-    save_png(profiles_picture(r), (d / (stem + "_profiles.png")).string());
+    const std::string title = scan_title(scan.meta, scan.num_bscans());
+    const bool one_row = r.line_scan || r.map.rows < 2;
+    save_png(one_row ? thickness_line_picture(r, title) : thickness_map_picture(r, title),
+             (d / (stem + "_thickness.png")).string());
+    save_png(profiles_picture(r, title), (d / (stem + "_profiles.png")).string());
+    save_png(bscan_picture(r, scan, title), (d / (stem + "_bscan.png")).string());
 }
 
 }  // namespace octshape::app

@@ -81,8 +81,9 @@ void run_meanshape(const MeanShapeOptions& o) {
     try {
         result = mesh::mean_shape(reference, aligned, params);
     } catch (const DataError& e) {
-        throw AnalysisError(std::string("mean shape: ") + e.what());
+        throw AnalysisError(o.inputs[0] + " (the reference): mean shape: " + e.what());
     }
+    require_finite_result(o.inputs[0], result.mean);
     for (std::size_t s = 0; s < surfaces.size(); ++s) {
         surfaces[s]["correspondence_mean_distance_mm"] = result.mean_distance[s];
         surfaces[s]["correspondence_rms_distance_mm"] = result.rms_distance[s];

@@ -65,4 +65,30 @@ inline void add_record_paths_flag(CLI::App* cmd, bool& record_paths) {
                   "SHA-256 only)");
 }
 
+// Runs `compute` (a libmesh denoiser or feature estimate on the mesh read from `path`) and
+// turns libmesh's DataError (e.g. a neighbourhood past its bound, mesh.h) into an
+// error naming the file: a UsageError when the user chose the radius (`user_radius`), else an
+// InputError (the radius came from the mesh itself, e.g. inflated by a far vertex).
+template <class Compute>
+auto run_on_mesh(const std::string& path, bool user_radius, const Compute& compute) {
+    try {
+        return compute();
+    } catch (const DataError& e) {
+        if (user_radius) throw UsageError(path + ": " + e.what() + "; choose a smaller radius");
+        throw InputError::corrupt(path, e.what());
+    }
+}
+
+// A result about to be written must be finite: a non-finite vertex is refused (a bug, exit 70,
+// since finite inputs within io::kMaxMeshCoordinate cannot overflow), so that a success never
+// writes one.
+inline void require_finite_result(const std::string& path, const mesh::Vertices& V) {
+    for (Eigen::Index i = 0; i < V.rows(); ++i) {
+        if (!V.row(i).allFinite()) {
+            throw Error(path + ": the result has a non-finite vertex " + std::to_string(i) +
+                        " (nothing written; please report this input)");
+        }
+    }
+}
+
 }  // namespace octshape::app

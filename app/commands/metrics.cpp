@@ -2,6 +2,7 @@
 // mesh against a reference surface (thesis §3.2.3, §5.2.2; docs/algorithms/mesh.md).
 
 #include <cstdio>
+#include <cmath>
 #include <iostream>
 #include <string>
 
@@ -79,6 +80,21 @@ void run_metrics(const MetricsOptions& o) {
         j["volume_mm3"] = mesh::signed_volume(m.V, m.F);
         j["reference_volume_mm3"] = mesh::signed_volume(r.V, r.F);
         j["note"] = "triangulations differ: msae_deg and flipped_faces need the same faces";
+    }
+    // Q is +inf on a mesh with a face of zero area (metrics.h): reported as undefined, never
+    // printed as a number. Nothing else printed may be non-finite.
+    for (const char* key : {"quality_q", "reference_quality_q"}) {
+        if (j.contains(key) && !std::isfinite(j[key].get<double>())) {
+            j.erase(key);
+            const std::string which = std::string(key) == "quality_q" ? o.mesh : o.reference;
+            j["note"] = (j.contains("note") ? j["note"].get<std::string>() + "; " : std::string()) +
+                        std::string(key) + " undefined: " + which + " has a face of zero area";
+        }
+    }
+    for (const auto& [key, value] : j.items()) {
+        if (value.is_number_float() && !std::isfinite(value.get<double>())) {
+            throw Error(o.mesh + ": metric " + key + " is not finite (please report this input)");
+        }
     }
     if (o.json) {
         std::cout << j.dump(2) << '\n';

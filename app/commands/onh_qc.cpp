@@ -26,7 +26,8 @@ const cv::Scalar kFilled(230, 230, 0);     // cyan
 const cv::Scalar kMrw(230, 60, 230);       // magenta
 
 // Height above the RPE of the topmost ILM face over each grid cell.
-cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p) {
+cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
+                       const std::string& title) {
     const retina::GridSurface& g = r.rpe;
     const int cw = g.cols - 1;
     const int ch = g.rows - 1;
@@ -106,21 +107,29 @@ cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p) {
                   0.7, cv::Scalar(255, 255, 255));
     outlined_text(img, "S", px(c.x() + lr * sup.x(), c.y() + lr * sup.y()) + cv::Point(-7, 7), 0.7,
                   cv::Scalar(255, 255, 255));
-    cv::Mat out(H + 70, W, CV_8UC3, cv::Scalar(30, 30, 30));
-    img.copyTo(out(cv::Rect(0, 0, W, H)));
-    outlined_text(out,
-                  "ILM height above RPE " + printf_number("%.2f", lo) + " (dark) - " +
-                      printf_number("%.2f", hi) +
-                      " mm (yellow); black line: cup edge (h = 0); ILM: " + r.ilm_source,
-                  {8, H + 22}, 0.5, cv::Scalar(230, 230, 230));
-    outlined_text(out, "BMO points", {8, H + 52}, 0.5, kBmo);
-    outlined_text(out, "ellipse", {110, H + 52}, 0.5, kEllipse);
-    outlined_text(out, printf_number("%.1f mm disc", p.disc_radius_mm), {185, H + 52}, 0.5, kDisc);
-    outlined_text(out,
-                  "A_bmo " + printf_number("%.3f mm2", r.ellipse.area_mm2) + "  V_cup " +
-                      printf_number("%.3f mm3", r.cup_volume_mm3) + "  CONHT " +
-                      printf_number("%.3f mm", r.conht_mm),
-                  {300, H + 52}, 0.5, cv::Scalar(230, 230, 230));
+    scale_bar(img, {14, H - 16}, ppm, cv::Scalar(255, 255, 255));
+    const int bar_w = 140;
+    cv::Mat out(34 + H + 40 + 96, W + bar_w, CV_8UC3, cv::Scalar(30, 30, 30));
+    outlined_text(out, title, {8, 24}, 0.55, cv::Scalar(255, 255, 255));
+    img.copyTo(out(cv::Rect(0, 34 + 30, W, H)));
+    colour_bar(out, cv::Rect(W + 18, 34 + 36, 22, H - 12), lo, hi, cv::COLORMAP_VIRIDIS,
+               "ILM above RPE (um)", 1e3, "%.0f");
+    const int y0 = 34 + 30 + H + 26;
+    const int end = draw_legend(
+        out, {8, y0},
+        {{LegendItem::kDot, kBmo, "BMO points"},
+         {LegendItem::kLine, kEllipse, "BMO ellipse"},
+         {LegendItem::kLine, kDisc, printf_number("disc, %.1f mm radius", p.disc_radius_mm)},
+         {LegendItem::kLine, cv::Scalar(0, 0, 0), "cup edge (ILM at RPE height)"},
+         {LegendItem::kCross, cv::Scalar(255, 0, 255), "BMO centre"}},
+        0.45, cv::Scalar(230, 230, 230), W + bar_w - 8);
+    plain_text(out, "ILM surface: " + r.ilm_source, {8, end + 14}, 0.45,
+               cv::Scalar(230, 230, 230));
+    plain_text(out,
+               "BMO area " + printf_number("%.3f mm2", r.ellipse.area_mm2) + "   cup volume " +
+                   printf_number("%.3f mm3", r.cup_volume_mm3) + "   CONHT " +
+                   printf_number("%.0f um", r.conht_mm * 1e3),
+               {8, end + 40}, 0.45, cv::Scalar(230, 230, 230));
     return out;
 }
 
@@ -149,21 +158,7 @@ cv::Mat bscan_panel(const io::Scan& scan, const retina::OnhResult& r, int b) {
     const int W = scan.meta.size_x;
     const int H = scan.meta.size_z;
     const io::BScan& bs = scan.bscans[static_cast<std::size_t>(b)];
-    cv::Mat grey(H, W, CV_8UC1, cv::Scalar(0));
-    if (bs.pixels.size() == static_cast<std::size_t>(W) * static_cast<std::size_t>(H)) {
-        for (int z = 0; z < H; ++z) {
-            for (int x = 0; x < W; ++x) {
-                const float v =
-                    bs.pixels[static_cast<std::size_t>(z) * static_cast<std::size_t>(W) +
-                              static_cast<std::size_t>(x)];
-                const double d = (v >= io::kNoPixelData || !(v > 0.0F))
-                                     ? 0.0
-                                     : std::pow(static_cast<double>(v), 0.25);  // display
-                grey.at<uchar>(z, x) =
-                    static_cast<uchar>(std::lround(255 * std::clamp(d, 0.0, 1.0)));
-            }
-        }
-    }
+    const cv::Mat grey = bscan_grey(bs, W, H);
     cv::Mat img;
     cv::cvtColor(grey, img, cv::COLOR_GRAY2BGR);
     const double dx = scan.meta.scale_x_mm;
@@ -203,11 +198,14 @@ cv::Mat bscan_panel(const io::Scan& scan, const retina::OnhResult& r, int b) {
         const Eigen::Vector3d& q = r.mrw_points_mm[i];
         cv::line(img, px(p.x(), p.z()), px(q.x(), q.z()), kMrw, 1, cv::LINE_AA);
     }
-    outlined_text(img, "B-scan " + std::to_string(b), {6, 18}, 0.5, cv::Scalar(255, 255, 255));
+    outlined_text(img, "B-scan " + std::to_string(b + 1) + " of " + std::to_string(scan.num_bscans()),
+                  {6, 18}, 0.5, cv::Scalar(255, 255, 255));
+    scale_bar(img, {10, H - 14}, 1.0 / dx, cv::Scalar(255, 255, 255));
     return img;
 }
 
-cv::Mat bscans_picture(const io::Scan& scan, const retina::OnhResult& r) {
+cv::Mat bscans_picture(const io::Scan& scan, const retina::OnhResult& r,
+                       const std::string& title) {
     const double dy = r.rpe.dy_mm;
     const double cy = r.ellipse.centre_mm.y();
     const double th = r.ellipse.orientation_deg * std::numbers::pi / 180.0;
@@ -224,52 +222,77 @@ cv::Mat bscans_picture(const io::Scan& scan, const retina::OnhResult& r) {
     for (const int b : picks) panels.push_back(bscan_panel(scan, r, b));
     cv::Mat row;
     cv::hconcat(panels, row);
-    cv::Mat out(row.rows + 40, row.cols, CV_8UC3, cv::Scalar(30, 30, 30));
-    row.copyTo(out(cv::Rect(0, 0, row.cols, row.rows)));
-    outlined_text(out, "device ILM", {8, row.rows + 26}, 0.5, kDeviceIlm);
-    outlined_text(out, "ILM used (" + r.ilm_source + ")", {110, row.rows + 26}, 0.5, kUsedIlm);
-    outlined_text(out, "device BM", {290, row.rows + 26}, 0.5, kBm);
-    outlined_text(out, "filled RPE", {390, row.rows + 26}, 0.5, kFilled);
-    outlined_text(out, "BMO points", {490, row.rows + 26}, 0.5, kDisc);
-    outlined_text(out, "MRW vectors", {600, row.rows + 26}, 0.5, kMrw);
+    cv::Mat out(34 + row.rows + 70, row.cols, CV_8UC3, cv::Scalar(30, 30, 30));
+    outlined_text(out, title, {8, 24}, 0.55, cv::Scalar(255, 255, 255));
+    row.copyTo(out(cv::Rect(0, 34, row.cols, row.rows)));
+    draw_legend(out, {8, 34 + row.rows + 24},
+                {{LegendItem::kLine, kDeviceIlm, "device ILM"},
+                 {LegendItem::kLine, kUsedIlm, "ILM used (" + r.ilm_source + ")"},
+                 {LegendItem::kLine, kBm, "device BM"},
+                 {LegendItem::kDot, kFilled, "filled RPE"},
+                 {LegendItem::kRing, kDisc, "BMO points"},
+                 {LegendItem::kLine, kMrw, "MRW vectors"}},
+                0.45, cv::Scalar(230, 230, 230), row.cols - 8);
+    plain_text(out,
+               "each B-scan " + printf_number("%.2f mm wide", scan.meta.size_x * scan.meta.scale_x_mm) +
+                   printf_number(", %.2f mm deep (depth drawn stretched)",
+                                 scan.meta.size_z * scan.meta.scale_z_mm),
+               {8, 34 + row.rows + 56}, 0.45, cv::Scalar(230, 230, 230));
     return out;
 }
 
-cv::Mat mrw_picture(const retina::OnhResult& r) {
-    const int W = 900;
-    const int H = 360;
+cv::Mat mrw_picture(const retina::OnhResult& r, const std::string& title) {
+    const int W = 930;
+    const int H = 420;
     cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
-    const cv::Rect plot(60, 30, W - 90, H - 80);
-    cv::rectangle(img, plot, cv::Scalar(200, 200, 200), 1);
+    cv::rectangle(img, cv::Rect(0, 0, W, 34), cv::Scalar(30, 30, 30), -1);
+    outlined_text(img, title, {8, 24}, 0.55, cv::Scalar(255, 255, 255));
     double hi = 0.05;
-    for (const double m : r.mrw_mm) hi = std::max(hi, m);
+    for (const double m : r.mrw_mm) {
+        if (std::isfinite(m)) hi = std::max(hi, m);
+    }
     hi *= 1.1;
-    auto px = [&](double deg, double m) {
-        return cv::Point(
-            plot.x + static_cast<int>(std::lround(deg / 360.0 * plot.width)),
-            plot.y + plot.height - static_cast<int>(std::lround(m / hi * plot.height)));
-    };
+    Axes a;
+    a.plot = cv::Rect(80, 84, W - 110, H - 174);
+    a.x0 = 0.0;
+    a.x1 = 360.0;
+    a.y0 = 0.0;
+    a.y1 = hi;
+    draw_axes(img, a, "", "MRW (um)", "%.0f", "%.0f", 1e3, 0.42, 0, 5);
+    // x ticks every 30 degrees, and the anatomical directions under 0, 90, 180, 270, 360.
+    const cv::Scalar ink(60, 60, 60);
+    for (int k = 0; k <= 12; ++k) {
+        const cv::Point q = a.px(30.0 * k, 0.0);
+        cv::line(img, {q.x, a.plot.y}, {q.x, a.plot.y + a.plot.height}, cv::Scalar(225, 225, 225), 1);
+        cv::line(img, q, q + cv::Point(0, 4), ink, 1);
+        const std::string deg = std::to_string(30 * k);
+        plain_text(img, deg, q + cv::Point(-4 * static_cast<int>(deg.size()), 18), 0.42, ink);
+        if (k % 3 == 0) {
+            static const char* kDir[] = {"N", "S", "T", "I", "N"};
+            outlined_text(img, kDir[k / 3], q + cv::Point(-6, 42), 0.7, cv::Scalar(255, 255, 255));
+        }
+    }
+    cv::rectangle(img, a.plot, ink, 1);
+    plain_text(img, "anatomical angle (deg): N nasal, S superior, T temporal, I inferior",
+               {a.plot.x + 180, a.plot.y + a.plot.height + 62}, 0.42, ink);
     for (int k = 0; k < 12; ++k) {
         const double lo = std::max(0.0, 30.0 * k - 15.0);
         const double up = std::min(360.0, 30.0 * k + 15.0);
         const double m = r.mrw_sector_mm[static_cast<std::size_t>(k)];
         if (!std::isnan(m)) {
-            cv::line(img, px(lo, m), px(up, m), cv::Scalar(40, 40, 200), 2);
-            if (k == 0) cv::line(img, px(345.0, m), px(360.0, m), cv::Scalar(40, 40, 200), 2);
+            cv::line(img, a.px(lo, m), a.px(up, m), cv::Scalar(40, 40, 200), 2);
+            if (k == 0) cv::line(img, a.px(345.0, m), a.px(360.0, m), cv::Scalar(40, 40, 200), 2);
         }
-        cv::putText(img, std::to_string(30 * k), px(30.0 * k, 0.0) + cv::Point(-10, 18),
-                    cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(80, 80, 80), 1, cv::LINE_AA);
     }
     for (std::size_t i = 0; i < r.mrw_mm.size(); ++i) {
-        cv::circle(img, px(r.bmo_anatomical_deg[i], r.mrw_mm[i]), 2, kMrw, -1);
+        cv::circle(img, a.px(r.bmo_anatomical_deg[i], r.mrw_mm[i]), 2, kMrw, -1);
     }
-    cv::putText(img, printf_number("%.2f mm", hi), {4, plot.y + 10}, cv::FONT_HERSHEY_SIMPLEX, 0.4,
-                cv::Scalar(80, 80, 80), 1, cv::LINE_AA);
-    cv::putText(img,
-                "MRW per BMO point (magenta), sector means (red) vs anatomical angle "
-                "(0 nasal, 90 sup.); mean " +
-                    printf_number("%.3f mm", r.mrw_mean_mm),
-                {10, H - 14}, cv::FONT_HERSHEY_SIMPLEX, 0.42, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+    draw_legend(img, {a.plot.x, 56},
+                {{LegendItem::kDot, kMrw, "MRW at each BMO point"},
+                 {LegendItem::kLine, cv::Scalar(40, 40, 200), "30-degree sector means"}},
+                0.45, cv::Scalar(20, 20, 20), W - 10);
+    plain_text(img, "mean " + printf_number("%.0f um", r.mrw_mean_mm * 1e3),
+               {W - 150, 56}, 0.45, cv::Scalar(20, 20, 20));
     return img;
 }
 
@@ -284,9 +307,10 @@ void write_onh_qc(const io::Scan& scan,
     std::filesystem::create_directories(dir, ec);
     if (ec) throw OutputError(dir, "cannot create the QC directory: " + ec.message());
     const std::filesystem::path d(dir);
-    save_png(enface_picture(r, p), (d / (stem + "_enface.png")).string());
-    save_png(bscans_picture(scan, r), (d / (stem + "_bscans.png")).string());
-    save_png(mrw_picture(r), (d / (stem + "_mrw.png")).string());
+    const std::string title = scan_title(scan.meta, scan.num_bscans());
+    save_png(enface_picture(r, p, title), (d / (stem + "_enface.png")).string());
+    save_png(bscans_picture(scan, r, title), (d / (stem + "_bscans.png")).string());
+    save_png(mrw_picture(r, title), (d / (stem + "_mrw.png")).string());
 }
 
 }  // namespace octshape::app

@@ -1,8 +1,12 @@
 #pragma once
-// Drawing helpers shared by the QC pictures of the macula and the optic nerve head.
+// Drawing helpers shared by the QC pictures of the macula and the optic nerve head: titles,
+// axes with ticks, colour bars, scale bars and legends, so that every picture reads alone.
 
 #include <opencv2/core.hpp>
 #include <string>
+#include <vector>
+
+#include "octshape/io/scan.h"
 
 namespace octshape::app {
 
@@ -14,5 +18,50 @@ void save_png(const cv::Mat& img, const std::string& path);
 
 // Text in colour `c` with a black outline, readable on any background.
 void outlined_text(cv::Mat& img, const std::string& s, cv::Point p, double scale, cv::Scalar c);
+
+// Plain text (no outline), FONT_HERSHEY_SIMPLEX, 1 px thick.
+void plain_text(cv::Mat& img, const std::string& s, cv::Point p, double scale, cv::Scalar c);
+
+// The picture title: eye, scan pattern and size, e.g. "OD, volume (pattern 3), 25 B-scans x
+// 512 A-scans, 6.00 x 6.00 mm". No identifier, date or file name.
+[[nodiscard]] std::string scan_title(const io::ScanMeta& meta, int num_bscans);
+
+// "Nice" tick values (1, 2, 5 x 10^k steps) covering [lo, hi], about `count` of them.
+[[nodiscard]] std::vector<double> nice_ticks(double lo, double hi, int count);
+
+// Axes on the rectangle `plot` of `img` for data ranges [x0, x1] × [y0, y1] (y up): a frame,
+// ticks with values (printf `xfmt`/`yfmt`, values multiplied by `yscale` for the y labels) and
+// the axis labels (units in them).
+struct Axes {
+    cv::Rect plot;
+    double x0 = 0.0, x1 = 1.0, y0 = 0.0, y1 = 1.0;
+    [[nodiscard]] cv::Point px(double x, double y) const;
+};
+void draw_axes(cv::Mat& img, const Axes& a, const std::string& xlabel, const std::string& ylabel,
+               const char* xfmt, const char* yfmt, double yscale, double font = 0.4,
+               int xticks = 5, int yticks = 4);
+
+// A vertical colour bar (OpenCV colormap `map`, lo at the bottom) at `where`, with ticks and
+// labels of the values × `label_scale` (printf `fmt`) and a caption (units) above it.
+void colour_bar(cv::Mat& img, cv::Rect where, double lo, double hi, int map,
+                const std::string& caption, double label_scale, const char* fmt);
+
+// A B-scan's pixels (size_z rows × size_x columns) for display: v^0.25, clamped to [0, 1],
+// as 8-bit grey; black where the device has no data and everywhere when pixels were not read.
+[[nodiscard]] cv::Mat bscan_grey(const io::BScan& bs, int size_x, int size_z);
+
+// A 1 mm scale bar, `px_per_mm` long, its left end at `p`, labelled "1 mm".
+void scale_bar(cv::Mat& img, cv::Point p, double px_per_mm, cv::Scalar c);
+
+// One legend entry: a line (kLine), a filled dot (kDot) or a ring (kRing) of `colour`.
+struct LegendItem {
+    enum Kind { kLine, kDot, kRing, kCross };
+    Kind kind = kLine;
+    cv::Scalar colour;
+    std::string label;
+};
+// Draws the items left to right from `p` (wrapping at `max_x`); returns the y below them.
+int draw_legend(cv::Mat& img, cv::Point p, const std::vector<LegendItem>& items, double font,
+                cv::Scalar text, int max_x);
 
 }  // namespace octshape::app

@@ -5,8 +5,10 @@
 #include <spdlog/fmt/fmt.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -14,6 +16,7 @@
 
 #include "commands/command.h"
 #include "octshape/io/atomic_file.h"
+#include "octshape/io/error.h"
 #include "octshape/retina/cube_report.h"
 #include "octshape/retina/eye_stats.h"
 
@@ -27,13 +30,28 @@ struct StatsOptions {
     bool retest = false;
     std::string table_out;
     std::string retest_out;
+    std::string analysis;  // volume | line; empty = volume if the table has volume rows
     bool json = false;
 };
+
+// Fewer eyes than this in an ICC: its 95 % CI rests on an F quantile with n − 1 ≤ 8 degrees
+// of freedom and is so wide that it may leave the range ICC(2,1) can take, [−1/(k−1), 1] (over
+// 2 eyes a lower bound of −402 was printed). The value is given, with a warning.
+constexpr std::size_t kIccFewEyes = 10;
 
 // Full precision for files, NA for missing (R reads it as missing).
 std::string num(double v) { return std::isfinite(v) ? fmt::format("{:.10g}", v) : "NA"; }
 // Short form for the terminal table.
 std::string short_num(double v) { return std::isfinite(v) ? fmt::format("{:.4g}", v) : "NA"; }
+// "min to max" (a hyphen would read "-0.26--0.25" for negative values).
+std::string range_text(double lo, double hi) { return short_num(lo) + " to " + short_num(hi); }
+
+std::string icc_warning(const retina::IccResult& i) {
+    if (i.n >= 2 && static_cast<std::size_t>(i.n) < kIccFewEyes) {
+        return fmt::format("only {} eyes: the 95% CI is not informative", i.n);
+    }
+    return {};
+}
 
 nlohmann::ordered_json json_num(double v) {
     return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr);
@@ -75,7 +93,7 @@ std::string groups_text(const retina::GroupStats& g) {
     }
     o << fmt::format("{:<36}", "parameter");
     for (const auto& gi : g.groups) {
-        o << fmt::format(" | {:>4} {:>22} {:>21}", "n", gi.name + " mean (SD)", "min-max");
+        o << fmt::format(" | {:>4} {:>22} {:>21}", "n", gi.name + " mean (SD)", "min to max");
     }
     o << '\n';
     for (const auto& p : g.parameters) {
@@ -83,7 +101,7 @@ std::string groups_text(const retina::GroupStats& g) {
         for (const auto& m : p.per_group) {
             o << fmt::format(" | {:>4} {:>22} {:>21}", m.n,
                              short_num(m.mean) + " (" + short_num(m.sd) + ")",
-                             short_num(m.min) + "-" + short_num(m.max));
+                             range_text(m.min, m.max));
         }
         o << '\n';
     }
@@ -99,18 +117,28 @@ std::string retest_text(const retina::RetestStats& r) {
         r.repeated_eyes, r.eyes_used, r.k);
     o << fmt::format("{:<36} {:>6} {:>8} {:>8} {:>8} {:>10}\n", "parameter", "n", "ICC", "LCI95",
                      "UCI95", "p");
+    bool few = false;
     for (const auto& p : r.parameters) {
-        o << fmt::format("{:<36} {:>6} {:>8.4f} {:>8.4f} {:>8.4f} {:>10.3g}\n", p.parameter,
-                         p.icc.n, p.icc.icc, p.icc.lower, p.icc.upper, p.icc.p);
+        const bool warn = !icc_warning(p.icc).empty();
+        few = few || warn;
+        o << fmt::format("{:<36} {:>6} {:>8.4f} {:>8.4f} {:>8.4f} {:>10.3g}{}\n", p.parameter,
+                         p.icc.n, p.icc.icc, p.icc.lower, p.icc.upper, p.icc.p, warn ? " *" : "");
+    }
+    if (few) {
+        o << fmt::format("* fewer than {} eyes: the 95% CI is not informative (it may leave the "
+                         "range [-1/(k-1), 1] an ICC can take)\n",
+                         kIccFewEyes);
     }
     return o.str();
 }
 
 nlohmann::ordered_json to_json(const retina::GroupStats& g,
                                const retina::RetestStats* r,
-                               const std::string& input) {
+                               const std::string& input,
+                               const std::string& analysis) {
     nlohmann::ordered_json j;
     j["input"] = input;
+    if (!analysis.empty()) j["analysis"] = analysis;
     j["group_column"] = g.group_column;
     j["scans_used"] = g.all_scans ? "every scan" : "first scan of each eye (visit_date, file)";
     j["groups"] = nlohmann::ordered_json::array();
@@ -156,25 +184,102 @@ nlohmann::ordered_json to_json(const retina::GroupStats& g,
                                         {"df2", i.df2},
                                         {"p", json_num(i.p)},
                                         {"eyes_missing", p.eyes_missing}});
+            if (const std::string w = icc_warning(i); !w.empty()) {
+                rj["parameters"].back()["warning"] = w;
+            }
         }
         j["retest"] = rj;
     }
     return j;
 }
 
+// Keeps the rows of one analysis (eyes.csv column `analysis`: volume or line): a line scan's
+// 2-D parameters are not the volume's and are never pooled with them. Returns the analysis
+// kept ("" when the table has no such column).
+std::string keep_one_analysis(retina::EyeTable& t, const StatsOptions& o) {
+    const int col = t.column("analysis");
+    if (col < 0) {
+        if (!o.analysis.empty()) {
+            throw InputError::corrupt(o.input,
+                                      "no column 'analysis' for --analysis " + o.analysis);
+        }
+        return {};
+    }
+    std::map<std::string, std::size_t> counts;
+    for (const auto& row : t.rows) ++counts[row[static_cast<std::size_t>(col)]];
+    std::string keep = o.analysis;
+    if (keep.empty()) {
+        keep = counts.contains("volume") ? "volume"
+               : counts.contains("line") ? "line"
+                                         : counts.begin()->first;
+    }
+    std::vector<std::vector<std::string>> kept;
+    for (auto& row : t.rows) {
+        if (row[static_cast<std::size_t>(col)] == keep) kept.push_back(std::move(row));
+    }
+    t.rows = std::move(kept);
+    for (const auto& [name, n] : counts) {
+        if (name == keep) continue;
+        spdlog::warn("{}: {} rows of analysis '{}' left out (one analysis a table: give "
+                     "--analysis {})",
+                     o.input, n, name, name == "line" ? "line" : "volume");
+    }
+    if (t.rows.empty()) {
+        throw AnalysisError(o.input + ": no row of analysis '" + keep + "'");
+    }
+    return keep;
+}
+
 void run(const StatsOptions& o) {
-    const retina::EyeTable t = retina::read_eye_table_file(o.input);
-    const retina::GroupStats g = retina::group_stats(t, o.groups);
+    retina::EyeTable t = retina::read_eye_table_file(o.input);
+    // failures.csv (file, reason, exit_code) is the cohort's other table: say so.
+    if (t.column("reason") >= 0 && t.column("subject_id") < 0) {
+        throw InputError::corrupt(o.input, "this is a failures table (file, reason, exit_code), "
+                                           "not eyes.csv: give the eyes.csv beside it");
+    }
+    const std::string analysis = keep_one_analysis(t, o);
+    const retina::GroupStatsParams& groups = o.groups;
+    // A group column whose every field is missing (a cohort run without --groups) is one group
+    // "all", as is an absent column, not "(none)".
+    if (const int gc = t.column(groups.group_column); gc >= 0) {
+        const auto col = static_cast<std::size_t>(gc);
+        const bool none = std::all_of(t.rows.begin(), t.rows.end(), [&](const auto& row) {
+            return retina::is_missing_field(row[col]);
+        });
+        if (none) {
+            for (auto& row : t.rows) row[col] = "all";
+        }
+    }
+    // The library names the table "eyes.csv" in its errors: name the file given.
+    const auto named = [&](const auto& compute) {
+        try {
+            return compute();
+        } catch (const InputError& e) {
+            throw InputError(e.kind(), o.input, e.reason(), e.offset());
+        }
+    };
+    const retina::GroupStats g = named([&] { return retina::group_stats(t, groups); });
     std::unique_ptr<retina::RetestStats> r;
     if (o.retest) {
-        r = std::make_unique<retina::RetestStats>(
-            retina::retest_stats(t, o.retest_params, o.groups.group_column));
+        r = std::make_unique<retina::RetestStats>(named(
+            [&] { return retina::retest_stats(t, o.retest_params, groups.group_column); }));
+        for (const auto& p : r->parameters) {
+            if (const std::string w = icc_warning(p.icc); !w.empty()) {
+                spdlog::warn("{}: ICC of {}: {}", o.input, p.parameter, w);
+            }
+        }
     }
     if (!o.table_out.empty()) io::write_text_atomically(o.table_out, groups_csv(g));
     if (r && !o.retest_out.empty()) io::write_text_atomically(o.retest_out, retest_csv(*r));
     if (o.json) {
-        std::cout << to_json(g, r.get(), o.input).dump(2) << '\n';
+        std::cout << to_json(g, r.get(), o.input, analysis).dump(2) << '\n';
     } else {
+        if (!analysis.empty()) {
+            std::cout << "Analysis: "
+                      << (analysis == "volume" ? "volume (3-D)"
+                                               : analysis == "line" ? "line scan (2-D)" : analysis)
+                      << ".\n";
+        }
         std::cout << groups_text(g);
         if (r) std::cout << retest_text(*r);
     }
@@ -193,7 +298,8 @@ void add_stats_command(CLI::App& app, RunContext& /*ctx*/) {
         "GEE models stay in R: docs/r/octshape_gee.R");
     cmd->add_option("eyes_csv", opts->input, "eyes.csv written by `octshape cohort`")->required();
     cmd->add_option("--group-col", opts->groups.group_column,
-                    "Column holding the group (absent: one group 'all')")
+                    "Column holding the group (absent, or every field empty/NA: one group "
+                    "'all'; rows with a missing group among others: '(none)')")
         ->capture_default_str();
     cmd->add_flag("--all-scans", opts->groups.all_scans,
                   "Group table over every scan (default: the first scan of each eye)");
@@ -208,6 +314,10 @@ void add_stats_command(CLI::App& app, RunContext& /*ctx*/) {
                     "Write the group table as CSV (parameter,group,n,mean,sd,min,max)");
     cmd->add_option("--retest-output", opts->retest_out,
                     "Write the ICC table as CSV (parameter,n_eyes,k,icc,lower_95,upper_95,...)");
+    cmd->add_option("--analysis", opts->analysis,
+                    "Rows of one analysis only, volume or line (default: volume when there are "
+                    "volume rows; the other rows are left out with a warning, never pooled)")
+        ->check(CLI::IsMember({"volume", "line"}));
     cmd->add_flag("--json", opts->json, "Print JSON on stdout instead of the text tables");
     cmd->callback([opts] { run(*opts); });
 }

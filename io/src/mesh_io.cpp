@@ -11,6 +11,7 @@
 #include <fstream>
 #include <iomanip>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <string_view>
 #include <system_error>
@@ -22,7 +23,6 @@
 #include <vtkDoubleArray.h>
 #include <vtkPointData.h>
 #include <vtkNew.h>
-#include <vtkOBJReader.h>
 #include <vtkOBJWriter.h>
 #include <vtkPLYReader.h>
 #include <vtkPoints.h>
@@ -66,6 +66,10 @@ MeshData from_polydata(vtkPolyData* poly, const std::string& name) {
         poly->GetPoint(i, p.data());
         if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
             throw InputError::corrupt(name, "vertex " + std::to_string(i) + " is not finite");
+        }
+        if (std::max({std::abs(p[0]), std::abs(p[1]), std::abs(p[2])}) > kMaxMeshCoordinate) {
+            throw InputError::corrupt(name, "vertex " + std::to_string(i) +
+                                                " has a coordinate beyond ±1e50");
         }
         out.V.row(i) << p[0], p[1], p[2];
     }
@@ -176,6 +180,11 @@ public:
         while (pos_ < text_.size() && text_[pos_] != '\n') ++pos_;
     }
     [[nodiscard]] std::size_t pos() const { return pos_; }
+    // The 1-based line holding byte `at`.
+    [[nodiscard]] std::size_t line_at(std::size_t at) const {
+        const auto end = text_.begin() + static_cast<std::ptrdiff_t>(std::min(at, text_.size()));
+        return 1 + static_cast<std::size_t>(std::count(text_.begin(), end, '\n'));
+    }
     [[nodiscard]] std::size_t remaining() const { return text_.size() - pos_; }
 
 private:
@@ -194,6 +203,162 @@ private:
     std::string name_;
     std::size_t pos_ = 0;
 };
+
+// ---------------------------------------------------------------- OBJ, by hand
+// VTK's OBJ reader stores coordinates as float32 (NaN read as 0, inf and 1e400 as FLT_MAX) and
+// crashes on faces naming texture coordinates the file does not have (`f 1/1 2/2 3/3` without
+// `vt` lines). This reader keeps what octshape used from it — `v` lines and `f` polygons
+// (fan-triangulated), comments and every other statement skipped — and adds: doubles, the
+// relative (negative) indices of the OBJ specification, texture and normal indices checked
+// for syntax and otherwise ignored (so vertices stay shared, where VTK split a vertex for each
+// of its texture coordinates), and every error with its line.
+
+// Parses one signed integer that is the whole of `t`.
+bool parse_index(std::string_view t, long long& value) {
+    const auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), value);
+    return ec == std::errc() && ptr == t.data() + t.size();
+}
+
+MeshData parse_obj(std::string_view text, const std::string& name) {
+    MeshData out;
+    std::vector<std::array<double, 3>> vertices;
+    struct Polygon {
+        std::size_t line;
+        std::size_t at;
+        std::vector<long long> ids;  // 0-based, resolved; checked against #V at the end
+    };
+    std::vector<std::array<int, 3>> triangles;
+    std::vector<Polygon> pending;
+    const std::string provenance_prefix = std::string("# ") + detail::kProvenanceKey + ' ';
+    std::size_t pos = 0;
+    std::size_t line_no = 0;
+    const auto fail = [&](std::size_t line, std::size_t at, const std::string& what) {
+        return InputError::corrupt(name, "line " + std::to_string(line) + ": " + what, at);
+    };
+    while (pos < text.size()) {
+        ++line_no;
+        const std::size_t begin = pos;
+        const std::size_t eol = std::min(text.find('\n', pos), text.size());
+        pos = eol + 1;
+        std::string_view line = text.substr(begin, eol - begin);
+        if (line.ends_with('\r')) line.remove_suffix(1);
+        if (out.provenance.empty() && line.starts_with(provenance_prefix)) {
+            out.provenance = std::string(line.substr(provenance_prefix.size()));
+            continue;
+        }
+        // Tokens separated by blanks; a '#' ends the line.
+        std::vector<std::string_view> tokens;
+        std::size_t i = 0;
+        while (i < line.size()) {
+            while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+            if (i >= line.size() || line[i] == '#') break;
+            const std::size_t b = i;
+            while (i < line.size() && !std::isspace(static_cast<unsigned char>(line[i])) &&
+                   line[i] != '#') {
+                ++i;
+            }
+            tokens.push_back(line.substr(b, i - b));
+        }
+        if (tokens.empty()) continue;
+        const std::size_t at = begin + static_cast<std::size_t>(tokens[0].data() - line.data());
+        if (tokens[0] == "v") {
+            if (tokens.size() < 4) {
+                throw fail(line_no, at, "a vertex needs 3 coordinates, found " +
+                                            std::to_string(tokens.size() - 1));
+            }
+            std::array<double, 3> p{};
+            for (int k = 0; k < 3; ++k) {
+                const std::string_view t = tokens[static_cast<std::size_t>(k) + 1];
+                const auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), p[k]);
+                const std::string shown(t.substr(0, 32));
+                if (ec == std::errc::result_out_of_range ||
+                    (ec == std::errc() && ptr == t.data() + t.size() && !std::isfinite(p[k]))) {
+                    throw fail(line_no, at, "coordinate '" + shown + "' is not finite");
+                }
+                if (ec != std::errc() || ptr != t.data() + t.size()) {
+                    throw fail(line_no, at, "bad coordinate '" + shown + "'");
+                }
+                if (std::abs(p[k]) > kMaxMeshCoordinate) {
+                    throw fail(line_no, at, "coordinate " + shown + " beyond ±1e50");
+                }
+            }
+            if (vertices.size() >= static_cast<std::size_t>(std::numeric_limits<int>::max())) {
+                throw InputError::unsupported(name, "more than 2^31 vertices", at);
+            }
+            vertices.push_back(p);
+        } else if (tokens[0] == "f") {
+            if (tokens.size() < 4) {
+                throw fail(line_no, at, "a face needs 3 corners, found " +
+                                            std::to_string(tokens.size() - 1));
+            }
+            Polygon poly{line_no, at, {}};
+            poly.ids.reserve(tokens.size() - 1);
+            for (std::size_t k = 1; k < tokens.size(); ++k) {
+                // v, v/vt, v//vn or v/vt/vn: the vertex index is used, the others only parsed.
+                const std::string_view t = tokens[k];
+                const std::size_t s1 = t.find('/');
+                long long v = 0;
+                long long ignored = 0;
+                bool ok = parse_index(t.substr(0, s1), v) && v != 0;
+                if (ok && s1 != std::string_view::npos) {
+                    const std::string_view rest = t.substr(s1 + 1);
+                    const std::size_t s2 = rest.find('/');
+                    const std::string_view vt = rest.substr(0, s2);
+                    ok = (vt.empty() ? s2 != std::string_view::npos : parse_index(vt, ignored));
+                    if (ok && s2 != std::string_view::npos) {
+                        ok = parse_index(rest.substr(s2 + 1), ignored);
+                    }
+                }
+                if (!ok) {
+                    throw fail(line_no, at,
+                               "bad face corner '" + std::string(t.substr(0, 32)) + "'");
+                }
+                // Negative: relative to the vertices read so far (-1 = the last one).
+                const long long id = v > 0 ? v - 1 : static_cast<long long>(vertices.size()) + v;
+                if (id < 0) {
+                    throw fail(line_no, at,
+                               "face corner " + std::string(t.substr(0, 32)) +
+                                   " refers to a vertex before the first");
+                }
+                // A fan triangle (0, j, j+1) repeats a vertex iff a corner equals the first
+                // or the one before it.
+                if (!poly.ids.empty() && (id == poly.ids.front() || id == poly.ids.back())) {
+                    throw fail(line_no, at, "face repeats vertex " + std::to_string(id + 1));
+                }
+                poly.ids.push_back(id);
+            }
+            pending.push_back(std::move(poly));
+        }
+        // vt, vn, vp, g, o, s, usemtl, mtllib, l, p and the rest: not part of the surface.
+    }
+    // Faces may name vertices defined after them: indices are checked once all are read.
+    const auto nv = static_cast<long long>(vertices.size());
+    for (const Polygon& poly : pending) {
+        for (const long long id : poly.ids) {
+            if (id >= nv) {
+                throw fail(poly.line, poly.at,
+                           "face refers to vertex " + std::to_string(id + 1) + " of " +
+                               std::to_string(nv));
+            }
+        }
+        for (std::size_t j = 1; j + 1 < poly.ids.size(); ++j) {  // fan triangulation
+            triangles.push_back({static_cast<int>(poly.ids[0]), static_cast<int>(poly.ids[j]),
+                                 static_cast<int>(poly.ids[j + 1])});
+        }
+    }
+    if (triangles.empty()) throw InputError::corrupt(name, "no triangle in the file");
+    out.V.resize(nv, 3);
+    for (long long i = 0; i < nv; ++i) {
+        const auto& p = vertices[static_cast<std::size_t>(i)];
+        out.V.row(i) << p[0], p[1], p[2];
+    }
+    out.F.resize(static_cast<Eigen::Index>(triangles.size()), 3);
+    for (std::size_t f = 0; f < triangles.size(); ++f) {
+        out.F.row(static_cast<Eigen::Index>(f)) << triangles[f][0], triangles[f][1],
+            triangles[f][2];
+    }
+    return out;
+}
 
 // ---------------------------------------------------------------- writing
 
@@ -289,6 +454,10 @@ MeshFormat mesh_format_from_extension(const fs::path& path) {
                      ": unknown mesh file extension (use .ply, .obj, .off, .stl or .vtp)");
 }
 
+namespace {
+MeshData parse_off(OffParser& p, const std::string& name, const std::string& provenance);
+}  // namespace
+
 MeshData read_off(std::istream& in, const std::string& name) {
     std::ostringstream buffer;
     buffer << in.rdbuf();
@@ -304,6 +473,22 @@ MeshData read_off(std::istream& in, const std::string& name) {
         provenance_in(std::string_view(text).substr(0, header_end),
                       std::string("# ") + detail::kProvenanceKey + ' ');
     OffParser p(std::move(text), name);
+    try {
+        return parse_off(p, name, provenance);
+    } catch (const InputError& e) {
+        // Name the line as well as the byte: "PATH: corrupt: line 7: bad coordinate ...".
+        if (!e.offset()) throw;
+        std::string reason = e.reason();
+        const std::size_t colon = reason.find(": ");
+        const std::string line = "line " + std::to_string(p.line_at(*e.offset())) + ": ";
+        reason.insert(colon == std::string::npos ? 0 : colon + 2, line);
+        throw InputError(e.kind(), e.path(), reason, e.offset());
+    }
+}
+
+namespace {
+
+MeshData parse_off(OffParser& p, const std::string& name, const std::string& provenance) {
     const std::string_view magic = p.token();
     if (magic != "OFF") throw InputError::corrupt(name, "does not start with 'OFF'", 0);
     const std::size_t counts_at = p.pos();
@@ -330,6 +515,9 @@ MeshData read_off(std::istream& in, const std::string& name) {
             const std::size_t at = p.pos();
             const auto x = p.number<double>("coordinate");
             if (!std::isfinite(x)) throw InputError::corrupt(name, "coordinate not finite", at);
+            if (std::abs(x) > kMaxMeshCoordinate) {
+                throw InputError::corrupt(name, "coordinate beyond ±1e50", at);
+            }
             out.V(i, k) = x;
         }
         p.skip_line();
@@ -352,6 +540,14 @@ MeshData read_off(std::istream& in, const std::string& name) {
                                                     " refers to vertex " + std::to_string(v),
                                           id_at);
             }
+            // A fan triangle (0, j, j+1) repeats a vertex iff a corner equals the first or the
+            // one before it.
+            const std::size_t k_id = static_cast<std::size_t>(&id - ids.data());
+            if (k_id > 0 && (v == ids.front() || v == ids[k_id - 1])) {
+                throw InputError::corrupt(name, "polygon " + std::to_string(f) +
+                                                    " repeats vertex " + std::to_string(v),
+                                          id_at);
+            }
             id = static_cast<int>(v);
         }
         for (std::size_t j = 1; j + 1 < ids.size(); ++j) triangles.push_back({ids[0], ids[j], ids[j + 1]});
@@ -364,6 +560,14 @@ MeshData read_off(std::istream& in, const std::string& name) {
             triangles[f][2];
     }
     return out;
+}
+
+}  // namespace
+
+MeshData read_obj(std::istream& in, const std::string& name) {
+    std::ostringstream buffer;
+    buffer << in.rdbuf();
+    return parse_obj(buffer.str(), name);
 }
 
 MeshData read_mesh(const fs::path& path) {
@@ -412,8 +616,10 @@ MeshData read_mesh(const fs::path& path) {
                 ply_header(path), std::string("comment ") + detail::kProvenanceKey + ' ');
             return out;
         }
-        case MeshFormat::kObj:
-            return read_with_vtk<vtkOBJReader>(path);
+        case MeshFormat::kObj: {
+            std::ifstream in(path, std::ios::binary);
+            return read_obj(in, name);
+        }
         case MeshFormat::kStl:
             return read_with_vtk<vtkSTLReader>(path);
         case MeshFormat::kVtp:
@@ -465,6 +671,111 @@ std::string lower_extension(const fs::path& path) {
     std::transform(ext.begin(), ext.end(), ext.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
     return ext;
+}
+
+namespace {
+
+// Unsigned decimal that is the whole of `t`, or nullopt.
+std::optional<unsigned long long> parse_count(std::string_view t) {
+    unsigned long long v = 0;
+    const auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+    if (ec != std::errc() || ptr != t.data() + t.size() || t.empty()) return std::nullopt;
+    return v;
+}
+
+std::size_t ply_type_size(std::string_view t) {
+    if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
+    if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
+    if (t == "int" || t == "uint" || t == "float" || t == "int32" || t == "uint32" ||
+        t == "float32") {
+        return 4;
+    }
+    if (t == "double" || t == "float64") return 8;
+    return 1;  // unknown types: the reader itself refuses them
+}
+
+void check_ply_counts(const std::string& name, const std::string& header, std::uintmax_t size) {
+    const bool ascii = header.find("\nformat ascii") != std::string::npos;
+    struct Element {
+        std::string name;
+        unsigned long long count = 0;
+        std::size_t min_bytes = 0;
+    };
+    std::vector<Element> elements;
+    std::istringstream in(header);
+    for (std::string line; std::getline(in, line);) {
+        std::istringstream w(line);
+        std::string word;
+        w >> word;
+        if (word == "element") {
+            Element e;
+            std::string count;
+            w >> e.name >> count;
+            const auto c = parse_count(count);
+            if (!c) throw InputError::corrupt(name, "bad count '" + count + "' of element " + e.name);
+            e.count = *c;
+            elements.push_back(e);
+        } else if (word == "property" && !elements.empty()) {
+            std::string type;
+            w >> type;
+            if (type == "list") w >> type;  // the count's type: a list holds at least that
+            elements.back().min_bytes += ascii ? 2 : ply_type_size(type);
+        }
+    }
+    const std::uintmax_t data = size > header.size() ? size - header.size() : 0;
+    for (const auto& e : elements) {
+        const long double need = static_cast<long double>(e.count) * e.min_bytes;
+        if (need > static_cast<long double>(data)) {
+            throw InputError::corrupt(name, "element " + e.name + " declares " +
+                                                std::to_string(e.count) +
+                                                " items, more than the file's " +
+                                                std::to_string(data) + " data bytes can hold");
+        }
+    }
+}
+
+void check_vtp_counts(const std::string& name, const std::string& head, std::uintmax_t size) {
+    const bool compressed = head.find("compressor=") != std::string::npos;
+    for (const char* attribute : {"NumberOfPoints=\"", "NumberOfPolys=\"", "NumberOfVerts=\"",
+                                  "NumberOfLines=\"", "NumberOfStrips=\""}) {
+        const std::string a(attribute);
+        for (std::size_t at = head.find(a); at != std::string::npos; at = head.find(a, at + 1)) {
+            const std::size_t begin = at + a.size();
+            const std::size_t end = head.find('"', begin);
+            if (end == std::string::npos) break;
+            const auto c = parse_count(std::string_view(head).substr(begin, end - begin));
+            if (!c) continue;  // the reader reports a malformed attribute itself
+            const long double need = static_cast<long double>(*c) / (compressed ? 10000.0L : 1.0L);
+            if (need > static_cast<long double>(size)) {
+                throw InputError::corrupt(name, a.substr(0, a.size() - 2) + " " +
+                                                    std::to_string(*c) + " does not fit the file's " +
+                                                    std::to_string(size) + " bytes",
+                                          at);
+            }
+        }
+    }
+}
+
+}  // namespace
+
+void check_declared_counts(const fs::path& path) {
+    std::error_code ec;
+    const auto size = fs::file_size(path, ec);
+    if (ec) return;  // the reader reports it
+    constexpr std::size_t kHead = std::size_t{1} << 20;
+    std::string head(kHead, '\0');
+    {
+        std::ifstream in(path, std::ios::binary);
+        in.read(head.data(), static_cast<std::streamsize>(head.size()));
+        head.resize(static_cast<std::size_t>(in.gcount()));
+    }
+    if (head.starts_with("ply")) {
+        check_ply_counts(path.string(), ply_header(path), size);
+    } else if (head.starts_with("<?xml") || head.starts_with("<VTKFile")) {
+        // Only the XML before the appended data: its binary bytes could mimic an attribute.
+        const std::size_t appended = head.find("<AppendedData");
+        check_vtp_counts(path.string(), head.substr(0, appended), size);
+    }
 }
 
 void VtkErrorCatcher::Execute(vtkObject* /*caller*/, unsigned long event, void* data) {

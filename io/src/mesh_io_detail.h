@@ -12,6 +12,8 @@
 #include <bit>
 #include <cstring>
 #include <filesystem>
+#include <new>
+#include <stdexcept>
 #include <ostream>
 #include <string>
 
@@ -37,14 +39,27 @@ private:
 
 // Runs a VTK polydata reader on `path`; any error or warning it reports is an InputError
 // (corrupt) naming the file. The output may still be empty: callers check what they need.
+// PLY and VTP headers declare element counts: refuses (InputError, corrupt) counts the file
+// cannot hold — a PLY element needs at least its binary property sizes (ASCII: 2 bytes a
+// property) per item; a VTP point or cell at least 1 byte, or 1/10000 of one when compressed
+// (zlib stops near 1:1032) — before a reader allocates for them. Other files: no check.
+void check_declared_counts(const std::filesystem::path& path);
+
 template <class Reader>
 vtkSmartPointer<vtkPolyData> read_polydata(const std::filesystem::path& path) {
+    check_declared_counts(path);
     vtkNew<Reader> reader;
     vtkNew<VtkErrorCatcher> catcher;
     reader->AddObserver(vtkCommand::ErrorEvent, catcher);
     reader->AddObserver(vtkCommand::WarningEvent, catcher);
     reader->SetFileName(path.string().c_str());
-    reader->Update();
+    try {
+        reader->Update();
+    } catch (const std::bad_alloc&) {
+        throw InputError::corrupt(path.string(), "its declared sizes need more memory than there is");
+    } catch (const std::length_error&) {
+        throw InputError::corrupt(path.string(), "its declared sizes need more memory than there is");
+    }
     if (!catcher->message().empty()) {
         throw InputError::corrupt(path.string(), "VTK reader: " + catcher->message());
     }

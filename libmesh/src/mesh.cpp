@@ -202,6 +202,10 @@ double mean_edge_length(const Vertices& V, const Faces& F) {
     return sum / static_cast<double>(edges.size());
 }
 
+std::size_t max_neighbourhood_faces(int faces) {
+    return static_cast<std::size_t>(std::clamp(faces / 4, 64, 4096));
+}
+
 Csr disk_neighbourhoods(const Faces& F,
                         const FaceGeometry& geometry,
                         const Adjacency& adjacency,
@@ -214,6 +218,7 @@ Csr disk_neighbourhoods(const Faces& F,
     const auto m = static_cast<int>(F.rows());
     const int n = adjacency.vertex_faces.rows();
     const double r2 = radius * radius;
+    const std::size_t limit = max_neighbourhood_faces(m);
     const int* vf_off = adjacency.vertex_faces.offsets.data();
     const int* vf = adjacency.vertex_faces.items.data();
     const double* cen = geometry.centroids.data();  // row-major: face f at cen[3f .. 3f+2]
@@ -277,6 +282,14 @@ Csr disk_neighbourhoods(const Faces& F,
                         const bool inside = dx * dx + dy * dy + dz * dz <= r2;
                         o[size] = g;
                         size += static_cast<std::size_t>(fresh & inside);
+                    }
+                    if (size - start > limit) {
+                        throw DataError(
+                            "the disk of radius " + std::to_string(radius) + " around face " +
+                            std::to_string(i) + " holds more than " + std::to_string(limit) +
+                            " of the " + std::to_string(m) +
+                            " faces (the bound of a neighbourhood: a radius too large for the "
+                            "mesh, or a vertex far from the others)");
                     }
                 }
             }

@@ -47,8 +47,9 @@ Browser chromium(const fs::path& profile, const std::string& url, const std::str
     const fs::path out = profile / "stdout.txt";
     const fs::path err = profile / "stderr.txt";
     const std::string cmd =
-        "timeout 120 chromium --headless --no-sandbox --disable-gpu "
-        "--no-first-run --user-data-dir='" +
+        "timeout 120 chromium --headless --no-sandbox --disable-gpu --disable-quic "
+        "--no-first-run --disable-background-networking --disable-component-update "
+        "--disable-sync --user-data-dir='" +
         (profile / "ud").string() + "' --enable-logging=stderr --v=0 " + extra + " '" + url +
         "' > '" + out.string() + "' 2> '" + err.string() + "'";
     Browser b;
@@ -139,14 +140,14 @@ SLOW_TEST(Gallery, PageInHeadlessChromium) {
     for (const char* key : {"a", "b", "c_line"}) {
         EXPECT_NE(b.dom.find(std::string("data-key=\"") + key + "\""), std::string::npos) << key;
     }
+    // Failures are shown by their eye key, reason and exit code, never by a file name; no
+    // path of the output directory either (the page is shared: docs/cohort.md).
     EXPECT_NE(b.dom.find("0b0b0b0b0b0b0b0b"), std::string::npos);
     EXPECT_NE(b.dom.find("0d0d0d0d0d0d0d0d"), std::string::npos);
-    // No path on the page (it is shared with the rest of OUTDIR: docs/cohort.md).
-    EXPECT_EQ(html.find(out.string()), std::string::npos);
+    EXPECT_EQ(b.dom.find(out.string()), std::string::npos);
     EXPECT_EQ(html.find(".vol"), std::string::npos);
-    EXPECT_EQ(occurrences(b.dom, "<tr class=\"failure\">").size(), 2U);
-    // Failures come before the eye table.
-    EXPECT_LT(b.dom.find("id=\"failures\""), b.dom.find("id=\"eyes\""));
+    EXPECT_NE(b.dom.find("no such file (exit 66)"), std::string::npos);
+    EXPECT_EQ(occurrences(b.dom, "<tr class=\"row failed failure\">").size(), 2U);
     // eyes.csv adds the subject of eye "a"; the JSON's cohort object that of "c_line".
     EXPECT_NE(b.dom.find("<td>S1</td>"), std::string::npos);
     EXPECT_NE(b.dom.find("<td>S9</td>"), std::string::npos);
@@ -163,7 +164,7 @@ SLOW_TEST(Gallery, PageInHeadlessChromium) {
         EXPECT_TRUE(fs::exists(out / "qc" / src)) << src;
         ++imgs;
     }
-    EXPECT_EQ(imgs, 4);
+    EXPECT_EQ(imgs, 6);  // thickness, profiles and B-scan of each analysed eye
     // Row order after sorting by cft_mm follows the CFTs in the eyes' JSON (c_line: 0.1 mm).
     std::vector<std::pair<double, std::size_t>> order;
     for (const char* key : {"a", "b", "c_line"}) {
@@ -176,26 +177,89 @@ SLOW_TEST(Gallery, PageInHeadlessChromium) {
     EXPECT_LT(order[0].second, order[1].second);
     EXPECT_LT(order[1].second, order[2].second);
 
-    // A screenshot: a non-empty PNG.
+    // Sorted by QC severity by default: the failures, then the flagged eye, then the rest.
+    const std::string page_html = slurp(page);
+    const std::size_t first_failure = page_html.find("row failed failure");
+    const std::size_t flagged = page_html.find("data-key=\"c_line\"");
+    ASSERT_NE(first_failure, std::string::npos);
+    ASSERT_NE(flagged, std::string::npos);
+    EXPECT_LT(first_failure, flagged);
+    EXPECT_LT(flagged, page_html.find("data-key=\"a\""));
+    EXPECT_LT(flagged, page_html.find("data-key=\"b\""));
+
+    // The first screen at 1400 x 900: a copy of the page with a probe script that writes the
+    // positions of every eye's status, flag, eye, scan-type and parameter cells and of its
+    // thumbnails into the DOM once the pictures have loaded.
+    const std::string probe = R"(<pre id="probe"></pre><script>
+window.addEventListener('load', function () {
+  // The layout width is the window's; the first screen is its top 900 pixels (headless
+  // Chromium's inner height is the window's less what it reserves, so it is not used).
+  var bad = [], n = 0, thumbs = 0, vw = 1400, vh = 900;
+  function inside(el, what, whole) {
+    var r = el.getBoundingClientRect();
+    n++;
+    if (r.left < 0 || r.right > vw || r.top < 0 || (whole ? r.bottom : r.top) > vh) {
+      bad.push(what + ' ' + JSON.stringify([r.left, r.top, r.right, r.bottom]));
+    }
+  }
+  document.querySelectorAll('#eyes tbody tr.row[data-key]').forEach(function (tr) {
+    var k = tr.getAttribute('data-key');
+    for (var c = 0; c < 5; c++) inside(tr.cells[c], k + ' cell ' + c, true);
+    tr.querySelectorAll('td.param').forEach(function (td) { inside(td, k + ' param', true); });
+    tr.nextElementSibling.querySelectorAll('img').forEach(function (img) {
+      thumbs++;
+      inside(img, k + ' thumbnail', false);
+      if (img.getBoundingClientRect().height < 200) bad.push(k + ' thumbnail below 200 px');
+    });
+  });
+  document.getElementById('probe').textContent =
+      'width ' + window.innerWidth + ' cells ' + n + ' thumbnails ' + thumbs +
+      ' outside [' + bad.join('; ') + ']';
+});
+</script>
+)";
+    std::string probed = page_html;
+    probed.insert(probed.rfind("</body>"), probe);
+    spit(out / "qc" / "probe.html", probed);
+    const Browser pb = chromium(dir.path(), "file://" + (out / "qc" / "probe.html").string(),
+                                "--dump-dom --window-size=1400,900 --virtual-time-budget=5000");
+    ASSERT_EQ(pb.exit_code, 0) << pb.log;
+    const std::size_t at = pb.dom.find("<pre id=\"probe\">");
+    ASSERT_NE(at, std::string::npos);
+    const std::string result = pb.dom.substr(at, pb.dom.find("</pre>", at) - at);
+    // Checked: 3 eyes x (5 cells + a cell per parameter column) and the 6 thumbnails; none
+    // outside the first screen.
+    // Parameter cells: one per parameter column in each of the 5 rows (2 failures, 3 eyes).
+    const std::size_t columns = occurrences(page_html, "class=\"num param\"").size() / 5;
+    EXPECT_GE(columns, 7U) << columns;  // the 7 macula key parameters at least
+    EXPECT_NE(result.find("width 1400 cells " + std::to_string(3 * (5 + columns) + 6) + " "),
+              std::string::npos)
+        << result << " (" << columns << " parameter columns)";
+    EXPECT_NE(result.find("thumbnails 6 "), std::string::npos) << result;
+    EXPECT_NE(result.find("outside []"), std::string::npos) << result;
+
+    // A screenshot of the first screen: a non-empty PNG.
     const fs::path shot = dir / "gallery.png";
     const Browser s = chromium(dir.path(), "file://" + page.string(),
-                               "--screenshot='" + shot.string() + "' --window-size=1400,1000");
+                               "--screenshot='" + shot.string() + "' --window-size=1400,900");
     ASSERT_EQ(s.exit_code, 0) << s.log;
     EXPECT_TRUE(console_lines(s.log).empty()) << s.log;
     ASSERT_TRUE(fs::exists(shot));
     const std::string png = slurp(shot);
-    EXPECT_GT(png.size(), 10000U);  // a 1400 x 1000 page with pictures, far above an empty PNG
+    EXPECT_GT(png.size(), 10000U);  // a 1400 x 900 page with pictures, far above an empty PNG
     EXPECT_EQ(png.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
 }
 
-TEST(Gallery, MissingOutdirAndEmptyCohort) {
+TEST(Gallery, MissingOutdirAndNothingToShow) {
     TempDir dir;
     EXPECT_EQ(run_octshape("gallery " + (dir / "nope").string()).exit_code, 66);
+    // A folder without results: an error naming it (exit 66, README), and no page.
     fs::create_directories(dir / "empty");
-    ASSERT_EQ(run_octshape("gallery " + (dir / "empty").string()).exit_code, 0);
-    const std::string html = slurp(dir / "empty" / "qc" / "index.html");
-    EXPECT_NE(html.find("No failures."), std::string::npos);
-    EXPECT_NE(html.find("Eyes (0)"), std::string::npos);
+    const RunResult r = run_octshape("gallery " + (dir / "empty").string());
+    EXPECT_EQ(r.exit_code, 66);
+    EXPECT_NE(r.err.find((dir / "empty").string() + ": nothing to show"), std::string::npos)
+        << r.err;
+    EXPECT_FALSE(fs::exists(dir / "empty" / "qc" / "index.html"));
 }
 
 }  // namespace

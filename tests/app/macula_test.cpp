@@ -112,8 +112,8 @@ TEST(MaculaCli, LineScanOmitsTheThreeDimensionalParameters) {
     EXPECT_FALSE(j["notes"].empty());
     const std::string csv = slurp(dir / "eye.csv");
     EXPECT_NE(csv.find(",NA,"), std::string::npos);  // R reads NA as missing
-    // QC pictures: two PNG files named after the -o file (never after the input).
-    for (const char* name : {"eye_thickness.png", "eye_profiles.png"}) {
+    // QC pictures: three PNG files named after the -o file (never after the input).
+    for (const char* name : {"eye_thickness.png", "eye_profiles.png", "eye_bscan.png"}) {
         const std::string png = slurp(dir / "qc" / name);
         ASSERT_GT(png.size(), 1000U) << name;
         EXPECT_EQ(png.substr(1, 3), "PNG") << name;

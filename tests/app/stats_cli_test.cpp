@@ -72,7 +72,75 @@ TEST(StatsCli, TextTableHasTheThesisLayout) {
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.out.find("a mean (SD)"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("6 (2)"), std::string::npos) << r.out;  // group b: mean (SD)
-    EXPECT_NE(r.out.find("4-8"), std::string::npos) << r.out;    // min-max
+    EXPECT_NE(r.out.find("4 to 8"), std::string::npos) << r.out;  // min to max
+}
+
+TEST(StatsCli, NegativeRangesReadAsRanges) {
+    TempDir dir;
+    spit(dir / "eyes.csv",
+         "subject_id,eye,visit_date,scan_type,file,sha256,group,tilt_deg\n"
+         "S1,OD,2024-01-01,macula,/d/1.vol,h,a,-0.2594\n"
+         "S2,OD,2024-01-01,macula,/d/2.vol,h,a,-0.125\n");
+    const RunResult r = run_octshape("stats " + (dir / "eyes.csv").string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("-0.2594 to -0.125"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("--"), std::string::npos) << r.out;
+}
+
+TEST(StatsCli, AnIccOverTwoEyesIsFlagged) {
+    // kEyes has two re-scanned eyes: the interval rests on F(1, v) quantiles.
+    TempDir dir;
+    spit(dir / "eyes.csv", kEyes);
+    RunResult r = run_octshape("stats --retest " + (dir / "eyes.csv").string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find(" *\n"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("* fewer than 10 eyes"), std::string::npos) << r.out;
+    EXPECT_NE(r.err.find("only 2 eyes"), std::string::npos) << r.err;
+    r = run_octshape("stats --retest --json " + (dir / "eyes.csv").string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto j = nlohmann::json::parse(r.out);
+    const auto& t = j["retest"]["parameters"][0];
+    EXPECT_EQ(t["n_eyes"], 2);
+    EXPECT_NE(t["warning"].get<std::string>().find("only 2 eyes"), std::string::npos);
+}
+
+TEST(StatsCli, LineAndVolumeRowsAreNeverPooled) {
+    TempDir dir;
+    spit(dir / "eyes.csv",
+         "subject_id,eye,visit_date,scan_type,file,sha256,group,analysis,cft_mm\n"
+         "S1,OD,2024-01-01,macula,/d/1.vol,h,NA,volume,0.2\n"
+         "S2,OD,2024-01-01,macula,/d/2.vol,h,NA,volume,0.4\n"
+         "S3,OD,2024-01-01,macula,/d/3.vol,h,NA,line,5.0\n");
+    RunResult r = run_octshape("stats --json " + (dir / "eyes.csv").string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    auto j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["analysis"], "volume");
+    // Every group missing: one group "all" (as the help says), not "(none)".
+    const auto& all = j["parameters"][0]["groups"]["all"];
+    EXPECT_EQ(all["n"], 2);
+    EXPECT_NEAR(all["mean"].get<double>(), 0.3, 1e-12);
+    EXPECT_NE(r.err.find("1 rows of analysis 'line' left out"), std::string::npos) << r.err;
+    r = run_octshape("stats --json --analysis line " + (dir / "eyes.csv").string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["parameters"][0]["groups"]["all"]["n"], 1);
+    EXPECT_EQ(j["parameters"][0]["groups"]["all"]["mean"], 5.0);
+}
+
+TEST(StatsCli, FailuresTableIsNamedAsSuch) {
+    TempDir dir;
+    const auto f = (dir / "failures.csv").string();
+    spit(f, "file,reason,exit_code\n/x/a.vol,no such file,66\n");
+    const RunResult r = run_octshape("stats " + f);
+    EXPECT_EQ(r.exit_code, 65);
+    EXPECT_EQ(r.err.rfind("octshape: error: " + f + ": corrupt: this is a failures table", 0), 0U)
+        << r.err;
+    // Another table without the identifiers: the error names the file given.
+    const auto o = (dir / "other.csv").string();
+    spit(o, "a,b\n1,2\n");
+    const RunResult q = run_octshape("stats " + o);
+    EXPECT_EQ(q.exit_code, 65);
+    EXPECT_EQ(q.err.rfind("octshape: error: " + o + ": ", 0), 0U) << q.err;
 }
 
 TEST(StatsCli, ExitCodes) {

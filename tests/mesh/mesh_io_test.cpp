@@ -38,7 +38,7 @@ TEST(MeshIo, RoundTripInEveryFormatKeepsVerticesAndFaces) {
         ASSERT_EQ(back.F.rows(), m.F.rows()) << ext;
         ASSERT_EQ(back.V.rows(), m.V.rows()) << ext;
         // OFF and VTP keep doubles; PLY is read through VTK in single precision, OBJ and STL
-        // are single precision (relative 6e-8 of coordinates ≤ 1.1).
+        // are written by VTK in single precision (relative 6e-8 of coordinates ≤ 1.1).
         const double tol = (ext == ".off" || ext == ".vtp") ? 0.0 : 2e-7;
         if (ext == ".stl") {
             // STL has no shared vertices: the reader merges equal points, in its own order.
@@ -61,9 +61,8 @@ TEST(MeshIo, RoundTripInEveryFormatKeepsVerticesAndFaces) {
 }
 
 TEST(MeshIo, ProvenanceIsWrittenAndReadBack) {
-    // PLY, OFF and VTP carry the line and read_mesh returns it (with a JSON-like text: quotes,
-    // braces, spaces); OBJ carries it as a comment line (VTK's reader skips it); binary STL
-    // has no room for it. The geometry reads back as without it.
+    // PLY, OFF, OBJ (a comment line) and VTP carry the line and read_mesh returns it (with a
+    // JSON-like text: quotes, braces, spaces); binary STL has no room for it. The geometry reads back as without it.
     TempDir tmp;
     const auto m = with_noise(icosphere(1), 0.01);
     const std::string line = R"({"software": "octshape test", "inputs": [{"sha256": "ab"}]})";
@@ -72,7 +71,7 @@ TEST(MeshIo, ProvenanceIsWrittenAndReadBack) {
         io::write_mesh(path, m.V, m.F, {}, line);
         const io::MeshData back = io::read_mesh(path);
         EXPECT_EQ(back.F.rows(), m.F.rows()) << ext;
-        const bool carried = ext == ".ply" || ext == ".off" || ext == ".vtp";
+        const bool carried = ext != ".stl";
         EXPECT_EQ(back.provenance, carried ? line : std::string()) << ext;
         if (ext == ".obj") {
             EXPECT_NE(slurp(path).find("\n# octshape_provenance " + line + "\n"),
@@ -142,6 +141,81 @@ TEST(MeshIo, HostileOffCountsAreRejectedBeforeAllocating) {
     }
     std::istringstream bad_index("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
     EXPECT_THROW((void)io::read_off(bad_index, "index.off"), InputError);
+}
+
+TEST(MeshIo, ObjCornersWithTextureAndNormalIndicesAndNegativeIndicesShareVertices) {
+    // A quad as v/vt/vn, a triangle as v//vn with relative indices, texture indices that name
+    // no vt line (VTK's reader crashed on them): the vertex indices alone give the faces.
+    std::istringstream in(
+        "# a comment\nmtllib x.mtl\no quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+        "vn 0 0 1\nusemtl m\ns off\nf 1/7/1 2/7/1 3/7/1 4/7/1\n"
+        "v 0.5 0.5 1.25e-3\nf -5//1 -4//1 -1//1  # trailing comment\r\nl 1 2\n");
+    const io::MeshData m = io::read_obj(in, "q.obj");
+    ASSERT_EQ(m.V.rows(), 5);
+    ASSERT_EQ(m.F.rows(), 3);
+    mesh::Faces expected(3, 3);
+    expected << 0, 1, 2, 0, 2, 3, 0, 1, 4;  // the quad as a fan from its first corner
+    EXPECT_EQ(m.F, expected);
+    EXPECT_EQ(m.V(4, 2), 1.25e-3);  // parsed as a double: the same bits as the literal
+    // Doubles are kept (VTK stored float32, which rounds 0.1 to 0.100000001490116).
+    std::istringstream tenth("v 0.1 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    EXPECT_EQ(io::read_obj(tenth, "t.obj").V(0, 0), 0.1);
+}
+
+TEST(MeshIo, ObjErrorsNameTheLine) {
+    const auto expect_line = [](const std::string& text, const std::string& line) {
+        std::istringstream in(text);
+        try {
+            (void)io::read_obj(in, "bad.obj");
+            FAIL() << text;
+        } catch (const InputError& e) {
+            EXPECT_EQ(e.kind(), InputError::Kind::kCorrupt) << e.what();
+            EXPECT_EQ(e.path(), "bad.obj");
+            EXPECT_NE(std::string(e.what()).find("bad.obj: corrupt: line " + line + ": "),
+                      std::string::npos)
+                << e.what();
+        }
+    };
+    const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    for (const std::string x : {"nan", "inf", "-inf", "1e400", "1e300", "-2e50", "0x1", "1.5.2"}) {
+        expect_line("v 0 0 0\nv " + x + " 0 0\nv 0 1 0\nf 1 2 3\n", "2");
+    }
+    expect_line(tri + "v 1 2\nf 1 2 3\n", "4");
+    expect_line(tri + "f 1 2\n", "4");
+    expect_line(tri + "f 1 2 4\n", "4");          // checked once every vertex is read
+    expect_line(tri + "f 1 2 0\n", "4");          // OBJ counts from 1
+    expect_line(tri + "f -1 -2 -4\n", "4");       // before the first vertex
+    expect_line(tri + "f 1 2 2\n", "4");          // repeats a vertex
+    expect_line(tri + "f 1/x 2 3\n", "4");
+    expect_line(tri + "f 1/1/1/1 2 3\n", "4");
+    expect_line(tri + "f 1 2 99999999999999999999\n", "4");
+    // A face may name a vertex defined after it.
+    std::istringstream later("f 1 2 3\n" + tri);
+    EXPECT_EQ(io::read_obj(later, "l.obj").F.rows(), 1);
+    // Coordinates up to ±1e50 are accepted.
+    std::istringstream big("v 0 0 0\nv 1e50 0 0\nv 0 -1e50 0\nf 1 2 3\n");
+    EXPECT_EQ(io::read_obj(big, "b.obj").V(2, 1), -1e50);
+}
+
+TEST(MeshIo, EveryFormatRefusesCoordinatesBeyondTheBound) {
+    TempDir tmp;
+    mesh::Vertices V(3, 3);
+    V << 0, 0, 0, 1, 0, 0, 0, 2e50, 0;
+    mesh::Faces F(1, 3);
+    F << 0, 1, 2;
+    for (const std::string ext : {".off", ".ply", ".vtp", ".obj"}) {
+        const auto path = tmp / ("big" + ext);
+        io::write_mesh(path, V, F);
+        try {
+            (void)io::read_mesh(path);
+            FAIL() << ext;
+        } catch (const InputError& e) {
+            // VTK reads PLY as float32, where 2e50 is already +inf.
+            const std::string want = ext == ".ply" ? "not finite" : "1e50";
+            EXPECT_NE(std::string(e.what()).find(want), std::string::npos) << e.what();
+            EXPECT_EQ(e.path(), path.string());
+        }
+    }
 }
 
 TEST(MeshIo, BadFilesGiveInputErrorsNamingThePath) {

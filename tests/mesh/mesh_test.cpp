@@ -220,6 +220,34 @@ TEST(MeshNeighbourhoods, SameForAnyThreadCount) {
     EXPECT_EQ(one.items, three.items);
 }
 
+TEST(MeshNeighbourhoods, ADiskPastTheBoundIsRefusedNamingRadiusAndFace) {
+    // icosphere(3): 1280 faces, bound 320. One vertex moved 1e6 away inflates c_a from ~0.1 to
+    // ~1000 (the six pairs between its faces and the others, ~3e5 apart, dominate the mean of
+    // ~1920 pairs), so a disk of 2 c_a holds every face: refused at the first face.
+    EXPECT_EQ(mesh::max_neighbourhood_faces(1280), 320U);
+    EXPECT_EQ(mesh::max_neighbourhood_faces(10), 64U);
+    EXPECT_EQ(mesh::max_neighbourhood_faces(1000000), 4096U);
+    auto m = icosphere(3);
+    const auto g0 = face_geometry(m.V, m.F);
+    const Adjacency a = build_adjacency(m.F, static_cast<int>(m.V.rows()));
+    // The default disk on the clean sphere is far inside the bound.
+    const mesh::Csr fine =
+        mesh::disk_neighbourhoods(m.F, g0, a, 2.0 * mesh::mean_centroid_distance(g0, a));
+    for (int i = 0; i < fine.rows(); ++i) EXPECT_LT(fine.end(i) - fine.begin(i), 64);
+    m.V(0, 0) = 1e6;
+    const auto g = face_geometry(m.V, m.F);
+    const double r = 2.0 * mesh::mean_centroid_distance(g, a);
+    EXPECT_GT(r, 4.0);  // wider than the unit sphere's diameter
+    try {
+        (void)mesh::disk_neighbourhoods(m.F, g, a, r, 2);
+        FAIL() << "a disk holding every face was accepted";
+    } catch (const DataError& e) {
+        const std::string what = e.what();
+        EXPECT_NE(what.find("more than 320 of the 1280 faces"), std::string::npos) << what;
+        EXPECT_NE(what.find("around face "), std::string::npos) << what;
+    }
+}
+
 TEST(MeshValidate, NamesTheBadFaceOrVertex) {
     mesh::Vertices V(3, 3);
     V << 0, 0, 0, 1, 0, 0, 0, 1, 0;

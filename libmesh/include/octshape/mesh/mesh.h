@@ -22,6 +22,7 @@
 //   face or vertex), AnalysisError when the data cannot support the method. libmesh knows
 //   nothing of files: a caller that knows the file rethrows DataError as InputError naming it.
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -86,11 +87,18 @@ struct Adjacency {
 // Mean edge length l_e (each edge counted once): the unit of the noise levels in §3.1.5.
 [[nodiscard]] double mean_edge_length(const Vertices& V, const Faces& F);
 
+// The most faces a disk neighbourhood may hold on a mesh of `faces` faces: a quarter of the
+// mesh, at least 64 and at most 4096.
+[[nodiscard]] std::size_t max_neighbourhood_faces(int faces);
+
 // Geometric (disk) neighbourhoods Ω_i = {f_j : |c_j − c_i| ≤ r} (§3.1.1), grown from f_i
 // through faces sharing a vertex and stopped where the centroid leaves the disk, so that a
 // disk never jumps across a gap to another sheet of the surface. Row i lists f_i itself first,
 // then the other faces in ascending index order (a fixed order keeps sums reproducible).
 // Uses `threads` std::threads (≥ 1); the result does not depend on it.
+// Bounded: a disk holding more than max_neighbourhood_faces(#F) faces throws
+// DataError naming the radius and the face (docs/algorithms/mesh.md,
+// "Neighbourhood bound"), before the growth costs more than that bound per face.
 [[nodiscard]] Csr disk_neighbourhoods(const Faces& F,
                                       const FaceGeometry& geometry,
                                       const Adjacency& adjacency,
