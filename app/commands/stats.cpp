@@ -16,7 +16,7 @@
 
 #include "commands/command.h"
 #include "octshape/io/atomic_file.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/retina/cube_report.h"
 #include "octshape/retina/eye_stats.h"
 

@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "mesh/mesh_fixtures.h"
-#include "octshape/io/error.h"
+#include "octshape/error.h"
 #include "octshape/io/mesh_io.h"
 #include "test_paths.h"
 #include "slow_test.h"
