@@ -26,10 +26,6 @@ namespace octshape::app {
 
 namespace fs = std::filesystem;
 
-std::string eye_key(const std::string& abs_path) {
-    return io::sha256_hex(abs_path).substr(0, 16);
-}
-
 std::string scrub(std::string reason, const std::string& abs_path) {
     const fs::path p(abs_path);
     for (const std::string& s : {abs_path, p.filename().string(), p.stem().string(),

@@ -51,9 +51,6 @@ struct Skipped {
     int exit_code = 0;
 };
 
-// The eye key of an absolute path: the first 16 hex digits of its SHA-256.
-[[nodiscard]] std::string eye_key(const std::string& abs_path);
-
 // A failure reason fit for OUTDIR/failures.csv: the input's path, file name, stem and folder
 // name replaced by "<input>" (they are in OUTDIR/private/failures.csv).
 [[nodiscard]] std::string scrub(std::string reason, const std::string& abs_path);

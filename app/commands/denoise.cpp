@@ -84,6 +84,7 @@ void run_pointset_denoise(const DenoiseOptions& o) {
     if (!o.json) return;
     const nlohmann::json j = {
         {"software", std::string("octshape ") + kVersion},
+         {"provenance", mesh_software()},
         {"input", shown_path(o.input, o.record_paths)},
         {"input_sha256", input_sha},
         {"output", shown_path(o.output, o.record_paths)},
@@ -217,6 +218,7 @@ void run_denoise(const DenoiseOptions& o) {
     if (o.json) {
         const nlohmann::json j = {
             {"software", std::string("octshape ") + kVersion},
+         {"provenance", mesh_software()},
             {"input", shown_path(o.input, o.record_paths)},
             {"input_sha256", input_sha},
             {"output", shown_path(o.output, o.record_paths)},

@@ -100,6 +100,7 @@ void run_meanshape(const MeanShapeOptions& o) {
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const nlohmann::json j = {{"software", std::string("octshape ") + kVersion},
+         {"provenance", mesh_software()},
                               {"output", shown_path(o.output, o.record_paths)},
                               {"reference", shown_path(o.inputs[0], o.record_paths)},
                               {"surfaces", surfaces},

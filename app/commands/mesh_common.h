@@ -10,6 +10,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "commands/provenance.h"
 #include "octshape/error.h"
 #include "octshape/io/mesh_io.h"
 #include "octshape/io/sha256.h"
@@ -17,6 +18,10 @@
 #include "octshape/version.h"
 
 namespace octshape::app {
+
+// The software identity (version, source revision, modified, build type) in every JSON the mesh
+// commands write (commands/provenance.h).
+inline nlohmann::json mesh_software() { return nlohmann::json(software_json()); }
 
 // Reads and validates a mesh; an invalid mesh is an InputError naming the file.
 inline io::MeshData read_valid_mesh(const std::filesystem::path& path) {
@@ -45,6 +50,7 @@ inline std::string mesh_provenance(const std::string& command,
         in.push_back(e);
     }
     return nlohmann::json{{"software", std::string("octshape ") + kVersion},
+         {"provenance", mesh_software()},
                           {"command", command},
                           {"inputs", in},
                           {"options", options}}

@@ -34,6 +34,7 @@ void run_metrics(const MetricsOptions& o) {
     const io::MeshData m = read_valid_mesh(o.mesh);
     const io::MeshData r = read_valid_mesh(o.reference);
     nlohmann::json j = {{"software", std::string("octshape ") + kVersion},
+         {"provenance", mesh_software()},
                         {"mesh", shown_path(o.mesh, o.record_paths)},
                         {"mesh_sha256", io::sha256_file(o.mesh)},
                         {"reference", shown_path(o.reference, o.record_paths)},

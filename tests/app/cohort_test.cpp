@@ -337,11 +337,19 @@ TEST(CohortCli, MergeAndPerScanMaculaGiveTheCohortCsvByteForByte) {
 // timing), is masked; every other byte is kept.
 std::map<std::string, std::string> folder_files(const fs::path& dir) {
     static const std::regex timing(R"("analysis_seconds": [-+.0-9eE]+)");
+    // The provenance's run time and seconds per stage (docs/outputs.md, "Provenance"): when and
+    // how long, different in any two runs; never in a table or a fingerprint.
+    static const std::regex run_utc(R"("utc": "[^"]*")");
+    static const std::regex stage_seconds(R"("seconds": \{[^}]*\})");
     std::map<std::string, std::string> m;
     std::error_code ec;
     for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
         m[it->path().filename().string()] =
-            std::regex_replace(slurp(it->path()), timing, R"("analysis_seconds": T)");
+            std::regex_replace(
+                std::regex_replace(
+                    std::regex_replace(slurp(it->path()), timing, R"("analysis_seconds": T)"),
+                    run_utc, R"("utc": T)"),
+                stage_seconds, R"("seconds": T)");
     }
     return m;
 }

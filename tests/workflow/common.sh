@@ -48,7 +48,12 @@ reference_cohort() {  # reference_cohort IN OUT REF
 # Every table, record, QC picture and the gallery of two output folders, byte for byte; in the
 # per-eye JSON the one value that differs between two analyses of the same file, the ONH
 # record's "analysis_seconds" (a timing), is masked.
-untimed() { sed -E 's/"analysis_seconds": [-+.0-9eE]+/"analysis_seconds": T/' "$1"; }
+# The provenance's run time ("utc") and seconds per stage ("seconds": {...}, over several lines)
+# differ in any two runs too and are masked.
+untimed() {
+  sed -E 's/"analysis_seconds": [-+.0-9eE]+/"analysis_seconds": T/; s/"utc": "[^"]*"/"utc": T/' "$1" |
+    sed -E '/"seconds": \{/,/\}/d'
+}
 compare_outputs() {  # compare_outputs A B
   local a=$1 b=$2 n=0 d f
   for f in eyes.csv eyes_onh.csv failures.csv private/inputs.csv private/failures.csv; do
