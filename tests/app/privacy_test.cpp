@@ -161,9 +161,10 @@ TEST(Privacy, SingleEyeOutputsHoldNoNameUnlessAskedAndPicturesFollowTheOutput) {
     spit(out / "info.json", info.out);
     const Scan s = search(out);
     EXPECT_TRUE(s.hits.empty()) << joined(s.hits);
-    EXPECT_EQ(s.files, 5U);  // JSON, CSV, two pictures, info
+    EXPECT_EQ(s.files, 6U);  // JSON, CSV, three pictures, info
     EXPECT_TRUE(fs::exists(out / "qc" / "left_thickness.png"));
     EXPECT_TRUE(fs::exists(out / "qc" / "left_profiles.png"));
+    EXPECT_TRUE(fs::exists(out / "qc" / "left_bscan.png"));
     const json j = json::parse(slurp(out / "left.json"));
     EXPECT_EQ(j["input"]["sha256"].get<std::string>().size(), 64U);  // what identifies it
 

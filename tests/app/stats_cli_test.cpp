@@ -21,13 +21,13 @@ namespace fs = std::filesystem;
 // Retest: S1 OD [1.0, 1.5], S3 OD [6.0, 6.25].
 const char* kEyes =
     "subject_id,eye,visit_date,scan_type,eye_key,sha256,group,x_mm\n"
-    "S1,OD,2024-01-01,macula,/d/1.vol,h,a,1.0\n"
-    "S1,OD,2024-01-01,macula,/d/2.vol,h,a,1.5\n"
-    "S1,OS,2024-01-01,macula,/d/3.vol,h,a,3.0\n"
-    "S2,OD,2024-01-02,macula,/d/4.vol,h,b,4.0\n"
-    "S3,OD,2024-01-03,macula,/d/5.vol,h,b,6.0\n"
-    "S3,OD,2024-01-03,macula,/d/6.vol,h,b,6.25\n"
-    "S3,OS,2024-01-03,macula,/d/7.vol,h,b,8.0\n";
+    "S1,OD,2024-01-01,macula,0000000000000001,h,a,1.0\n"
+    "S1,OD,2024-01-01,macula,0000000000000002,h,a,1.5\n"
+    "S1,OS,2024-01-01,macula,0000000000000003,h,a,3.0\n"
+    "S2,OD,2024-01-02,macula,0000000000000004,h,b,4.0\n"
+    "S3,OD,2024-01-03,macula,0000000000000005,h,b,6.0\n"
+    "S3,OD,2024-01-03,macula,0000000000000006,h,b,6.25\n"
+    "S3,OS,2024-01-03,macula,0000000000000007,h,b,8.0\n";
 
 TEST(StatsCli, JsonGroupTableAndRetest) {
     TempDir dir;
@@ -78,9 +78,9 @@ TEST(StatsCli, TextTableHasTheThesisLayout) {
 TEST(StatsCli, NegativeRangesReadAsRanges) {
     TempDir dir;
     spit(dir / "eyes.csv",
-         "subject_id,eye,visit_date,scan_type,file,sha256,group,tilt_deg\n"
-         "S1,OD,2024-01-01,macula,/d/1.vol,h,a,-0.2594\n"
-         "S2,OD,2024-01-01,macula,/d/2.vol,h,a,-0.125\n");
+         "subject_id,eye,visit_date,scan_type,eye_key,sha256,group,tilt_deg\n"
+         "S1,OD,2024-01-01,macula,0000000000000001,h,a,-0.2594\n"
+         "S2,OD,2024-01-01,macula,0000000000000002,h,a,-0.125\n");
     const RunResult r = run_octshape("stats " + (dir / "eyes.csv").string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.out.find("-0.2594 to -0.125"), std::string::npos) << r.out;
@@ -107,10 +107,10 @@ TEST(StatsCli, AnIccOverTwoEyesIsFlagged) {
 TEST(StatsCli, LineAndVolumeRowsAreNeverPooled) {
     TempDir dir;
     spit(dir / "eyes.csv",
-         "subject_id,eye,visit_date,scan_type,file,sha256,group,analysis,cft_mm\n"
-         "S1,OD,2024-01-01,macula,/d/1.vol,h,NA,volume,0.2\n"
-         "S2,OD,2024-01-01,macula,/d/2.vol,h,NA,volume,0.4\n"
-         "S3,OD,2024-01-01,macula,/d/3.vol,h,NA,line,5.0\n");
+         "subject_id,eye,visit_date,scan_type,eye_key,sha256,group,analysis,cft_mm\n"
+         "S1,OD,2024-01-01,macula,0000000000000001,h,NA,volume,0.2\n"
+         "S2,OD,2024-01-01,macula,0000000000000002,h,NA,volume,0.4\n"
+         "S3,OD,2024-01-01,macula,0000000000000003,h,NA,line,5.0\n");
     RunResult r = run_octshape("stats --json " + (dir / "eyes.csv").string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     auto j = nlohmann::json::parse(r.out);
