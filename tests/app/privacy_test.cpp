@@ -14,7 +14,6 @@
 #include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
-#include <regex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -182,10 +181,16 @@ TEST(Provenance, VersionRevisionTimeStagesAndAFingerprintOfEveryParameter) {
     const auto v = test::run_octshape("--version");
     ASSERT_EQ(v.exit_code, 0);
     // "octshape 0.1.0 (revision <12 hex>|unknown[, modified]; <describe>; build <type>)".
-    EXPECT_TRUE(std::regex_search(
-        v.out, std::regex(R"(^octshape \S+ \(revision ([0-9a-f]{12}|unknown)(, modified)?; .+; )"
-                          R"(build \S+\))")))
-        << v.out;
+    // (Checked by hand: GCC 12's <regex> trips -Wmaybe-uninitialized under the sanitizers.)
+    const std::string head = "octshape ";
+    ASSERT_EQ(v.out.rfind(head, 0), 0U) << v.out;
+    const std::size_t rev = v.out.find(" (revision ");
+    ASSERT_NE(rev, std::string::npos) << v.out;
+    const std::string id = v.out.substr(rev + 11, v.out.find_first_of(",;", rev + 11) - rev - 11);
+    const bool hex12 = id.size() == 12 && id.find_first_not_of("0123456789abcdef") == std::string::npos;
+    EXPECT_TRUE(hex12 || id == "unknown") << v.out;
+    EXPECT_NE(v.out.find("; build "), std::string::npos) << v.out;
+    EXPECT_NE(v.out.find(")"), std::string::npos) << v.out;
 
     test::TempDir dir;
     write_named_macula(dir / "a.vol", io::Laterality::kOD, 4);
@@ -196,8 +201,15 @@ TEST(Provenance, VersionRevisionTimeStagesAndAFingerprintOfEveryParameter) {
     for (const char* k : {"version", "revision", "modified", "build_type", "utc"}) {
         EXPECT_TRUE(p[k].is_string()) << k;
     }
-    EXPECT_TRUE(std::regex_match(p["utc"].get<std::string>(),
-                                 std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ)")));
+    // YYYY-MM-DDTHH:MM:SSZ
+    const std::string utc = p["utc"].get<std::string>();
+    const std::string shape = "dddd-dd-ddTdd:dd:ddZ";
+    bool utc_ok = utc.size() == shape.size();
+    for (std::size_t i = 0; utc_ok && i < shape.size(); ++i) {
+        utc_ok = shape[i] == 'd' ? std::isdigit(static_cast<unsigned char>(utc[i])) != 0
+                                 : utc[i] == shape[i];
+    }
+    EXPECT_TRUE(utc_ok) << utc;
     for (const char* stage : {"read_hash", "analysis"}) {
         ASSERT_TRUE(p["seconds"][stage].is_number()) << stage;
         EXPECT_GE(p["seconds"][stage].get<double>(), 0.0);
