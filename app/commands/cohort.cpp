@@ -99,11 +99,17 @@ std::vector<std::string> discover(const std::vector<std::string>& inputs, const 
                                   std::vector<Skipped>& skipped) {
     std::vector<std::string> files;
     const std::string out_abs = absolute_path(out.string());
+    int segmentations = 0;
     auto consider = [&](const fs::path& p) {
         const std::string abs = absolute_path(p.string());
         if (abs.rfind(out_abs + "/", 0) == 0) return;  // our own outputs
         try {
-            if (io::detect_format(abs) != io::FileFormat::kUnknown) {
+            const io::FileFormat format = io::detect_format(abs);
+            if (format == io::FileFormat::kIowaSurfaces) {
+                // A segmentation of an export, which OCTExplorer writes beside it: analysing
+                // both would count the eye twice.
+                ++segmentations;
+            } else if (format != io::FileFormat::kUnknown) {
                 files.push_back(abs);
             } else if (has_export_extension(p)) {
                 skipped.push_back({abs, eye_key(abs), "not a supported export (unknown content)",
@@ -136,6 +142,11 @@ std::vector<std::string> discover(const std::vector<std::string>& inputs, const 
     }
     std::sort(files.begin(), files.end());
     files.erase(std::unique(files.begin(), files.end()), files.end());
+    if (segmentations > 0) {
+        spdlog::info("{} Iowa surfaces file(s) ignored: segmentations, not exports (analyse one "
+                     "with `octshape macula FILE`, or over its export with --segmentation)",
+                     segmentations);
+    }
     return files;
 }
 

@@ -56,6 +56,7 @@ void add_macula_command(CLI::App& app, RunContext& /*ctx*/) {
                   "identifies the input)");
 
     add_macula_analysis_options(cmd, opts->eye);
+    add_segmentation_options(cmd, opts->eye.segmentation);
     cmd->add_flag("!--no-type-check", opts->eye.check_scan_type,
                   "Analyse the scan even if it looks like an optic nerve head volume (a long BM "
                   "gap in several B-scans: docs/cohort.md, Classifier)");

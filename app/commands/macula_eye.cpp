@@ -41,6 +41,10 @@ std::string macula_options_text(const MaculaEyeOptions& o) {
     }
     s << " classifier_min_gap_mm=" << classifier.min_gap_mm
       << " classifier_min_bscans=" << classifier.min_bscans;
+    const auto& e = o.etdrs;
+    s << " etdrs(diameters_mm=" << e.diameters_mm[0] << "," << e.diameters_mm[1] << ","
+      << e.diameters_mm[2] << " step_mm=" << e.step_mm << " min_coverage=" << e.min_coverage
+      << " layers=" << o.etdrs_layers << ") " << segmentation_options_text(o.segmentation);
     return s.str();
 }
 
@@ -66,7 +70,29 @@ void add_macula_analysis_options(CLI::App* cmd, MaculaEyeOptions& o) {
                     "SDs of the maximum) or maximum (the maximum sample, as in the thesis)")
         ->check(CLI::IsMember({"crest", "maximum"}))
         ->capture_default_str();
+    cmd->add_option("--etdrs-layers", o.etdrs_layers,
+                    "ETDRS sector thickness between these two lines, UPPER,LOWER (names as "
+                    "`octshape info` lists them, e.g. ILM,RNFL)")
+        ->capture_default_str();
+    cmd->add_option("--etdrs-min-coverage", o.etdrs.min_coverage,
+                    "Measured fraction of an ETDRS sector's area needed to report it")
+        ->capture_default_str();
 }
+
+namespace {
+
+// "UPPER,LOWER" -> the two names; UsageError otherwise.
+std::pair<std::string, std::string> etdrs_layer_names(const std::string& text) {
+    const auto comma = text.find(',');
+    if (comma == std::string::npos || comma == 0 || comma + 1 >= text.size() ||
+        text.find(',', comma + 1) != std::string::npos) {
+        throw UsageError("--etdrs-layers must be two line names separated by a comma (e.g. "
+                         "ILM,BM), not '" + text + "'");
+    }
+    return {text.substr(0, comma), text.substr(comma + 1)};
+}
+
+}  // namespace
 
 MaculaEye analyse_macula_eye(const std::string& file,
                              MaculaEyeOptions options,
@@ -75,10 +101,14 @@ MaculaEye analyse_macula_eye(const std::string& file,
     // The QC B-scan shows the pixels: read them with the rest when pictures are asked for.
     io::ReadOptions read_options;
     read_options.pixels = !options.qc_dir.empty();
+    read_options.iowa_bm = segmentation_bm(options.segmentation);
     Provenance read;
-    const io::HashedScan input = io::read_scan_hashed(file, read_options);
+    io::HashedScan input = io::read_scan_hashed(file, read_options);
+    const nlohmann::ordered_json segmentation =
+        apply_segmentation_file(input.scan, options.segmentation, options.record_paths);
     read.mark("read_hash");
     MaculaEye r = analyse_macula_eye(file, facts, input, std::move(options), subjects);
+    if (!segmentation.is_null()) r.json["input"]["segmentation"] = segmentation;
     // The reading's time first, as it came first.
     nlohmann::ordered_json seconds = read.json()["seconds"];
     for (const auto& [k, v] : r.json["provenance"]["seconds"].items()) seconds[k] = v;
@@ -105,7 +135,11 @@ MaculaEye analyse_macula_eye(const std::string& file,
                                 type.reason + "); --no-type-check analyses it anyway");
         }
     }
-    const retina::CubeResult r = retina::analyse_macula(scan, o.params);
+    retina::CubeResult r = retina::analyse_macula(scan, o.params);
+    const auto [upper, lower] = etdrs_layer_names(o.etdrs_layers);
+    const retina::EtdrsReport etdrs = retina::etdrs_report(scan, r, o.etdrs, upper, lower);
+    // The device comparison's flags are the eye's: in the JSON's and the CSV's qc_flags.
+    r.qc_flags.insert(r.qc_flags.end(), etdrs.qc_flags.begin(), etdrs.qc_flags.end());
     prov.mark("analysis");
     for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", file, f);
     for (const auto& n : r.notes) spdlog::info("{}: {}", file, n);
@@ -115,10 +149,13 @@ MaculaEye analyse_macula_eye(const std::string& file,
     j = eye_json_preamble("macula", file, sha, scan, o.record_paths);
     const auto cube = retina::cube_json(r, o.params);
     for (const auto& [k, v] : cube.items()) j[k] = v;
+    j["etdrs"] = retina::etdrs_json(etdrs);
     const std::string eye(io::to_string(scan.meta.laterality));
 
-    const auto cols = retina::cube_csv_header();
-    const auto vals = retina::cube_csv_values(r);
+    auto cols = retina::cube_csv_header();
+    auto vals = retina::cube_csv_values(r);
+    for (const auto& c : retina::etdrs_csv_header()) cols.push_back(c);
+    for (const auto& v : retina::etdrs_csv_values(etdrs)) vals.push_back(v);
     out.csv_header = eye_csv_header(o.record_paths);
     out.csv_row = eye_csv_values(file, sha, scan, o.record_paths);
     out.csv_header.insert(out.csv_header.end(), cols.begin(), cols.end());
@@ -129,7 +166,8 @@ MaculaEye analyse_macula_eye(const std::string& file,
 
     if (!o.qc_dir.empty()) {
         const std::string stem = o.qc_stem.empty() ? std::string("eye") : o.qc_stem;
-        if (scan.pixels_loaded) {
+        // A segmentation file alone has no pixels to read again.
+        if (scan.pixels_loaded || scan.meta.format == io::SourceFormat::kIowaSurfaces) {
             write_macula_qc(r, scan, o.qc_dir, stem);
         } else {
             // A scan read without pixels (the cohort reads headers and segmentation only):

@@ -8,8 +8,10 @@
 #include <vector>
 
 #include "commands/eye_record.h"
+#include "commands/segmentation.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/retina/cube.h"
+#include "octshape/retina/etdrs.h"
 
 namespace octshape::app {
 
@@ -23,6 +25,9 @@ struct MaculaEyeOptions {
     // Refuse (AnalysisError) a volume that retina::classify_scan calls an ONH scan: a CuBe fit
     // of an optic disc gives numbers, but meaningless ones. The cohort classifies first.
     bool check_scan_type = true;
+    SegmentationOptions segmentation;  // --segmentation, --bm-surface
+    retina::EtdrsParams etdrs;
+    std::string etdrs_layers = "ILM,BM";  // --etdrs-layers UPPER,LOWER
 };
 
 // The per-eye object (with its "cohort" record) and the `macula --csv` columns.

@@ -347,7 +347,11 @@ cv::Mat bscan_picture(const retina::CubeResult& r, const io::Scan& scan, const s
     cv::line(img, {cx, 0}, {cx, H - 1}, kCentre, 1, cv::LINE_AA);
     outlined_text(img,
                   "B-scan " + std::to_string(b + 1) + " of " + std::to_string(nb) +
-                      " (through the centre)" + (pixels ? "" : "; the export has no pixels"),
+                      " (through the centre)" +
+                      (pixels ? ""
+                              : scan.meta.format == io::SourceFormat::kIowaSurfaces
+                                    ? "; a segmentation file has no pixels"
+                                    : "; the export has no pixels"),
                   {10, 24}, 0.55, cv::Scalar(255, 255, 255));
     scale_bar(img, {14, H - 14}, W / (w * scan.meta.scale_x_mm), cv::Scalar(255, 255, 255));
 
@@ -366,9 +370,11 @@ cv::Mat bscan_picture(const retina::CubeResult& r, const io::Scan& scan, const s
     img.copyTo(framed(cv::Rect(70, 24, W, H)));  // the grid lines stay outside the picture
     cv::rectangle(framed, a.plot, cv::Scalar(60, 60, 60), 1);
     cv::Mat legend(40, framed.cols, CV_8UC3, kPanel);
+    // Whose lines they are: the device's, or a segmentation laid over or read alone.
+    const bool own = scan.line_names.empty();
     draw_legend(legend, {8, 26},
-                {{LegendItem::kLine, kIlm, "ILM (device)"},
-                 {LegendItem::kLine, kBm, "BM (device)"},
+                {{LegendItem::kLine, kIlm, own ? "ILM (device)" : "ILM (segmentation file)"},
+                 {LegendItem::kLine, kBm, own ? "BM (device)" : "BM (segmentation file)"},
                  {LegendItem::kLine, kFit, "fitted profile (BM + fitted thickness)"},
                  {LegendItem::kLine, kCentre, "centre"}},
                 0.45, kText, framed.cols - 8);

@@ -65,6 +65,7 @@ void add_onh_command(CLI::App& app, RunContext& /*ctx*/) {
     cmd->add_option("--mesh-format", opts->eye.mesh_format, "Mesh file format: vtp or ply")
         ->capture_default_str();
     add_onh_analysis_options(cmd, opts->eye);
+    add_segmentation_options(cmd, opts->eye.segmentation);
     add_subject_options(cmd, opts->subjects);
     cmd->callback([opts] { run(*opts); });
 }

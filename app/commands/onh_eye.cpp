@@ -94,7 +94,8 @@ std::string onh_options_text(const OnhEyeOptions& o) {
       << " pair_weights=" << static_cast<int>(r.pair_weights)
       << " fix_boundary=" << r.fix_boundary << " repair_folds=" << r.repair_folds << ")";
     s << " classifier_min_gap_mm=" << classifier.min_gap_mm
-      << " classifier_min_bscans=" << classifier.min_bscans;
+      << " classifier_min_bscans=" << classifier.min_bscans << ' '
+      << segmentation_options_text(o.segmentation);
     return s.str();
 }
 
@@ -135,8 +136,11 @@ EyeResult analyse_onh_eye(const std::string& file,
     io::ReadOptions read;
     // Pixels: for an ILM source that segments them, and for the B-scans of the QC pictures.
     read.pixels = retina::ilm_needs_pixels(source) || !o.qc_dir.empty();
+    read.iowa_bm = segmentation_bm(o.segmentation);
     io::HashedScan input = io::read_scan_hashed(file, read);
     io::Scan& scan = input.scan;
+    const nlohmann::ordered_json segmentation =
+        apply_segmentation_file(scan, o.segmentation, o.record_paths);
     const std::string& sha = input.sha256;
     prov.mark("read_hash");
     try {
@@ -148,6 +152,7 @@ EyeResult analyse_onh_eye(const std::string& file,
     if (!o.bmo_file.empty()) bmo = retina::read_bmo_csv(o.bmo_file, scan.meta, scan.num_bscans());
     // The scan's record as read (pixels_loaded included), before the level set may free them.
     nlohmann::ordered_json preamble = eye_json_preamble("onh", file, sha, scan, o.record_paths);
+    if (!segmentation.is_null()) preamble["input"]["segmentation"] = segmentation;
     // Without QC pictures nothing reads the pixels after the level set: it frees them, and
     // the eye's peak memory stays below twice the volume's (docs/algorithms/levelset.md).
     const retina::IlmSurface ilm = o.qc_dir.empty()

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "commands/eye_record.h"
+#include "commands/segmentation.h"
 #include "octshape/retina/onh.h"
 
 namespace octshape::app {
@@ -21,6 +22,7 @@ struct OnhEyeOptions {
     bool record_paths = false;     // --record-paths: input and BMO file paths in the outputs
     std::string mesh_dir;          // empty: no meshes
     std::string mesh_format = "vtp";
+    SegmentationOptions segmentation;  // --segmentation, --bm-surface
 };
 
 // Throws InputError (file), AnalysisError (not an ONH volume), OutputError (pictures, meshes).

@@ -72,7 +72,12 @@ std::string_view to_string(ScanPattern p) {
 }
 
 std::string_view to_string(SourceFormat f) {
-    return f == SourceFormat::kVol ? "Heidelberg .vol" : "Heidelberg XML";
+    switch (f) {
+        case SourceFormat::kVol: return "Heidelberg .vol";
+        case SourceFormat::kHeyexXml: return "Heidelberg XML";
+        case SourceFormat::kIowaSurfaces: return "Iowa surfaces XML";
+    }
+    return "unknown";
 }
 
 ScanPattern scan_pattern_from_code(std::int32_t code) {
@@ -110,6 +115,21 @@ float Scan::depth_px(int k, int b, int a) const {
         return std::numeric_limits<float>::quiet_NaN();
     }
     return line[static_cast<std::size_t>(a)];
+}
+
+std::string Scan::line_name(int k) const {
+    if (k >= 0 && static_cast<std::size_t>(k) < line_names.size()) {
+        return line_names[static_cast<std::size_t>(k)];
+    }
+    return layer_name(k);
+}
+
+std::optional<int> Scan::find_line(std::string_view name) const {
+    for (std::size_t k = 0; k < line_names.size(); ++k) {
+        if (iequals(name, line_names[k])) return static_cast<int>(k);
+    }
+    if (!line_names.empty()) return std::nullopt;  // the Heidelberg indices do not apply
+    return layer_from_name(name);
 }
 
 std::string filetime_to_iso(std::uint64_t filetime) {

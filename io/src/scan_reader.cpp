@@ -12,6 +12,7 @@
 
 #include "octshape/error.h"
 #include "octshape/io/heyex_xml.h"
+#include "octshape/io/iowa_surfaces.h"
 #include "octshape/io/sha256.h"
 #include "octshape/io/vol.h"
 
@@ -83,6 +84,7 @@ FileFormat detect_format(const std::string& path) {
     if (n == 0) throw InputError::truncated(path, "the file is empty", 0);
     if (looks_like_vol(head.data(), n)) return FileFormat::kVol;
     if (looks_like_heyex_xml(head.data(), n)) return FileFormat::kHeyexXml;
+    if (looks_like_iowa_surfaces(head.data(), n)) return FileFormat::kIowaSurfaces;
     return FileFormat::kUnknown;
 }
 
@@ -100,6 +102,8 @@ Scan read_scan(const std::string& path, const ReadOptions& options) {
         }
         case FileFormat::kHeyexXml:
             return read_heyex_xml(path, options);
+        case FileFormat::kIowaSurfaces:
+            return iowa_scan(read_iowa_surfaces(path), path, options.iowa_bm);
         case FileFormat::kUnknown:
             break;
     }
@@ -108,7 +112,7 @@ Scan read_scan(const std::string& path, const ReadOptions& options) {
     in.read(head.data(), head.size());
     throw InputError::unsupported(
         path,
-        "not a Spectralis .vol or Heidelberg XML export (starts with \"" +
+        "not a Spectralis .vol, Heidelberg XML export or Iowa surfaces XML (starts with \"" +
             describe_head(head.data(), static_cast<std::size_t>(in.gcount())) + "\")",
         0);
 }

@@ -125,7 +125,7 @@ TEST(InfoBadInput, MissingDirectoryEmptyAndUnknown) {
     std::ofstream(dir / "empty.vol").flush();
     expect_refused((dir / "empty.vol").string(), 65, "empty");
     std::ofstream(dir / "text.vol") << "hello, not a scan\n";
-    expect_refused((dir / "text.vol").string(), 65, "not a Spectralis .vol or Heidelberg XML");
+    expect_refused((dir / "text.vol").string(), 65, "not a Spectralis .vol, Heidelberg XML export or Iowa surfaces XML");
 }
 
 }  // namespace

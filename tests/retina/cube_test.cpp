@@ -351,6 +351,44 @@ SLOW_TEST(CubePhantom, BezierIdealSamplingFitsExactly) {
     EXPECT_TRUE(r.qc_flags.empty());
 }
 
+// The real Iowa volume's sampling (tests/app/iowa_test.cpp): 19 B-scans 0.249 mm apart, 512
+// A-scans 11.68 um apart, the same phantom eyes as at 61 B-scans. The bounds are those of the
+// 61-B-scan test computed for this grid; the table (RecordProperty and stdout) shows what the
+// coarse spacing costs each parameter (docs/algorithms/cube.md "Real eyes").
+TEST(CubePhantom, NineteenBScansLikeTheRealIowaVolume) {
+    for (const MaculaFamily f : {MaculaFamily::kBezier, MaculaFamily::kScheibe}) {
+        MaculaPhantomParams p = volume_params(f, 19);
+        p.size_x = 512;
+        p.scale_x_mm = 0.011680;
+        p.distance_mm = 0.249175;
+        const MaculaPhantom ph = make_macula_phantom(p);
+        const CubeResult r = analyse_macula(ph.scan);
+        const Errors e = errors(r, ph);
+        const MaculaPhantom dense = make_macula_phantom(volume_params(f, 61));
+        const Errors e61 = errors(analyse_macula(dense.scan), dense);
+        record(to_string(f) + "_19", e);
+        std::printf("%-8s 19 B-scans: centre %.1f um, CFT %.2f um, rim height %.2f um, rim "
+                    "diameter %.1f um, rim area %.2f %%, slope %.3f deg, Vr %.2f %%, Vp %.2f %%, "
+                    "RMSE %.2f um | 61 B-scans: centre %.1f um, CFT %.2f um, rim diameter "
+                    "%.1f um, rim area %.2f %%, Vr %.2f %%\n",
+                    to_string(f).c_str(), 1e3 * e.centre, 1e3 * e.cft, 1e3 * e.rim_height,
+                    1e3 * e.rim_diameter, 100 * e.rim_area_rel, e.slope_deg, 100 * e.vr_rel,
+                    100 * e.vp_rel, e.rmse_um, 1e3 * e61.centre, 1e3 * e61.cft,
+                    1e3 * e61.rim_diameter, 100 * e61.rim_area_rel, 100 * e61.vr_rel);
+        if (f != MaculaFamily::kBezier) continue;  // the bounds are for the exact model
+        const SamplingBounds sb = sampling_bounds(p, p.scale_x_mm, p.distance_mm,
+                                                  CubeParams{}.tie_tolerance_mm);
+        const double s2 = 0.5 * p.scale_x_mm;
+        EXPECT_LE(e.centre, sb.centre_mm);
+        EXPECT_LE(e.cft, sb.node_rise_mm + 0.0005 + sb.bilinear_mm);
+        const double rim_pos = sb.centre_mm + s2 + std::sqrt(4 * sb.bilinear_mm / sb.rim_curv);
+        EXPECT_LE(e.rim_diameter, 2.0 * rim_pos);
+        EXPECT_LE(e.rim_area_rel, 2.0 * rim_pos / sb.min_rim_radius);
+        EXPECT_LE(e.vr_rel, 2.0 * rim_pos / sb.min_rim_radius);
+        EXPECT_LE(e.rmse_um, 1e3 * (sb.bilinear_mm + sb.node_rise_mm));
+    }
+}
+
 // Errors of the full pipeline (centre searched) at 61, 97 and 193 B-scans.
 std::array<Errors, 3> run_family(MaculaFamily f,
                                  bool flat,

@@ -112,7 +112,7 @@ json scan_summary(const io::Scan& scan, const SummaryOptions& options) {
     json layers = json::array();
     for (int k = 0; k < scan.num_lines(); ++k) {
         layers.push_back({{"index", k},
-                          {"name", io::layer_name(k)},
+                          {"name", scan.line_name(k)},
                           {"valid_percent", tidy(100.0 * scan.valid_fraction(k))}});
     }
     j["layers"] = layers;

@@ -597,24 +597,27 @@ double ThicknessMap::sample(double x_mm, double y_mm) const {
     return (1.0 - v) * ((1.0 - u) * m00 + u * m01) + v * ((1.0 - u) * m10 + u * m11);
 }
 
-ThicknessMap thickness_map(const io::Scan& scan) {
+ThicknessMap cube_detail::thickness_map_of_lines(const io::Scan& scan, int upper, int lower) {
     ThicknessMap m;
     m.rows = scan.num_bscans();
     m.cols = scan.meta.size_x;
     m.dx_mm = scan.meta.scale_x_mm;
     m.dy_mm = m.rows > 1 ? scan.meta.distance_mm : 0.0;
     if (m.rows < 1 || m.cols < 2) throw AnalysisError("the scan holds no B-scans to analyse");
-    const int ilm = static_cast<int>(io::Layer::kILM);
-    const int bm = static_cast<int>(io::Layer::kBM);
-    if (scan.num_lines() <= bm) {
-        throw AnalysisError("the export has no ILM and BM segmentation (needed for thickness)");
+    const std::string up = scan.line_name(upper);
+    const std::string low = scan.line_name(lower);
+    if (upper < 0 || lower < 0 || scan.num_lines() <= std::max(upper, lower)) {
+        throw AnalysisError("the export has no " + up + " and " + low +
+                            " segmentation (needed for thickness)");
     }
-    if (scan.valid_fraction(bm) == 0.0) {
-        throw AnalysisError("the BM segmentation is missing everywhere (needed for thickness)");
+    if (scan.valid_fraction(lower) == 0.0) {
+        throw AnalysisError("the " + low + " segmentation is missing everywhere (needed for thickness)");
     }
-    if (scan.valid_fraction(ilm) == 0.0) {
-        throw AnalysisError("the ILM segmentation is missing everywhere (needed for thickness)");
+    if (scan.valid_fraction(upper) == 0.0) {
+        throw AnalysisError("the " + up + " segmentation is missing everywhere (needed for thickness)");
     }
+    const auto ku = static_cast<std::size_t>(upper);
+    const auto kl = static_cast<std::size_t>(lower);
     const double sz = scan.meta.scale_z_mm;
     // A boundary lies in the image when its depth is within [0, SizeZ] pixels (a boundary at
     // the bottom edge is depth SizeZ); a scan without a known depth is not checked.
@@ -627,8 +630,8 @@ ThicknessMap thickness_map(const io::Scan& scan) {
         const auto& bs = scan.bscans[static_cast<std::size_t>(b)];
         for (int a = 0; a < m.cols; ++a) {
             const auto i = static_cast<std::size_t>(a);
-            const float di = i < bs.seg[0].size() ? bs.seg[0][i] : io::kNoPixelData;
-            const float db = i < bs.seg[1].size() ? bs.seg[1][i] : io::kNoPixelData;
+            const float di = i < bs.seg[ku].size() ? bs.seg[ku][i] : io::kNoPixelData;
+            const float db = i < bs.seg[kl].size() ? bs.seg[kl][i] : io::kNoPixelData;
             double v = kMissing;
             // Height z = -depth * ScaleZ, so ILM - BM = (depth_BM - depth_ILM) * ScaleZ.
             if (io::is_valid(di) && io::is_valid(db) && di < io::kInvalidThreshold &&
@@ -647,12 +650,17 @@ ThicknessMap thickness_map(const io::Scan& scan) {
     }
     if (static_cast<std::size_t>(m.num_missing) == m.mm.size()) {
         throw AnalysisError(
-            "no A-scan has both an ILM and a BM inside the image with the ILM above "
-            "the BM (" +
+            "no A-scan has both an " + up + " and a " + low + " inside the image with the " + up +
+            " above the " + low + " (" +
             std::to_string(m.num_outside_image) + " outside the image, " +
-            std::to_string(m.num_inverted) + " with the ILM below the BM)");
+            std::to_string(m.num_inverted) + " with the " + up + " below the " + low + ")");
     }
     return m;
+}
+
+ThicknessMap thickness_map(const io::Scan& scan) {
+    return thickness_map_of_lines(scan, static_cast<int>(io::Layer::kILM),
+                                  static_cast<int>(io::Layer::kBM));
 }
 
 double thickness_noise_sd(const ThicknessMap& m) {

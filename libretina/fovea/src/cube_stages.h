@@ -47,6 +47,10 @@ inline constexpr double kDeg = 180.0 / kPi;
 
 // ---- stage 1: the scan ---------------------------------------------------------------------
 
+// thickness_map between lines `upper` and `lower` (indices into the scan's lines; the names in
+// messages are the scan's line names) (cube_sampling.cpp). thickness_map is (ILM, BM).
+[[nodiscard]] ThicknessMap thickness_map_of_lines(const io::Scan& scan, int upper, int lower);
+
 // True for a line scan (one B-scan through the fovea), false for a volume; AnalysisError for
 // any other pattern, or a scan without the spacings the analysis needs.
 [[nodiscard]] bool check_macula_scan(const io::Scan& scan);

@@ -33,7 +33,7 @@ inline constexpr float kInvalidThreshold = 1e30F;
 [[nodiscard]] inline bool is_valid(float v) { return !std::isnan(v); }
 
 enum class Laterality { kUnknown, kOD, kOS };
-enum class SourceFormat { kVol, kHeyexXml };
+enum class SourceFormat { kVol, kHeyexXml, kIowaSurfaces };
 
 // .vol ScanPattern codes.
 enum class ScanPattern : std::int32_t {
@@ -171,6 +171,9 @@ struct Scan {
     std::vector<ThicknessGrid> grids;
     bool pixels_loaded = false;
     std::vector<std::string> notes;  // what the reader noticed (unverified fields, odd files)
+    // Names of the segmentation lines when they are not Heidelberg's (a segmentation from
+    // elsewhere, io/iowa_surfaces.h): line_names[k] names line k; empty = layer_name(k).
+    std::vector<std::string> line_names;
 
     [[nodiscard]] int num_bscans() const { return static_cast<int>(bscans.size()); }
     // Number of segmentation lines present in every B-scan (the minimum over B-scans).
@@ -179,6 +182,11 @@ struct Scan {
     [[nodiscard]] double valid_fraction(int k) const;
     // Depth in pixels of line k at (B-scan b, A-scan a); NaN if missing or absent.
     [[nodiscard]] float depth_px(int k, int b, int a) const;
+    // The name of line k: line_names[k] when given, else layer_name(k).
+    [[nodiscard]] std::string line_name(int k) const;
+    // The index of the line with this name (line_names, else the Heidelberg names and aliases
+    // of layer_from_name; case-insensitive), or nullopt.
+    [[nodiscard]] std::optional<int> find_line(std::string_view name) const;
 };
 
 // Calendar conversions for the two date encodings used by the exports; ISO 8601 text (UTC).
@@ -191,8 +199,15 @@ namespace octshape::io {
 
 // What a reader loads. Headers, positions, grids and segmentation are always read (cheap);
 // B-scan pixels and the SLO image only when asked (a 61-B-scan volume holds ~93 MB of pixels).
+// Which Iowa surface (io/iowa_surfaces.h) plays Bruch's membrane, the BM line of a Heidelberg
+// export: the outer boundary of the RPE (label 150) by default, where Heidelberg's own BM line
+// runs (Bruch's membrane is the outer edge of the RPE/Bruch's complex); the inner boundary
+// (label 140) runs one RPE thickness further in (docs/formats.md "Iowa surfaces XML").
+enum class IowaBm { kOuterRpe, kInnerRpe };
+
 struct ReadOptions {
     bool pixels = false;
+    IowaBm iowa_bm = IowaBm::kOuterRpe;  // an Iowa surfaces file read alone
 };
 
 }  // namespace octshape::io

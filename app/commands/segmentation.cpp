@@ -1,0 +1,57 @@
+#include "commands/segmentation.h"
+
+#include "octshape/error.h"
+#include "octshape/io/iowa_surfaces.h"
+#include "octshape/io/scan_reader.h"
+#include "octshape/io/sha256.h"
+
+namespace octshape::app {
+
+void add_segmentation_options(CLI::App* cmd, SegmentationOptions& o, bool per_eye_files) {
+    if (per_eye_files) {
+        cmd->add_option("--segmentation", o.file,
+                        "Use the layer boundaries of this Iowa surfaces XML (OCTExplorer / "
+                        "OCTLayerSeg *_Surfaces_Iowa.xml) instead of the export's own; it must be "
+                        "a segmentation of this scan (same sizes and eye)");
+    }
+    cmd->add_option("--bm-surface", o.bm_surface,
+                    "Iowa surface used as BM: ob_rpe (outer boundary of the RPE, label 150, "
+                    "where Heidelberg's BM line runs) or ib_rpe (inner boundary, label 140)")
+        ->check(CLI::IsMember({"ob_rpe", "ib_rpe"}))
+        ->capture_default_str();
+}
+
+io::IowaBm segmentation_bm(const SegmentationOptions& o) { return io::parse_iowa_bm(o.bm_surface); }
+
+nlohmann::ordered_json apply_segmentation_file(io::Scan& scan,
+                                               const SegmentationOptions& o,
+                                               bool record_paths) {
+    if (o.file.empty()) return nullptr;
+    io::ReadOptions read;
+    read.iowa_bm = segmentation_bm(o);
+    const io::HashedScan seg = io::read_scan_hashed(o.file, read);
+    if (seg.scan.meta.format != io::SourceFormat::kIowaSurfaces) {
+        throw UsageError(o.file + ": --segmentation needs an Iowa surfaces XML, this is a " +
+                         std::string(io::to_string(seg.scan.meta.format)) + " file");
+    }
+    io::apply_segmentation(scan, seg.scan);
+    nlohmann::ordered_json j = {{"sha256", seg.sha256},
+                                {"source", seg.scan.meta.version},
+                                {"bm_surface", o.bm_surface}};
+    if (record_paths) j["path"] = o.file;
+    return j;
+}
+
+std::string segmentation_options_text(const SegmentationOptions& o) {
+    std::string seg = "none";
+    if (!o.file.empty()) {
+        try {
+            seg = "sha256:" + io::sha256_file(o.file);
+        } catch (const Error&) {
+            seg = "unreadable";  // the analysis reports it with the file's name
+        }
+    }
+    return "bm_surface=" + o.bm_surface + " segmentation=" + seg;
+}
+
+}  // namespace octshape::app
