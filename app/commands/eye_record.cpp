@@ -14,6 +14,7 @@
 #include "octshape/io/csv.h"
 #include "octshape/io/sha256.h"
 #include "octshape/retina/cube_report.h"
+#include "octshape/retina/etdrs.h"
 #include "octshape/retina/onh_report.h"
 #include "octshape/version.h"
 
@@ -422,7 +423,11 @@ void attach_cohort_record(nlohmann::ordered_json& j,
 }
 
 std::vector<std::string> eyes_type_header(const std::string& scan_type) {
-    if (scan_type == "macula") return retina::cube_csv_header();
+    if (scan_type == "macula") {
+        auto h = retina::cube_csv_header();
+        for (auto& c : retina::etdrs_csv_header()) h.push_back(std::move(c));
+        return h;
+    }
     if (scan_type == "onh") return retina::onh_csv_header();
     throw UsageError("no eyes table for scan type '" + scan_type + "'");
 }

@@ -152,9 +152,8 @@ MaculaEye analyse_macula_eye(const std::string& file,
     j["etdrs"] = retina::etdrs_json(etdrs);
     const std::string eye(io::to_string(scan.meta.laterality));
 
-    auto cols = retina::cube_csv_header();
+    const auto cols = eyes_type_header("macula");  // the CuBe columns, then the ETDRS ones
     auto vals = retina::cube_csv_values(r);
-    for (const auto& c : retina::etdrs_csv_header()) cols.push_back(c);
     for (const auto& v : retina::etdrs_csv_values(etdrs)) vals.push_back(v);
     out.csv_header = eye_csv_header(o.record_paths);
     out.csv_row = eye_csv_values(file, sha, scan, o.record_paths);

@@ -27,6 +27,7 @@
 #include "octshape/io/sha256.h"
 #include "octshape/io/vol.h"
 #include "octshape/retina/cube_report.h"
+#include "octshape/retina/etdrs.h"
 #include "octshape/retina/phantom_macula.h"
 #include "test_paths.h"
 #include "slow_test.h"
@@ -92,6 +93,7 @@ std::vector<std::string> expected_header() {
     std::vector<std::string> h{"subject_id", "eye",    "visit_date", "scan_type",
                                "eye_key",    "sha256", "group"};
     for (const auto& c : retina::cube_csv_header()) h.push_back(c);
+    for (const auto& c : retina::etdrs_csv_header()) h.push_back(c);  // appended after CuBe's
     return h;
 }
 

@@ -80,7 +80,8 @@ TEST(MaculaCli, BezierSampleMatchesItsTruth) {
     const auto hv = split_csv_line(h);
     const auto rv = split_csv_line(row);
     ASSERT_EQ(hv.size(), rv.size());
-    EXPECT_EQ(hv.back(), "thickness_noise_sd_um");
+    // Columns are only ever appended: the noise estimate after qc_flags, then the ETDRS ones.
+    EXPECT_EQ(hv.back(), "device_central_difference_um");
     for (std::size_t i = 0; i < hv.size(); ++i) {
         if (hv[i] == "cft_mm") {
             EXPECT_NEAR(std::stod(rv[i]), v["cft_mm"].get<double>(), 1e-9);
@@ -88,9 +89,16 @@ TEST(MaculaCli, BezierSampleMatchesItsTruth) {
         if (hv[i] == "eye") {
             EXPECT_EQ(rv[i], "OD");
         }
-        if (hv[i] == "thickness_noise_sd_um") {  // appended last, the JSON's noise estimate
-            EXPECT_EQ(i + 1, hv.size());
+        if (hv[i] == "thickness_noise_sd_um") {  // appended after qc_flags: the JSON's noise
+            ASSERT_GT(i, 0U);
+            EXPECT_EQ(hv[i - 1], "qc_flags");
             EXPECT_NEAR(std::stod(rv[i]), j["noise"]["thickness_noise_sd_um"].get<double>(),
+                        1e-9);
+        }
+        if (hv[i] == "etdrs_central_mm") {
+            EXPECT_NEAR(std::stod(rv[i]),
+                        j["etdrs"]["at_fovea_centre"]["sectors"]["central"]["thickness_mm"]
+                            .get<double>(),
                         1e-9);
         }
         if (hv[i].ends_with("_mm") || hv[i].ends_with("_mm2") || hv[i].ends_with("_mm3")) {
