@@ -190,6 +190,24 @@ TEST(IowaCli, OnhOverItsOwnLinesWrittenAsIowaEqualsTheExport) {
     EXPECT_NE(own["cohort"]["fingerprint"], over["cohort"]["fingerprint"]);
 }
 
+TEST(IowaCli, CohortIgnoresSegmentationFilesBesideTheirExports) {
+    // OCTExplorer writes T_Surfaces_Iowa.xml beside T.vol: a cohort over the folder must count
+    // the eye once (the export), not twice.
+    test::TempDir dir;
+    const auto in = dir / "in";
+    std::filesystem::create_directories(in);
+    std::filesystem::copy_file(test::source_dir() / "sample_scans/macula_bezier_od.vol",
+                               in / "T1.vol");
+    std::ofstream(in / "T1_Surfaces_Iowa.xml") << test::iowa_xml(test::IowaDoc{});
+    const auto out = dir / "out";
+    const auto r = test::run_octshape("cohort '" + in.string() + "' -o '" + out.string() + "'");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto eyes = test::read_csv(out / "eyes.csv");
+    EXPECT_EQ(eyes.size(), 2U);  // header + the export
+    EXPECT_NE(r.err.find("1 Iowa surfaces file(s) ignored"), std::string::npos) << r.err;
+    EXPECT_EQ(test::read_csv(out / "failures.csv").size(), 1U);  // header only
+}
+
 TEST(IowaCli, InfoListsTheSurfaces) {
     const auto r = test::run_octshape("info --json '" + test::realdata(kIowa).string() + "'");
     ASSERT_EQ(r.exit_code, 0) << r.err;
