@@ -47,6 +47,11 @@ std::vector<std::string> eye_csv_values(const std::string& file,
     return v;
 }
 
+std::string naming_file(const std::string& file, const std::string& message) {
+    if (message.rfind(file + ":", 0) == 0) return message;
+    return file + ": " + message;
+}
+
 std::string output_stem(const std::string& json_out, const std::string& csv_out) {
     for (const std::string& p : {json_out, csv_out}) {
         if (p.empty() || p == "-") continue;

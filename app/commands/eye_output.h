@@ -5,7 +5,10 @@
 
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 #include <vector>
+
+#include "octshape/error.h"
 
 #include "octshape/io/scan.h"
 
@@ -46,5 +49,21 @@ void publish_eye_outputs(const std::string& json_out,
                          const nlohmann::ordered_json& j,
                          const std::vector<std::string>& csv_header,
                          const std::vector<std::string>& csv_values);
+
+// "FILE: MESSAGE", unless the message already starts with the file's name.
+[[nodiscard]] std::string naming_file(const std::string& file, const std::string& message);
+
+// Runs `f`; an AnalysisError or DataError out of it (the analyses do not know the file) is
+// rethrown as the same kind with the file's name in front, so that every message names it.
+template <class F>
+decltype(auto) with_file_named(const std::string& file, F&& f) {
+    try {
+        return std::forward<F>(f)();
+    } catch (const AnalysisError& e) {
+        throw AnalysisError(naming_file(file, e.what()));
+    } catch (const DataError& e) {
+        throw DataError(naming_file(file, e.what()));
+    }
+}
 
 }  // namespace octshape::app

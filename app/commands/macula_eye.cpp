@@ -135,9 +135,11 @@ MaculaEye analyse_macula_eye(const std::string& file,
                                 type.reason + "); --no-type-check analyses it anyway");
         }
     }
-    retina::CubeResult r = retina::analyse_macula(scan, o.params);
     const auto [upper, lower] = etdrs_layer_names(o.etdrs_layers);
-    const retina::EtdrsReport etdrs = retina::etdrs_report(scan, r, o.etdrs, upper, lower);
+    retina::CubeResult r =
+        with_file_named(file, [&] { return retina::analyse_macula(scan, o.params); });
+    const retina::EtdrsReport etdrs = with_file_named(
+        file, [&] { return retina::etdrs_report(scan, r, o.etdrs, upper, lower); });
     // The device comparison's flags are the eye's: in the JSON's and the CSV's qc_flags.
     r.qc_flags.insert(r.qc_flags.end(), etdrs.qc_flags.begin(), etdrs.qc_flags.end());
     prov.mark("analysis");

@@ -143,11 +143,7 @@ EyeResult analyse_onh_eye(const std::string& file,
         apply_segmentation_file(scan, o.segmentation, o.record_paths);
     const std::string& sha = input.sha256;
     prov.mark("read_hash");
-    try {
-        retina::require_onh_volume(scan);
-    } catch (const AnalysisError& e) {
-        throw AnalysisError(file + ": " + e.what());  // one line naming the file
-    }
+    with_file_named(file, [&] { retina::require_onh_volume(scan); });
     std::optional<std::vector<retina::BmoPoint>> bmo;
     if (!o.bmo_file.empty()) bmo = retina::read_bmo_csv(o.bmo_file, scan.meta, scan.num_bscans());
     // The scan's record as read (pixels_loaded included), before the level set may free them.
@@ -155,11 +151,13 @@ EyeResult analyse_onh_eye(const std::string& file,
     if (!segmentation.is_null()) preamble["input"]["segmentation"] = segmentation;
     // Without QC pictures nothing reads the pixels after the level set: it frees them, and
     // the eye's peak memory stays below twice the volume's (docs/algorithms/levelset.md).
-    const retina::IlmSurface ilm = o.qc_dir.empty()
-                                       ? retina::build_ilm_surface_releasing_pixels(scan, source)
-                                       : retina::build_ilm_surface(scan, source);
+    const retina::IlmSurface ilm = with_file_named(file, [&] {
+        return o.qc_dir.empty() ? retina::build_ilm_surface_releasing_pixels(scan, source)
+                                : retina::build_ilm_surface(scan, source);
+    });
     prov.mark("ilm_surface");
-    const retina::OnhResult r = retina::analyse_onh(scan, ilm, o.params, bmo);
+    const retina::OnhResult r =
+        with_file_named(file, [&] { return retina::analyse_onh(scan, ilm, o.params, bmo); });
     prov.mark("analysis");
     for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", file, f);
     for (const auto& n : r.notes) spdlog::info("{}: {}", file, n);

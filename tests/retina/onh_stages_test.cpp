@@ -7,9 +7,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <string>
 
+#include "octshape/error.h"
 #include "octshape/retina/onh_report.h"
 
 namespace octshape::retina::onh_detail {
@@ -113,6 +115,69 @@ TEST(OnhStages, NoBmoFaceMakesTheTensorMissingAndTheReportWritesNullAndNA) {
             EXPECT_EQ(v[k], "NA") << h[k];
         }
     }
+}
+
+}  // namespace
+}  // namespace octshape::retina::onh_detail
+
+namespace octshape::retina::onh_detail {
+namespace {
+
+// A possible result on a 4.35 mm x 4.35 mm x 1.92 mm box, then one impossible value at a time:
+// each must be refused naming it; the possible one passes.
+TEST(OnhStages, ResultGateRefusesWhatNoEyeCanHave) {
+    io::Scan scan;
+    scan.meta.size_x = 385;
+    scan.meta.size_z = 496;
+    scan.meta.scale_x_mm = 4.35 / 384;
+    scan.meta.scale_z_mm = 0.0038717;
+    scan.meta.distance_mm = 4.35 / 144;
+    scan.bscans.resize(145);
+    OnhResult ok;
+    ok.ellipse.centre_mm = {2.2, 2.1};
+    ok.ellipse.semi_major_mm = 0.9;
+    ok.ellipse.semi_minor_mm = 0.76;
+    ok.ellipse.area_mm2 = std::numbers::pi * 0.9 * 0.76;
+    ok.cup_volume_mm3 = 0.13;
+    ok.bmo_volume_mm3 = 0.45;
+    ok.total_volume_mm3 = 2.5;
+    ok.annular_volume_mm3 = 2.1;
+    ok.conht_mm = -0.3;
+    ok.ilm_centre_height_mm = -1.49;
+    ok.rpe_centre_height_mm = -1.19;
+    ok.mrw_mm = {0.28, 0.30, 0.33};
+    ok.mrw_mean_mm = 0.30;
+    ok.mrw_min_mm = 0.28;
+    ok.mrw_max_mm = 0.33;
+    ok.mrw_area_mm2 = 1.34;
+    ok.bending_energy = 0.57;
+    ok.bmo_region_area_mm2 = 3.5;
+    EXPECT_NO_THROW(check_onh_result(ok, scan));
+    OnhResult missing = ok;  // not measured is not impossible
+    missing.conht_mm = OnhResult::kMissing;
+    missing.bending_energy = OnhResult::kMissing;
+    EXPECT_NO_THROW(check_onh_result(missing, scan));
+    auto refused = [&](auto change, const std::string& phrase) {
+        OnhResult r = ok;
+        change(r);
+        try {
+            check_onh_result(r, scan);
+            ADD_FAILURE() << phrase;
+        } catch (const AnalysisError& e) {
+            EXPECT_NE(std::string(e.what()).find(phrase), std::string::npos) << e.what();
+        }
+    };
+    // The measured failures of issue 19: a BMO of 14,699 mm2 on a small field, a cup of 7e28 mm3.
+    refused([](OnhResult& r) { r.ellipse.area_mm2 = 14699.0; }, "BMO area");
+    refused([](OnhResult& r) { r.ellipse.area_mm2 = std::nan(""); }, "BMO area");
+    refused([](OnhResult& r) { r.ellipse.semi_major_mm = 4.0; }, "BMO major axis");
+    refused([](OnhResult& r) { r.ellipse.centre_mm.x() = -0.5; }, "BMO centre");
+    refused([](OnhResult& r) { r.cup_volume_mm3 = 7e28; }, "cup volume");
+    refused([](OnhResult& r) { r.total_volume_mm3 = -0.1; }, "total volume");
+    refused([](OnhResult& r) { r.conht_mm = 2.5; }, "CONHT");
+    refused([](OnhResult& r) { r.mrw_mm[1] = std::numeric_limits<double>::infinity(); }, "MRW");
+    refused([](OnhResult& r) { r.mrw_mean_mm = -0.01; }, "mean MRW");
+    refused([](OnhResult& r) { r.bending_energy = -1.0; }, "bending energy");
 }
 
 }  // namespace

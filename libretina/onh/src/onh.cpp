@@ -9,6 +9,7 @@
 #include <numbers>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
 
 #include "octshape/error.h"
 #include "octshape/mesh/closest_point.h"
@@ -241,6 +242,7 @@ OnhResult analyse_onh(const io::Scan& scan,
     ilm_regions(ilm, params, r);
     centre_and_shape(g, params, r);
     minimum_rim_width(geo, r);
+    check_onh_result(r, scan);
     r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return r;
 }
@@ -269,6 +271,80 @@ double top_crossing(const mesh::Vertices& V, const mesh::Faces& F, double x, dou
         best = std::max(best, l0 * a.z() + l1 * b.z() + l2 * c.z());
     }
     return std::isfinite(best) ? best : kNaN;
+}
+
+void check_onh_result(const OnhResult& r, const io::Scan& scan) {
+    const double width = (scan.meta.size_x - 1) * scan.meta.scale_x_mm;
+    const double height = (scan.num_bscans() - 1) * scan.meta.distance_mm;
+    const double depth = scan.meta.size_z * scan.meta.scale_z_mm;
+    const double field = width * height;
+    auto fmt = [](double v) {
+        std::ostringstream o;
+        o.precision(4);
+        o << v;
+        return o.str();
+    };
+    auto refuse = [&](const std::string& what, double v, const std::string& possible) {
+        throw AnalysisError("impossible result: " + what + " " + fmt(v) + " (possible: " +
+                            possible + "); the scan is probably not of an optic nerve head, or "
+                            "its segmentation is broken");
+    };
+    const BmoEllipse& e = r.ellipse;
+    // Present: the BMO and the ILM surface always are, by now.
+    for (const auto& [name, v] : {std::pair<const char*, double>{"BMO area (mm2)", e.area_mm2},
+                                  {"BMO semi-major axis (mm)", e.semi_major_mm},
+                                  {"BMO semi-minor axis (mm)", e.semi_minor_mm},
+                                  {"BMO centre x (mm)", e.centre_mm.x()},
+                                  {"BMO centre y (mm)", e.centre_mm.y()}}) {
+        if (!std::isfinite(v)) refuse(name, v, "a finite number");
+    }
+    if (!(e.area_mm2 > 0.0) || e.area_mm2 > field) {
+        refuse("BMO area (mm2)", e.area_mm2, "(0, " + fmt(field) + "], the scanned field");
+    }
+    if (2.0 * e.semi_major_mm > std::hypot(width, height)) {
+        refuse("BMO major axis (mm)", 2.0 * e.semi_major_mm,
+               "at most the field's diagonal " + fmt(std::hypot(width, height)));
+    }
+    if (e.centre_mm.x() < 0.0 || e.centre_mm.x() > width || e.centre_mm.y() < 0.0 ||
+        e.centre_mm.y() > height) {
+        refuse("BMO centre x (mm)", e.centre_mm.x(),
+               "inside the field [0, " + fmt(width) + "] x [0, " + fmt(height) + "]");
+    }
+    // Volumes: between the ILM and the RPE, inside the scanned box. NaN = not measured.
+    const double box = field * depth;
+    for (const auto& [name, v] :
+         {std::pair<const char*, double>{"cup volume (mm3)", r.cup_volume_mm3},
+          {"BMO volume (mm3)", r.bmo_volume_mm3},
+          {"total volume (mm3)", r.total_volume_mm3},
+          {"annular volume (mm3)", r.annular_volume_mm3}}) {
+        if (std::isinf(v) || (std::isfinite(v) && (v < 0.0 || v > box))) {
+            refuse(name, v, "[0, " + fmt(box) + "], the scanned box");
+        }
+    }
+    // Lengths within the image's depth (heights) or its diagonal (MRW, a 3-D distance).
+    const double diagonal = std::sqrt(width * width + height * height + depth * depth);
+    for (const auto& [name, v, limit] :
+         {std::tuple<const char*, double, double>{"CONHT (mm)", std::fabs(r.conht_mm), depth},
+          {"ILM height at the BMO centre (mm)", std::fabs(r.ilm_centre_height_mm), depth},
+          {"RPE height at the BMO centre (mm)", std::fabs(r.rpe_centre_height_mm), depth},
+          {"mean MRW (mm)", r.mrw_mean_mm, diagonal},
+          {"minimum MRW (mm)", r.mrw_min_mm, diagonal},
+          {"maximum MRW (mm)", r.mrw_max_mm, diagonal}}) {
+        if (std::isinf(v) || (std::isfinite(v) && (v < 0.0 || v > limit))) {
+            refuse(name, v, "[0, " + fmt(limit) + "]");
+        }
+    }
+    for (const double v : r.mrw_mm) {
+        if (!std::isfinite(v) || v < 0.0 || v > diagonal) {
+            refuse("MRW at a BMO point (mm)", v, "[0, " + fmt(diagonal) + "]");
+        }
+    }
+    for (const auto& [name, v] :
+         {std::pair<const char*, double>{"MRW area (mm2)", r.mrw_area_mm2},
+          {"bending energy", r.bending_energy},
+          {"ILM area inside the BMO (mm2)", r.bmo_region_area_mm2}}) {
+        if (std::isinf(v) || (std::isfinite(v) && v < 0.0)) refuse(name, v, ">= 0, finite");
+    }
 }
 
 void check_onh_inputs(const io::Scan& scan, const ScanGeometry& geo, const IlmSurface& ilm,

@@ -64,6 +64,13 @@ void centre_and_shape(const mesh::FaceGeometry& g, const OnhParams& params, OnhR
 // without a point) and mrw_area_mm2.
 void minimum_rim_width(const ScanGeometry& geo, OnhResult& r);
 
+// The last gate: a result that is not finite where it is reported, or not physically possible
+// (a BMO ellipse larger than the scanned field or centred outside it; a volume negative or
+// larger than the scanned box; a CONHT, MRW or surface height beyond the image's depth) is
+// refused with AnalysisError naming the value, what was found and what is possible. A success
+// never carries one (docs/algorithms/onh.md "What the analysis refuses").
+void check_onh_result(const OnhResult& r, const io::Scan& scan);
+
 // Height of the topmost crossing of the vertical line through (x, y) with the mesh: what the
 // line meets first coming from the vitreous (SPEC §5.6 CONHT). NaN if it misses the mesh.
 [[nodiscard]] double top_crossing(const mesh::Vertices& V, const mesh::Faces& F, double x,
