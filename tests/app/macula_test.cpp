@@ -166,3 +166,35 @@ TEST(MaculaCli, BadOptionIsAUsageError) {
 
 }  // namespace
 }  // namespace octshape
+
+namespace octshape {
+namespace {
+
+// Every refusal of an analysis is one line that names the file (issue: messages that do not
+// say which of a thousand files failed are useless in a batch log).
+TEST(AnalysisCli, EveryRefusalNamesTheFile) {
+    test::TempDir dir;
+    const std::string circle = test::realdata("onh_circle_716_2.vol").string();
+    const std::string macula = (test::source_dir() / "sample_scans/macula_bezier_od.vol").string();
+    const std::string line = (test::source_dir() / "sample_scans/macula_line_od.vol").string();
+    struct Case {
+        std::string args;
+        std::string file;
+    };
+    const std::vector<Case> cases = {
+        {"macula '" + circle + "'", circle},                       // wrong pattern
+        {"onh '" + circle + "' --ilm device", circle},             // wrong pattern
+        {"onh '" + macula + "' --ilm device", macula},             // no BMO in a macula volume
+        {"onh '" + line + "' --ilm device", line},                 // a line is not a volume
+        {"macula '" + macula + "' --etdrs-layers ILM,NOSUCH", macula},  // a line the scan lacks
+    };
+    for (const Case& c : cases) {
+        const auto r = test::run_octshape(c.args + " -o '" + (dir / "x.json").string() + "'");
+        EXPECT_EQ(r.exit_code, 69) << c.args << "\n" << r.err;
+        EXPECT_NE(r.err.find(c.file + ": "), std::string::npos) << c.args << "\n" << r.err;
+        EXPECT_FALSE(std::filesystem::exists(dir / "x.json")) << c.args;
+    }
+}
+
+}  // namespace
+}  // namespace octshape
