@@ -180,7 +180,11 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(Case{MaculaFamily::kBezier, io::Laterality::kOD, 61},
                       Case{MaculaFamily::kBezier, io::Laterality::kOS, 61},
                       Case{MaculaFamily::kScheibe, io::Laterality::kOD, 61},
-                      Case{MaculaFamily::kScheibe, io::Laterality::kOS, 25}));
+                      Case{MaculaFamily::kScheibe, io::Laterality::kOS, 25}),
+    [](const ::testing::TestParamInfo<Case>& i) {
+        return to_string(i.param.family) + "_" + std::string(io::to_string(i.param.eye)) + "_" +
+               std::to_string(i.param.bscans);
+    });
 
 TEST(Etdrs, DeviceGridIsComparedSectorBySector) {
     // The phantom stores a device-like grid 50 um from the fovea: its cells are the generating

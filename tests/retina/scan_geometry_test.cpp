@@ -104,5 +104,21 @@ TEST(ScanGeometry, NoPositionsFallsBackToDocumentedDefault) {
     EXPECT_TRUE(g.y_is_superior());
 }
 
+TEST(ScanGeometry, IdenticalBscanPositionsDoNotOrientAVolume) {
+    // Every B-scan at the first one's place: the lines' direction is known, the volume's is not
+    // (a copy-pasted header, a broken export): the orientation is assumed, and says so.
+    io::Scan s = volume(io::Laterality::kOD, 5, 0.125);
+    for (auto& b : s.bscans) b = s.bscans.front();
+    const ScanGeometry g(s);
+    EXPECT_FALSE(g.oriented_from_positions());
+    EXPECT_FALSE(g.spacing().positions_known);
+    EXPECT_TRUE(g.x_is_nasal());
+    EXPECT_TRUE(g.y_is_superior());
+    // One B-scan (a line scan) at its position is oriented by it.
+    s.bscans.resize(1);
+    s.meta.pattern = io::ScanPattern::kLine;
+    EXPECT_TRUE(ScanGeometry(s).oriented_from_positions());
+}
+
 }  // namespace
 }  // namespace octshape::retina

@@ -74,6 +74,9 @@ ScanGeometry::ScanGeometry(const io::Scan& scan)
                 ey = across.normalized();
             } else {
                 ey = Eigen::Vector2d(ex.y(), -ex.x());
+                // Several B-scans at one position: which way the volume runs is assumed, so
+                // the orientation does not come from the positions.
+                if (scan.num_bscans() > 1) from_positions_ = false;
             }
         }
     }

@@ -359,6 +359,12 @@ void check_onh_inputs(const io::Scan& scan, const ScanGeometry& geo, const IlmSu
     if (!geo.spacing().uniform || !geo.spacing().matches_header) {
         r.qc_flags.push_back("B-scan spacing not uniform or not matching the header Distance");
     }
+    if (!geo.oriented_from_positions()) {
+        r.qc_flags.push_back("orientation assumed (B-scan positions unusable)");
+    }
+    if (scan.meta.pattern == io::ScanPattern::kUnknown) {
+        r.qc_flags.push_back("scan pattern unknown: analysed as a volume");
+    }
     if (ilm.F.rows() == 0) throw AnalysisError("the ILM surface has no faces");
     try {
         mesh::validate_mesh(ilm.V, ilm.F);

@@ -61,8 +61,9 @@ public:
     [[nodiscard]] bool y_is_superior() const { return to_anat_(1, 1) > 0.0; }
 
     [[nodiscard]] const SpacingReport& spacing() const { return spacing_; }
-    // True when the B-scan positions on the SLO were usable to orient the grid; otherwise
-    // the documented default (first B-scan inferior, A-scans left to right) was assumed.
+    // True when the B-scan positions on the SLO were usable to orient the grid (a volume's
+    // B-scans must also lie at different positions); otherwise the documented default (first
+    // B-scan inferior, A-scans left to right) was assumed for what they do not tell.
     [[nodiscard]] bool oriented_from_positions() const { return from_positions_; }
 
 private:
