@@ -59,6 +59,9 @@ int main(int argc, char** argv) {
     app.add_flag("-q,--quiet", quiet, "Only print errors on stderr");
     app.add_flag("-v,--verbose", verbose, "More detail on stderr (-vv for trace)");
     app.parse_complete_callback([&] { configure_logging(quiet, verbose); });
+    // -q / -v anywhere on the line: after the subcommand too (`octshape macula FILE -v`); every
+    // subcommand added below inherits this.
+    app.fallthrough();
 
     octshape::app::RunContext ctx;
     octshape::app::add_denoise_command(app, ctx);

@@ -167,7 +167,7 @@ Setup prepare(CohortOptions& o) {
     if (!(o.eye_timeout_s >= 0.0)) throw UsageError("--eye-timeout-s must be >= 0");
     Setup s;
     const int cores = static_cast<int>(std::thread::hardware_concurrency());
-    s.jobs = o.jobs > 0 ? o.jobs : std::max(1, cores);
+    s.jobs = o.jobs > 0 ? o.jobs : std::max(1, cores);  // 0: not given
     o.eye.params.tau_mm = o.eye.tau_um * 1e-3;
     o.eye.params.validate();
     for (const auto& in : o.inputs) {  // before anything is written
@@ -375,7 +375,9 @@ void add_cohort_command(CLI::App& app, RunContext& ctx) {
         "Exit 0: all eyes done; 1: some inputs failed (listed in failures.csv)");
     cmd->add_option("inputs", opts->inputs, "Folders (searched recursively) or files")
         ->required();
-    cmd->add_option("-j,--jobs", opts->jobs, "Eyes analysed at once (default: one per core)");
+    // Given, it must be a count: --jobs 0 is a mistake, not "the default" (leave it out).
+    cmd->add_option("-j,--jobs", opts->jobs, "Eyes analysed at once (default: one per core)")
+        ->check(CLI::PositiveNumber);
     cmd->add_flag("--list", *list_only,
                   "Analyse nothing: print one JSON line {key, type, file} per input the run "
                   "would analyse (type: macula, onh or unknown), for a workflow to plan its jobs");

@@ -43,11 +43,30 @@ TEST(Cli, EveryBadOptionValueIsTheSameUsageError) {
     for (const std::string& args : std::vector<std::string>{
              "denoise in.ply -o out.ply --method nonsense", "denoise in.ply -o out.ply -p abc",
              "denoise in.ply -o out.ply --no-such-option", "macula " + scan + " --rim nowhere",
-             "macula " + scan + " --half-lines 5"}) {
+             "macula " + scan + " --half-lines 5", "cohort " + scan + " -o out --jobs 0",
+             "cohort " + scan + " -o out --jobs -2", "macula " + scan + " --bm-surface rpe",
+             "macula " + scan + " --etdrs-layers ILM"}) {
         const RunResult r = run_octshape(args);
         EXPECT_EQ(r.exit_code, 64) << args << "\n" << r.err;
         EXPECT_FALSE(r.err.empty()) << args;
     }
+}
+
+TEST(Cli, QuietAndVerboseWorkAfterTheSubcommandToo) {
+    // `octshape macula FILE -q` as well as `octshape -q macula FILE`: the info lines go, the
+    // result stays; -v after the subcommand is accepted (it was an unknown option, exit 64).
+    const std::string scan = std::string(OCTSHAPE_SOURCE_DIR) + "/sample_scans/macula_line_od.vol";
+    TempDir dir;
+    const std::string out = " -o " + (dir / "eye.json").string();
+    const RunResult normal = run_octshape("macula " + scan + out);
+    const RunResult before = run_octshape("-q macula " + scan + out);
+    const RunResult after = run_octshape("macula " + scan + out + " -q");
+    const RunResult verbose = run_octshape("macula " + scan + out + " -vv");
+    for (const RunResult* r : {&normal, &before, &after, &verbose}) EXPECT_EQ(r->exit_code, 0) << r->err;
+    EXPECT_NE(normal.err.find("info:"), std::string::npos) << normal.err;
+    EXPECT_EQ(before.err.find("info:"), std::string::npos) << before.err;
+    EXPECT_EQ(after.err.find("info:"), std::string::npos) << after.err;
+    EXPECT_NE(verbose.err.find("info:"), std::string::npos) << verbose.err;
 }
 
 }  // namespace
