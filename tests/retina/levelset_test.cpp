@@ -457,6 +457,27 @@ TEST(LevelSet, RefusesScansWithoutPixelsOrVolume) {
     EXPECT_THROW((void)levelset_ilm(no_ilm), AnalysisError);
 }
 
+// Pixels that hold no image (all zero, all NaN, all 1e30, the "no data" marker everywhere,
+// all negative): the level set must not hang, crash or return the device line as if it had
+// segmented something: it refuses with AnalysisError saying why.
+TEST(LevelSet, PixelsWithoutAnImageAreRefused) {
+    OnhPhantomParams p = reduced(OnhShape::kCupped);
+    p.num_bscans = 9;
+    p.num_ascans = 64;
+    const io::Scan scan = render_onh_scan(p);
+    for (const float v : {0.0F, std::numeric_limits<float>::quiet_NaN(), 1e30F, io::kNoPixelData,
+                          -1.0F}) {
+        io::Scan s = scan;
+        for (auto& b : s.bscans) std::fill(b.pixels.begin(), b.pixels.end(), v);
+        try {
+            (void)levelset_ilm(s);
+            ADD_FAILURE() << "pixels " << v << ": a surface";
+        } catch (const AnalysisError& e) {
+            EXPECT_NE(std::string(e.what()).find("--ilm device"), std::string::npos) << e.what();
+        }
+    }
+}
+
 // The releasing variant gives the same surface and frees the pixels.
 TEST(LevelSet, ReleasingVariantGivesTheSameSurface) {
     OnhPhantomParams p = reduced(OnhShape::kSwollen);

@@ -112,6 +112,27 @@ DeviceIlm device_ilm(const io::Scan& scan) {
     for (const auto& bs : scan.bscans) {
         if (bs.pixels.size() != npx) throw AnalysisError("level-set ILM: a B-scan has no pixels");
     }
+    // An image: some contrast among the pixels that hold data (the evolution reads max(v, 0)).
+    // Without it (all zero, all "no data", NaN or 1e30) the surface would stay where the device
+    // line started it and be reported as a segmentation of pixels that show nothing.
+    float lo = std::numeric_limits<float>::infinity();
+    float hi = -std::numeric_limits<float>::infinity();
+    for (const auto& bs : scan.bscans) {
+        for (const float v : bs.pixels) {
+            if (std::isnan(v) || !(v < io::kInvalidThreshold)) continue;
+            const float u = std::max(v, 0.0F);
+            lo = std::min(lo, u);
+            hi = std::max(hi, u);
+        }
+    }
+    if (!(hi > lo)) {
+        throw AnalysisError(
+            std::isfinite(lo)
+                ? "level-set ILM: the B-scans hold no image (every pixel with data is " +
+                      std::to_string(lo) + "); --ilm device uses the device's ILM line instead"
+                : std::string("level-set ILM: no pixel holds data (all missing, NaN or "
+                              "invalid); --ilm device uses the device's ILM line instead"));
+    }
     out.h = {meta.scale_x_mm, meta.distance_mm, meta.scale_z_mm};
     // Device ILM (pixels), missing values filled for the initialisation and clipped later.
     const auto ncol = static_cast<std::size_t>(nb) * static_cast<std::size_t>(na);
