@@ -230,8 +230,12 @@ void run(CohortOptions& o, RunContext& ctx) {
     }
     const std::size_t resumed = items.size() - pending.size();
     spdlog::info("{} exports found, {} already done (results or recorded failures), {} to do, "
-                 "{} job(s)",
-                 items.size(), resumed, pending.size(), s.jobs);
+                 "{} job(s){}",
+                 items.size(), resumed, pending.size(), s.jobs,
+                 skipped.empty() ? std::string()
+                                 : "; " + std::to_string(skipped.size()) +
+                                       " other file(s) named as exports are not readable "
+                                       "exports (recorded as failures)");
     const auto refingerprinted = std::count_if(items.begin(), items.end(),
                                                [](const Item& it) { return it.refingerprinted; });
     if (refingerprinted > 0) {

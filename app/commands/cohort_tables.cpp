@@ -87,8 +87,16 @@ CohortTables write_cohort_tables(const fs::path& out, const std::vector<Item>& i
     io::write_text_atomically((private_dir / "failures.csv").string(),
                               failures_csv(items, skipped, true));
     io::write_text_atomically((private_dir / "inputs.csv").string(), inputs_csv(items, skipped));
-    spdlog::info("{} eyes in {}, {} failed (see {})", eyes.size(), (out / "eyes.csv").string(),
-                 failed, (out / "failures.csv").string());
+    // Each count once, naming the table that holds it.
+    const auto onh_eyes = static_cast<std::size_t>(
+        std::count_if(eyes.begin(), eyes.end(), [](const nlohmann::json& e) {
+            return e.contains("cohort") && e["cohort"].value("scan_type", std::string()) == "onh";
+        }));
+    std::string where = std::to_string(eyes.size() - onh_eyes) + " in " + (out / "eyes.csv").string();
+    if (any_onh) where += ", " + std::to_string(onh_eyes) + " in " + (out / "eyes_onh.csv").string();
+    spdlog::info("{} eyes analysed ({}); {} failed (see {}; their paths in {})", eyes.size(),
+                 where, failed, (out / "failures.csv").string(),
+                 (private_dir / "failures.csv").string());
     if (qc) {
         const GalleryResult g = write_qc_gallery(out);
         spdlog::info("QC gallery: {} ({} eyes, {} failures, {} pictures)",

@@ -203,6 +203,11 @@ TEST(CohortCli, AnalysesEveryEyeAndRecordsEveryBadFile) {
     ASSERT_EQ(onh[1].size(), onh[0].size());
     EXPECT_EQ(onh[1][3], "onh");
     EXPECT_EQ(name.at(onh[1][4]), "onh.vol");
+    // The summary counts each table once and names it: 3 maculae, 1 ONH.
+    EXPECT_NE(r.err.find("4 eyes analysed (3 in " + (out / "eyes.csv").string() + ", 1 in " +
+                         (out / "eyes_onh.csv").string() + ")"),
+              std::string::npos)
+        << r.err;
 
     // One JSON per eye, named by its key; no identifier anywhere; no temporary left.
     std::size_t n_json = 0;
