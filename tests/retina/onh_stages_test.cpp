@@ -180,5 +180,45 @@ TEST(OnhStages, ResultGateRefusesWhatNoEyeCanHave) {
     refused([](OnhResult& r) { r.bending_energy = -1.0; }, "bending energy");
 }
 
+// The MRW area's closest-point curve: a circle with point-to-point jitter (the closest points
+// jumping between facets) low-passed back to the circle, and the strip between it and a
+// concentric circle below (a frustum's lateral area, known in closed form) measured within
+// 0.1 % of the exact value; unsmoothed, the jitter inflates it by several percent.
+TEST(OnhStages, LowPassRemovesClosestPointJitterFromTheMrwArea) {
+    constexpr int n = 360;
+    const double rb = 0.9;   // BMO circle radius
+    const double rq = 0.75;  // closest-point circle radius, 0.3 mm above
+    std::vector<Eigen::Vector3d> p(n);
+    std::vector<Eigen::Vector3d> q(n);
+    for (int i = 0; i < n; ++i) {
+        const double t = 2.0 * std::numbers::pi * i / n;
+        p[static_cast<std::size_t>(i)] = {rb * std::cos(t), rb * std::sin(t), 0.0};
+        // +-12 um of alternating jitter, as on a mesh of ~10 um facets.
+        const double j = (i % 2 == 0 ? 1.0 : -1.0) * 0.012;
+        q[static_cast<std::size_t>(i)] = {(rq + j) * std::cos(t), (rq + j) * std::sin(t),
+                                          0.3 + 0.5 * j};
+    }
+    auto strip = [&](const std::vector<Eigen::Vector3d>& c) {
+        double a = 0.0;
+        for (int i = 0; i < n; ++i) {
+            const auto u = static_cast<std::size_t>(i);
+            const auto v = static_cast<std::size_t>((i + 1) % n);
+            a += 0.5 * (c[v] - p[u]).cross(c[u] - p[v]).norm();
+        }
+        return a;
+    };
+    // Frustum: pi (rb + rq) slant; the 360-gon's area is below it by ~ (pi/n)^2 / 6 = 1.3e-5.
+    const double exact = std::numbers::pi * (rb + rq) * std::hypot(rb - rq, 0.3);
+    const auto smooth = low_pass_closed_curve(q, 24);
+    EXPECT_NEAR(strip(smooth) / exact, 1.0, 1e-3);
+    EXPECT_GT(strip(q) / exact, 1.02);  // the jitter's inflation the low-pass removes
+    // The harmonics follow the scan's sampling: 4 steps of the coarser direction.
+    EXPECT_EQ(mrw_area_harmonics(5.2, 0.0113, 0.0302), static_cast<int>(5.2 / (4 * 0.0302)));
+    EXPECT_EQ(mrw_area_harmonics(0.1, 0.0113, 0.0302), 8);
+    // A curve too short for the harmonics comes back as it is.
+    const std::vector<Eigen::Vector3d> few(5, Eigen::Vector3d(1.0, 2.0, 3.0));
+    EXPECT_EQ(low_pass_closed_curve(few, 24), few);
+}
+
 }  // namespace
 }  // namespace octshape::retina::onh_detail

@@ -575,14 +575,51 @@ void minimum_rim_width(const ScanGeometry& geo, OnhResult& r) {
         r.mrw_sector_mm[k] =
             r.mrw_sector_points[k] > 0 ? sector_sum[k] / r.mrw_sector_points[k] : kNaN;
     }
-    // Eq. 8.23: quad i = (p_i, p_i+1, q_i+1, q_i), area = |d1 x d2| / 2 with its diagonals.
+    // Eq. 8.23: quad i = (p_i, p_i+1, q_i+1, q_i), area = |d1 x d2| / 2 with its diagonals --
+    // on the closest-point curve low-passed to kMrwAreaHarmonics harmonics: the closest points
+    // on a rough (segmented, meshed) ILM jump between facets from one BMO point to the next,
+    // and that jitter lengthens the strip's ILM edge without changing any MRW
+    // (docs/algorithms/onh.md "MRW area").
+    double perimeter = 0.0;
+    for (std::size_t i = 0; i < np; ++i) {
+        perimeter += (E.points_mm[(i + 1) % np] - E.points_mm[i]).norm();
+    }
+    const std::vector<Eigen::Vector3d> q = low_pass_closed_curve(
+        r.mrw_points_mm, mrw_area_harmonics(perimeter, geo.scale_x_mm(), geo.distance_mm()));
     r.mrw_area_mm2 = 0.0;
     for (std::size_t i = 0; i < np; ++i) {
         const std::size_t j = (i + 1) % np;
-        r.mrw_area_mm2 +=
-            0.5 *
-            (r.mrw_points_mm[j] - E.points_mm[i]).cross(r.mrw_points_mm[i] - E.points_mm[j]).norm();
+        r.mrw_area_mm2 += 0.5 * (q[j] - E.points_mm[i]).cross(q[i] - E.points_mm[j]).norm();
     }
+}
+
+int mrw_area_harmonics(double bmo_perimeter_mm, double dx_mm, double dy_mm) {
+    const double step = 4.0 * std::max(dx_mm, dy_mm);
+    if (!(step > 0.0) || !std::isfinite(bmo_perimeter_mm)) return 8;
+    return std::max(8, static_cast<int>(std::min(1e6, bmo_perimeter_mm / step)));
+}
+
+std::vector<Eigen::Vector3d> low_pass_closed_curve(const std::vector<Eigen::Vector3d>& c,
+                                                   int harmonics) {
+    const std::size_t n = c.size();
+    if (harmonics < 0 || n <= static_cast<std::size_t>(2 * harmonics + 1)) return c;
+    const double w = 2.0 * std::numbers::pi / static_cast<double>(n);
+    std::vector<Eigen::Vector3d> out(n, Eigen::Vector3d::Zero());
+    for (int k = 0; k <= harmonics; ++k) {
+        Eigen::Vector3d a = Eigen::Vector3d::Zero();
+        Eigen::Vector3d b = Eigen::Vector3d::Zero();
+        for (std::size_t i = 0; i < n; ++i) {
+            const double t = w * static_cast<double>(k) * static_cast<double>(i);
+            a += c[i] * std::cos(t);
+            b += c[i] * std::sin(t);
+        }
+        const double scale = (k == 0 ? 1.0 : 2.0) / static_cast<double>(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            const double t = w * static_cast<double>(k) * static_cast<double>(i);
+            out[i] += scale * (a * std::cos(t) + b * std::sin(t));
+        }
+    }
+    return out;
 }
 
 }  // namespace onh_detail

@@ -64,6 +64,19 @@ void centre_and_shape(const mesh::FaceGeometry& g, const OnhParams& params, OnhR
 // without a point) and mrw_area_mm2.
 void minimum_rim_width(const ScanGeometry& geo, OnhResult& r);
 
+// Harmonics kept of the closest-point curve for the MRW area (Eq. 8.23): its wavelengths down
+// to 4 sampling steps of the scan's coarser lateral direction (max(ScaleX, Distance)): what the
+// segmented, meshed ILM resolves (2 steps, Nyquist) with a factor 2 of margin. Shorter ones are
+// the closest points' jumps between facets from one BMO point to the next
+// (docs/algorithms/onh.md "MRW area"). At least 8.
+[[nodiscard]] int mrw_area_harmonics(double bmo_perimeter_mm, double dx_mm, double dy_mm);
+
+// A closed curve sampled uniformly in its parameter, low-passed: the truncated discrete Fourier
+// series of each coordinate up to `harmonics`. A curve of at most 2 harmonics + 1 points is
+// returned as it is.
+[[nodiscard]] std::vector<Eigen::Vector3d> low_pass_closed_curve(
+    const std::vector<Eigen::Vector3d>& c, int harmonics);
+
 // The last gate: a result that is not finite where it is reported, or not physically possible
 // (a BMO ellipse larger than the scanned field or centred outside it; a volume negative or
 // larger than the scanned box; a CONHT, MRW or surface height beyond the image's depth) is
