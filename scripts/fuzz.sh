@@ -3,7 +3,7 @@
 # UBSan): configures and builds the `fuzz` preset, writes seed corpora (write_vol; the tests'
 # Iowa document fixture), fuzzes the .vol reader for SECONDS (default 60) and the Iowa reader
 # for half as long.
-# Exits non-zero if the fuzzer finds a crash, a sanitizer report, a leak or a timeout; the
+# Exits non-zero if a fuzzer finds a crash, a sanitizer report, a leak or a timeout; the
 # reproducer is left in build/fuzz/vol/artifacts/ (build/fuzz/iowa/artifacts/).
 # Usage: scripts/fuzz.sh [SECONDS]
 set -euo pipefail
@@ -13,21 +13,21 @@ jobs=$(nproc)
 echo "== configure + build (fuzz)"
 cmake --preset fuzz >/dev/null
 cmake --build --preset fuzz -j "$jobs" --target vol_fuzz make_vol_seeds iowa_fuzz make_iowa_seeds
-work=build/fuzz/vol
-mkdir -p "$work/corpus" "$work/artifacts"
-rm -rf "$work/seeds"
-build/fuzz/tests/fuzz/make_vol_seeds "$work/seeds"
-echo "== fuzz .vol reader for ${secs} s"
-# max_len: the seeds are 1.5-4 kB; 16 kB leaves room to grow every structure.
-build/fuzz/tests/fuzz/vol_fuzz -max_total_time="$secs" -max_len=16384 -rss_limit_mb=2048 \
-  -timeout=10 -print_final_stats=1 -artifact_prefix="$work/artifacts/" \
-  "$work/corpus" "$work/seeds"
-work=build/fuzz/iowa
-mkdir -p "$work/corpus" "$work/artifacts"
-rm -rf "$work/seeds"
-build/fuzz/tests/fuzz/make_iowa_seeds "$work/seeds"
-echo "== fuzz Iowa surfaces reader for $((secs / 2)) s"
-# max_len: the seeds are 1-3 kB of XML.
-build/fuzz/tests/fuzz/iowa_fuzz -max_total_time="$((secs / 2))" -max_len=8192 -rss_limit_mb=2048 \
-  -timeout=10 -print_final_stats=1 -artifact_prefix="$work/artifacts/" \
-  "$work/corpus" "$work/seeds"
+
+# fuzz NAME WHAT SECONDS MAX_LEN: seeds from make_NAME_seeds, then NAME_fuzz on them.
+fuzz() {
+  local name=$1 what=$2 time=$3 max_len=$4
+  local work=build/fuzz/$name
+  mkdir -p "$work/corpus" "$work/artifacts"
+  rm -rf "$work/seeds"
+  "build/fuzz/tests/fuzz/make_${name}_seeds" "$work/seeds"
+  echo "== fuzz $what for ${time} s"
+  "build/fuzz/tests/fuzz/${name}_fuzz" -max_total_time="$time" -max_len="$max_len" \
+    -rss_limit_mb=2048 -timeout=10 -print_final_stats=1 -artifact_prefix="$work/artifacts/" \
+    "$work/corpus" "$work/seeds"
+}
+
+# max_len: the .vol seeds are 1.5-4 kB (16 kB leaves room to grow every structure); the Iowa
+# seeds 1-3 kB of XML.
+fuzz vol ".vol reader" "$secs" 16384
+fuzz iowa "Iowa surfaces reader" "$((secs / 2))" 8192

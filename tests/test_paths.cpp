@@ -69,18 +69,32 @@ TempDir::~TempDir() {
     std::filesystem::remove_all(path_, ec);
 }
 
-RunResult run_octshape(const std::string& args) {
+namespace {
+
+RunResult run_through_shell(const std::string& prefix, const std::string& args, bool signals) {
     TempDir tmp;
     const auto out = tmp / "stdout";
     const auto err = tmp / "stderr";
-    const std::string cmd = "'" + exe() + "' " + args + " >'" + out.string() + "' 2>'" +
+    const std::string cmd = prefix + "'" + exe() + "' " + args + " >'" + out.string() + "' 2>'" +
                             err.string() + "' </dev/null";
     const int status = std::system(cmd.c_str());
     RunResult r;
-    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    if (WIFEXITED(status)) {
+        r.exit_code = WEXITSTATUS(status);
+    } else {
+        r.exit_code = signals ? 128 + WTERMSIG(status) : -1;
+    }
     r.out = slurp(out);
     r.err = slurp(err);
     return r;
+}
+
+}  // namespace
+
+RunResult run_octshape(const std::string& args) { return run_through_shell("", args, false); }
+
+RunResult run_octshape_limited(const std::string& args, int seconds) {
+    return run_through_shell("timeout -s KILL " + std::to_string(seconds) + " ", args, true);
 }
 
 }  // namespace octshape::test

@@ -50,5 +50,8 @@ struct RunResult {
 };
 // Runs `octshape ARGS` (args are passed through the shell verbatim: quote them yourself).
 RunResult run_octshape(const std::string& args);
+// The same, killed (SIGKILL) after `seconds`; a run ended by a signal has exit code 128 + the
+// signal (a run killed at the limit: 137), as a shell reports it.
+RunResult run_octshape_limited(const std::string& args, int seconds);
 
 }  // namespace octshape::test

@@ -65,14 +65,8 @@ std::string onh_options_text(const OnhEyeOptions& o) {
     const retina::ScanTypeParams classifier;
     std::ostringstream s;
     s.precision(17);
-    std::string bmo = "automatic";
-    if (!o.bmo_file.empty()) {
-        try {
-            bmo = "sha256:" + io::sha256_file(o.bmo_file);
-        } catch (const Error&) {
-            bmo = "unreadable";  // the analysis reports it with the file's name
-        }
-    }
+    const std::string bmo = o.bmo_file.empty() ? std::string("automatic")
+                                                : file_fingerprint(o.bmo_file);
     s << "onh ilm=" << o.ilm << " bmo=" << bmo << " bmo_points=" << p.bmo_points
       << " disc_radius_mm=" << p.disc_radius_mm
       << " min_gap_area_mm2=" << p.detection.min_gap_area_mm2

@@ -42,16 +42,17 @@ nlohmann::ordered_json apply_segmentation_file(io::Scan& scan,
     return j;
 }
 
-std::string segmentation_options_text(const SegmentationOptions& o) {
-    std::string seg = "none";
-    if (!o.file.empty()) {
-        try {
-            seg = "sha256:" + io::sha256_file(o.file);
-        } catch (const Error&) {
-            seg = "unreadable";  // the analysis reports it with the file's name
-        }
+std::string file_fingerprint(const std::string& path) {
+    try {
+        return "sha256:" + io::sha256_file(path);
+    } catch (const Error&) {
+        return "unreadable";  // the analysis reports it with the file's name
     }
-    return "bm_surface=" + o.bm_surface + " segmentation=" + seg;
+}
+
+std::string segmentation_options_text(const SegmentationOptions& o) {
+    return "bm_surface=" + o.bm_surface +
+           " segmentation=" + (o.file.empty() ? std::string("none") : file_fingerprint(o.file));
 }
 
 }  // namespace octshape::app

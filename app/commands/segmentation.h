@@ -30,6 +30,11 @@ void add_segmentation_options(CLI::App* cmd, SegmentationOptions& o, bool per_ey
                                                              const SegmentationOptions& o,
                                                              bool record_paths);
 
+// "sha256:HEX" of a file an analysis reads besides its input (a segmentation, BMO points), for
+// the fingerprint's text (never the path); "unreadable" when it cannot be read (the analysis
+// then reports it, naming the file).
+[[nodiscard]] std::string file_fingerprint(const std::string& path);
+
 // "bm_surface=ob_rpe segmentation=none|sha256:HEX": the fingerprint's part (never the path).
 [[nodiscard]] std::string segmentation_options_text(const SegmentationOptions& o);
 

@@ -88,20 +88,7 @@ public:
 
 private:
     std::string slurp() const {
-        std::error_code ec;
-        const std::uintmax_t size = fs::file_size(path_, ec);
-        if (ec) throw InputError::unreadable(path_, ec.message());
-        if (size > kMaxXmlBytes) {
-            throw InputError::unsupported(path_, "XML export larger than 1 GiB");
-        }
-        std::ifstream in(path_, std::ios::binary);
-        if (!in) throw InputError::unreadable(path_, "cannot open");
-        std::string doc(static_cast<std::size_t>(size), '\0');
-        in.read(doc.data(), static_cast<std::streamsize>(size));
-        if (static_cast<std::uintmax_t>(in.gcount()) != size) {
-            throw InputError::unreadable(path_, "short read");
-        }
-        return doc;
+        return detail::read_whole_file(path_, kMaxXmlBytes, "XML export");
     }
 
     const XmlNode* require(const XmlNode& parent, std::string_view name) const {
@@ -417,18 +404,7 @@ private:
 }  // namespace
 
 bool looks_like_heyex_xml(const char* head, std::size_t n) {
-    const std::string_view s(head, n);
-    // The root element name decides; declarations and comments may come first.
-    std::size_t pos = 0;
-    while ((pos = s.find('<', pos)) != std::string_view::npos) {
-        const std::string_view rest = s.substr(pos + 1);
-        if (rest.starts_with("?") || rest.starts_with("!")) {
-            ++pos;
-            continue;
-        }
-        return rest.starts_with("HEDX");
-    }
-    return false;
+    return detail::xml_root_is(std::string_view(head, n), "HEDX");
 }
 
 Scan read_heyex_xml(const std::string& path, const ReadOptions& options) {

@@ -333,19 +333,7 @@ std::string IowaSurfaces::describe() const {
 }
 
 bool looks_like_iowa_surfaces(const char* head, std::size_t n) {
-    const std::string_view s(head, n);
-    std::size_t pos = 0;
-    while ((pos = s.find('<', pos)) != std::string_view::npos) {
-        const std::string_view rest = s.substr(pos + 1);
-        if (rest.starts_with("?") || rest.starts_with("!")) {
-            ++pos;
-            continue;
-        }
-        return rest.starts_with("surfaces") &&
-               (rest.size() == 8 || rest[8] == '>' || rest[8] == ' ' || rest[8] == '\t' ||
-                rest[8] == '\r' || rest[8] == '\n');
-    }
-    return false;
+    return detail::xml_root_is(std::string_view(head, n), "surfaces");
 }
 
 IowaSurfaces parse_iowa_surfaces(std::string_view doc, const std::string& name) {
@@ -353,21 +341,7 @@ IowaSurfaces parse_iowa_surfaces(std::string_view doc, const std::string& name) 
 }
 
 IowaSurfaces read_iowa_surfaces(const std::string& path) {
-    std::error_code ec;
-    const std::uintmax_t size = fs::file_size(path, ec);
-    if (ec) throw InputError::unreadable(path, ec.message());
-    if (size > kMaxBytes) {
-        throw InputError::unsupported(path, "surfaces file larger than 64 MiB (" +
-                                                std::to_string(size >> 20U) + " MiB)");
-    }
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw InputError::unreadable(path, "cannot open");
-    std::string doc(static_cast<std::size_t>(size), '\0');
-    in.read(doc.data(), static_cast<std::streamsize>(size));
-    if (static_cast<std::uintmax_t>(in.gcount()) != size) {
-        throw InputError::unreadable(path, "short read");
-    }
-    return parse_iowa_surfaces(doc, path);
+    return parse_iowa_surfaces(detail::read_whole_file(path, kMaxBytes, "surfaces file"), path);
 }
 
 Scan iowa_scan(const IowaSurfaces& s, const std::string& path, IowaBm bm) {

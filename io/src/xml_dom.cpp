@@ -1,5 +1,9 @@
 #include "xml_dom.h"
 
+#include <fstream>
+
+#include <filesystem>
+
 #include <cctype>
 #include <cstdint>
 
@@ -238,6 +242,42 @@ const std::string* XmlNode::attribute(std::string_view n) const {
 
 XmlNode parse_xml(std::string_view doc, const std::string& path) {
     return Parser(doc, path).document();
+}
+
+bool xml_root_is(std::string_view head, std::string_view root) {
+    std::size_t pos = 0;
+    while ((pos = head.find('<', pos)) != std::string_view::npos) {
+        const std::string_view rest = head.substr(pos + 1);
+        if (rest.starts_with("?") || rest.starts_with("!")) {
+            ++pos;
+            continue;
+        }
+        if (!rest.starts_with(root)) return false;
+        // The name ends there: "<HEDX>", "<surfaces ...>", not "<surfacesX>".
+        if (rest.size() == root.size()) return true;
+        const char c = rest[root.size()];
+        return c == '>' || c == '/' || c == ' ' || c == '\t' || c == '\r' || c == '\n';
+    }
+    return false;
+}
+
+std::string read_whole_file(const std::string& path, std::uintmax_t max_bytes,
+                            const std::string& what) {
+    std::error_code ec;
+    const std::uintmax_t size = std::filesystem::file_size(path, ec);
+    if (ec) throw InputError::unreadable(path, ec.message());
+    if (size > max_bytes) {
+        throw InputError::unsupported(path, what + " larger than " +
+                                                std::to_string(max_bytes >> 20U) + " MiB");
+    }
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError::unreadable(path, "cannot open");
+    std::string doc(static_cast<std::size_t>(size), '\0');
+    in.read(doc.data(), static_cast<std::streamsize>(size));
+    if (static_cast<std::uintmax_t>(in.gcount()) != size) {
+        throw InputError::unreadable(path, "short read");
+    }
+    return doc;
 }
 
 }  // namespace octshape::io::detail

@@ -7,6 +7,7 @@
 // InputError naming the file and the byte offset. Memory is bounded by the input size.
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -34,5 +35,14 @@ inline constexpr int kMaxXmlDepth = 64;
 
 // Parses a whole document; returns the root element. Throws InputError(path, ..., offset).
 [[nodiscard]] XmlNode parse_xml(std::string_view doc, const std::string& path);
+
+// True when `head` (a file's first bytes) is an XML document whose root element is named
+// `root`: declarations, comments and processing instructions may come first.
+[[nodiscard]] bool xml_root_is(std::string_view head, std::string_view root);
+
+// The whole file at `path`, read once. Larger than `max_bytes`: InputError (unsupported,
+// "`what` larger than ..."); unreadable or short: InputError naming the file.
+[[nodiscard]] std::string read_whole_file(const std::string& path, std::uintmax_t max_bytes,
+                                          const std::string& what);
 
 }  // namespace octshape::io::detail

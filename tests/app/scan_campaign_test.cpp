@@ -30,22 +30,6 @@ namespace {
 constexpr int kTimeLimitSeconds = 120;
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
-struct Outcome {
-    int exit_code = 0;
-    std::string err;
-};
-
-Outcome run_limited(const std::string& args, const TempDir& tmp) {
-    const auto err = tmp / "campaign.stderr";
-    const std::string cmd = "timeout -s KILL " + std::to_string(kTimeLimitSeconds) + " '" +
-                            exe() + "' " + args + " >'" + (tmp / "campaign.stdout").string() +
-                            "' 2>'" + err.string() + "' </dev/null";
-    const int status = std::system(cmd.c_str());
-    Outcome o;
-    o.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    o.err = slurp(err);
-    return o;
-}
 
 void each_value(io::Scan& s, int line, const std::function<void(float&, int, int)>& f) {
     for (int b = 0; b < s.num_bscans(); ++b) {
@@ -193,7 +177,7 @@ SLOW_TEST(ScanCampaign, HostileExportsGiveCleanErrorsOrFiniteResults) {
                                          (info ? std::string(" --json")
                                                : " -o '" + json.string() + "' --csv '" +
                                                      csv.string() + "'");
-                const Outcome o = run_limited(args, tmp);
+                const RunResult o = run_octshape_limited(args, kTimeLimitSeconds);
                 ++runs;
                 const std::string where = path.filename().string() + " / " + command + ": exit " +
                                           std::to_string(o.exit_code) + ", stderr: " + o.err;

@@ -10,6 +10,7 @@
 #include <sstream>
 #include <string>
 
+#include "fuzz_util.h"
 #include "octshape/error.h"
 #include "octshape/io/iowa_surfaces.h"
 #include "octshape/io/vol.h"
@@ -18,14 +19,8 @@ namespace {
 
 using octshape::io::Scan;
 
-void check(bool ok) {
-    if (!ok) __builtin_trap();
-}
-
-bool same(float a, float b) {
-    return (std::isnan(a) && std::isnan(b)) ||
-           std::bit_cast<std::uint32_t>(a) == std::bit_cast<std::uint32_t>(b);
-}
+using octshape::fuzz::check;
+using octshape::fuzz::same;
 
 }  // namespace
 

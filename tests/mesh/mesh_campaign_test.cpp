@@ -134,26 +134,6 @@ std::vector<Case> hostile_cases(const TestMesh& m) {
     };
 }
 
-struct Outcome {
-    int exit_code = -1;
-    std::string err;
-    std::string out;
-};
-
-Outcome run_limited(const std::string& args, const TempDir& tmp) {
-    const auto out = tmp / "campaign.stdout";
-    const auto err = tmp / "campaign.stderr";
-    const std::string cmd = "timeout -s KILL " + std::to_string(kTimeLimitSeconds) + " '" +
-                            exe() + "' " + args + " >'" + out.string() + "' 2>'" +
-                            err.string() + "' </dev/null";
-    const int status = std::system(cmd.c_str());
-    Outcome o;
-    // The shell reports a signal as 128 + n (timeout's SIGKILL: 137).
-    o.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    o.out = slurp(out);
-    o.err = slurp(err);
-    return o;
-}
 
 // Whether the JSON on stdout holds a non-finite number (nlohmann writes one as null) or does
 // not parse. Empty stdout (denoise, features without --json) holds none.
@@ -203,7 +183,7 @@ SLOW_TEST(MeshCampaign, HostileFilesGiveTypedErrorsOrFiniteResults) {
                 args += " --json --reference '" + (tmp / "reference.off").string() + "'";
             }
             if (command != "metrics") args += " -o '" + output.string() + "'";
-            const Outcome o = run_limited(args, tmp);
+            const RunResult o = run_octshape_limited(args, kTimeLimitSeconds);
             const std::string where = c.file + " / " + command + ": exit " +
                                       std::to_string(o.exit_code) + ", stderr: " + o.err;
             std::string kind;
