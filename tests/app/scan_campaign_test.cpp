@@ -10,6 +10,7 @@
 #include <sys/wait.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <functional>
 #include <iomanip>
 #include <iostream>
@@ -153,10 +154,41 @@ SLOW_TEST(ScanCampaign, HostileExportsGiveCleanErrorsOrFiniteResults) {
         {"onh", io::read_scan(onh_vol.string(), {.pixels = true}),
          {"info", "macula --no-type-check", "onh --ilm device", "onh"}},
     };
+    // The long form (scripts/campaign.sh, OCTSHAPE_CAMPAIGN_LONG=1): every pair of mutations
+    // too, on the two bases and on left-eye, swollen and overhanging variants.
+    const bool long_form = std::getenv("OCTSHAPE_CAMPAIGN_LONG") != nullptr;
+    std::vector<Mutation> cases = mutations();
+    if (long_form) {
+        const auto single = mutations();
+        for (std::size_t i = 0; i < single.size(); ++i) {
+            for (std::size_t j = i + 1; j < single.size(); ++j) {
+                cases.push_back({single[i].name + "+" + single[j].name,
+                                 [a = single[i].apply, b = single[j].apply](io::Scan& s) {
+                                     a(s);
+                                     b(s);
+                                 }});
+            }
+        }
+        for (const char* variant : {"macula --eye OS", "onh --shape swollen --eye OS",
+                                    "onh --shape overhang"}) {
+            const std::string kind = std::string(variant).substr(0, std::string(variant).find(' '));
+            const auto vol = tmp / ("base_" + std::to_string(bases.size()) + ".vol");
+            const std::string sizes = kind == "macula" ? " --bscans 25 --ascans 128"
+                                                       : " --bscans 25 --ascans 96";
+            ASSERT_EQ(run_octshape("phantom " + std::string(variant) + sizes + " -o '" +
+                                   vol.string() + "'")
+                          .exit_code,
+                      0)
+                << variant;
+            bases.push_back({kind + std::to_string(bases.size()),
+                             io::read_scan(vol.string(), {.pixels = true}),
+                             bases[kind == "macula" ? 0 : 1].commands});
+        }
+    }
     std::map<std::string, std::map<std::string, int>> table;
     int runs = 0;
     for (const Base& base : bases) {
-        for (const Mutation& m : mutations()) {
+        for (const Mutation& m : cases) {
             io::Scan s = base.scan;
             m.apply(s);
             const auto path = tmp / (base.name + "_" + m.name + ".vol");

@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# The long form of the hostile-input campaigns: every pair of the scan campaign's mutations on
+# five phantom bases (macula OD/OS, ONH cupped/swollen/overhang) through info, macula and onh
+# (both ILM sources), then the mesh campaign; each run under a time limit. Prints the tables
+# (inputs x commands: crashes, hangs, internal errors, impossible successes, clean errors,
+# successes). Run it on a sanitizer build for the sanitizers' verdict too:
+#   scripts/campaign.sh [PRESET]      (default: release; e.g. asan)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+preset=${1:-release}
+cmake --preset "$preset" >/dev/null
+cmake --build --preset "$preset" -j "$(nproc)" --target octshape octshape_tests
+OCTSHAPE_CAMPAIGN_LONG=1 "build/$preset/tests/octshape_tests" \
+  --gtest_filter='ScanCampaign.*:MeshCampaign.*'
