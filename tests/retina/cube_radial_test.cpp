@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iomanip>
 #include <iostream>
@@ -12,6 +13,7 @@
 
 #include "octshape/error.h"
 #include "octshape/retina/cube.h"
+#include "octshape/retina/cube_report.h"
 #include "octshape/retina/phantom_macula.h"
 #include "octshape/retina/radial_geometry.h"
 #include "octshape/retina/scan_summary.h"
@@ -297,7 +299,26 @@ TEST(CubeRadial, CrossingOffsetTableAndItsQcFlag) {
     }
 }
 
-TEST(CubeRadial, ShortLinesAndParallelLinesAreRefused) {
+TEST(CubeRadial, ReportCarriesTheCrossingOffsetAndItsFlag) {
+    // 60 um from the crossing towards superior: beyond the 25 um limit, flagged; the JSON
+    // reports the offset the analysis measured (within the centre's error, < 15 um at 60 um in
+    // the table) and the CSV names the analysis.
+    const MaculaPhantom ph = make_macula_phantom(radial_params(MaculaFamily::kBezier, 12, 60.0, 90.0));
+    const CubeParams cp;
+    const CubeResult r = analyse_macula(ph.scan, cp);
+    EXPECT_NE(std::find(r.qc_flags.begin(), r.qc_flags.end(), "centre off the line crossing"),
+              r.qc_flags.end());
+    const auto j = cube_json(r, cp);
+    EXPECT_EQ(j["radial"]["num_lines"], 12);
+    EXPECT_NEAR(j["radial"]["centre_offset_distance_mm"].get<double>(), 0.060, 0.015);
+    EXPECT_EQ(j["radial"]["centre_offset_limit_mm"].get<double>(), 0.025);
+    EXPECT_FALSE(j["radial"]["bmo_fields"]["used"].get<bool>());
+    EXPECT_EQ(j["options"]["num_half_lines"], 24);
+    EXPECT_EQ(j["radial"]["half_line_origins_mm"].size(), 24U);
+    EXPECT_EQ(cube_csv_values(r).front(), "radial");
+}
+
+TEST(CubeRadial, LinesShorterThanTwoHalfLinesAreRefused) {
     MaculaPhantomParams p = radial_params(MaculaFamily::kBezier, 6, 0.0, 0.0);
     p.line_length_mm = 4.0;
     const MaculaPhantom ph = make_macula_phantom(p);

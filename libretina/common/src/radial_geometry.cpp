@@ -82,6 +82,10 @@ RadialGeometry radial_geometry(const io::Scan& scan) {
         l.bscan = k;
         l.start_slo_mm = {b.start_x_mm, b.start_y_mm};
         l.end_slo_mm = {b.end_x_mm, b.end_y_mm};
+        if (!l.start_slo_mm.allFinite() || !l.end_slo_mm.allFinite()) {
+            throw AnalysisError("radial scan: B-scan " + std::to_string(k) +
+                                " has a position on the SLO that is not a number");
+        }
         l.length_mm = (l.end_slo_mm - l.start_slo_mm).norm();
         if (!(l.length_mm > kPositionEps) || !std::isfinite(l.length_mm)) {
             throw AnalysisError("radial scan: B-scan " + std::to_string(k) +
