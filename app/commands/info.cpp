@@ -1,5 +1,6 @@
 // `octshape info FILE [--json] [--show-identifiers]`: what an export holds.
 
+#include <functional>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
@@ -33,10 +34,46 @@ std::string num(const json& v, const char* unit = "") {
     return ss.str();
 }
 
-void print_text(const json& j, std::ostream& out) {
-    auto row = [&](const std::string& key, const std::string& value) {
-        out << std::left << std::setw(18) << (key + ":") << value << '\n';
-    };
+using Row = std::function<void(const std::string&, const std::string&)>;
+
+// A radial scan as it is (retina/radial_geometry.h): lines, length, crossing, angular step.
+void print_radial(const json& r, const Row& row) {
+    if (r.contains("error")) {
+        row("radial", "lines unusable: " + r["error"].get<std::string>());
+        return;
+    }
+    row("radial", std::to_string(r["num_lines"].get<int>()) + " lines of " +
+                      num(r["line_length_mm"], " mm") + " (header " +
+                      num(r["line_length_from_header_mm"], " mm") + "), step " +
+                      num(r["angular_step_deg"], " deg") + " (min " + num(r["min_step_deg"]) +
+                      ", max " + num(r["max_step_deg"]) + ") " +
+                      (r["regular"].get<bool>() ? "regular" : "IRREGULAR"));
+    row("crossing", "SLO (" + num(r["crossing_slo_mm"][0]) + ", " + num(r["crossing_slo_mm"][1]) +
+                        ") mm; lines miss it by <= " + num(r["max_miss_mm"], " mm") +
+                        (r["lines_cross"].get<bool>() ? "" : " (MORE than one A-scan)"));
+    for (const json& s : r["irregular_steps"]) row("irregular step", s.get<std::string>());
+    const json& bmo = r["bmo_fields"];
+    if (bmo["bscans_with_fields"].get<int>() > 0) {
+        row("BMO fields", std::to_string(bmo["bscans_with_fields"].get<int>()) +
+                              " B-scans, not used: " + bmo["why"].get<std::string>());
+    }
+}
+
+void print_spacing(const json& j, const Row& row) {
+    const json& s = j["bscan_spacing"];
+    std::string spacing = "header " + num(s["header_mm"], " mm");
+    if (s["positions_known"].get<bool>()) {
+        spacing += "; measured " + num(s["measured_mean_mm"], " mm") + " (min " +
+                   num(s["measured_min_mm"]) + ", max " + num(s["measured_max_mm"]) + ") ";
+        spacing += s["uniform"].get<bool>() ? "uniform" : "NOT UNIFORM";
+        if (!s["matches_header"].get<bool>()) spacing += ", differs from the header";
+    } else if (j["num_bscans"].get<int>() > 1) {
+        spacing += "; positions do not tell";
+    }
+    row("B-scan spacing", spacing);
+}
+
+void print_header(const json& j, const Row& row) {
     row("file", j["file"].get<std::string>());
     row("sha256", j["sha256"].get<std::string>());
     row("format", j["format"].get<std::string>() + " (" + j["format_version"].get<std::string>() +
@@ -53,21 +90,20 @@ void print_text(const json& j, std::ostream& out) {
     if (j.contains("circle_radius_mm")) {
         row("circle", "radius " + num(j["circle_radius_mm"], " mm") + " (from positions " +
                           num(j["circle_radius_from_positions_mm"], " mm") + ")");
+    } else if (j.contains("radial")) {
+        print_radial(j["radial"], row);
     } else {
         row("extent", num(j["bscan_width_mm"], " mm") + " x " +
                           num(j["volume_height_mm"], " mm"));
     }
-    const json& s = j["bscan_spacing"];
-    std::string spacing = "header " + num(s["header_mm"], " mm");
-    if (s["positions_known"].get<bool>()) {
-        spacing += "; measured " + num(s["measured_mean_mm"], " mm") + " (min " +
-                   num(s["measured_min_mm"]) + ", max " + num(s["measured_max_mm"]) + ") ";
-        spacing += s["uniform"].get<bool>() ? "uniform" : "NOT UNIFORM";
-        if (!s["matches_header"].get<bool>()) spacing += ", differs from the header";
-    } else if (j["num_bscans"].get<int>() > 1) {
-        spacing += "; positions do not tell";
-    }
-    row("B-scan spacing", spacing);
+    if (j.contains("bscan_spacing")) print_spacing(j, row);
+}
+
+void print_text(const json& j, std::ostream& out) {
+    auto row = [&](const std::string& key, const std::string& value) {
+        out << std::left << std::setw(18) << (key + ":") << value << '\n';
+    };
+    print_header(j, row);
     if (j.contains("orientation")) {
         const json& o = j["orientation"];
         std::string text = "+x " + o["grid_x_points"].get<std::string>();

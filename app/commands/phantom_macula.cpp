@@ -1,6 +1,7 @@
 // `octshape phantom macula`: a synthetic Spectralis macula export and its true CuBe parameters
 // (docs/phantoms.md, "Macula phantoms").
 
+#include <cmath>
 #include <filesystem>
 #include <string>
 
@@ -24,6 +25,8 @@ struct MaculaOptions {
     std::string pattern = "volume";
     bool no_pixels = false;
     double tau_um = 5.0;
+    double crossing_offset_um = 0.0;
+    double crossing_offset_deg = 0.0;
 };
 
 // FILE.vol -> FILE.truth.json
@@ -42,6 +45,15 @@ void run(MaculaOptions& o) {
                                      : retina::MaculaFamily::kBezier;
     p.eye = o.eye == "OS" ? io::Laterality::kOS : io::Laterality::kOD;
     p.line = o.pattern == "line";
+    p.radial = o.pattern == "radial";
+    if (p.radial && (o.crossing_offset_um != 0.0)) {
+        // The crossing offset along an anatomical direction: fovea minus crossing, grid mm
+        // (grid +x = SLO +x, nasal for OD, temporal for OS; +y superior).
+        const double th = o.crossing_offset_deg * 3.14159265358979323846 / 180.0;
+        const double nasal_x = p.eye == io::Laterality::kOS ? -1.0 : 1.0;
+        p.fovea_dx_mm = 1e-3 * o.crossing_offset_um * std::cos(th) * nasal_x;
+        p.fovea_dy_mm = 1e-3 * o.crossing_offset_um * std::sin(th);
+    }
     p.pixels = !o.no_pixels;
     o.truth.tau_mm = o.tau_um * 1e-3;
     const retina::MaculaPhantom ph = retina::make_macula_phantom(p, o.truth);
@@ -80,8 +92,20 @@ void add_phantom_macula_command(CLI::App& parent, RunContext& /*ctx*/) {
         ->check(CLI::IsMember({"OD", "OS"}))
         ->capture_default_str();
     cmd->add_option("--pattern", opts->pattern,
-                    "volume, or line: one horizontal B-scan through the fovea")
-        ->check(CLI::IsMember({"volume", "line"}))
+                    "volume, line (one horizontal B-scan through the fovea) or radial (B-scans "
+                    "rotated about one point, ScanPattern 5)")
+        ->check(CLI::IsMember({"volume", "line", "radial"}))
+        ->capture_default_str();
+    cmd->add_option("--lines", p.radial_lines,
+                    "radial: number of B-scans (lines), 180 / lines deg apart")
+        ->capture_default_str();
+    cmd->add_option("--line-length-mm", p.line_length_mm, "radial: length of each line (mm)")
+        ->capture_default_str();
+    cmd->add_option("--crossing-offset-um", opts->crossing_offset_um,
+                    "radial: true fovea minus the lines' crossing (um; replaces --fovea-dx/dy)")
+        ->capture_default_str();
+    cmd->add_option("--crossing-offset-deg", opts->crossing_offset_deg,
+                    "radial: direction of that offset (anatomical: 0 nasal, 90 superior)")
         ->capture_default_str();
     cmd->add_option("--bscans", p.num_bscans,
                     "B-scans over the 7.5 mm field (61, 97, 193 on the device)")

@@ -128,5 +128,28 @@ TEST(InfoBadInput, MissingDirectoryEmptyAndUnknown) {
     expect_refused((dir / "text.vol").string(), 65, "not a Spectralis .vol, Heidelberg XML export or Iowa surfaces XML");
 }
 
+TEST(InfoRadial, DescribesTheStarAsItIs) {
+    // A 12-line radial phantom: info must describe lines, length, crossing and angular step,
+    // never a parallel spacing or a volume extent (which would read "extent 6 mm x 0 mm").
+    TempDir dir;
+    const std::string vol = (dir / "radial.vol").string();
+    const RunResult g = run_octshape("phantom macula --pattern radial --lines 12 --no-pixels -o '" +
+                                     vol + "'");
+    ASSERT_EQ(g.exit_code, 0) << g.err;
+    const json j = info_json(vol);
+    ASSERT_TRUE(j.contains("radial"));
+    EXPECT_FALSE(j.contains("bscan_spacing"));
+    EXPECT_EQ(j["radial"]["num_lines"], 12);
+    EXPECT_NEAR(j["radial"]["line_length_mm"].get<double>(), 6.0, 1e-9);
+    EXPECT_NEAR(j["radial"]["angular_step_deg"].get<double>(), 15.0, 1e-9);
+    EXPECT_LT(j["radial"]["max_miss_mm"].get<double>(), 1e-9);
+    const RunResult t = run_octshape("info '" + vol + "'");
+    ASSERT_EQ(t.exit_code, 0) << t.err;
+    EXPECT_NE(t.out.find("12 lines of 6 mm"), std::string::npos) << t.out;
+    EXPECT_NE(t.out.find("step 15 deg"), std::string::npos) << t.out;
+    EXPECT_EQ(t.out.find("extent"), std::string::npos) << t.out;
+    EXPECT_EQ(t.out.find("differs from the header"), std::string::npos) << t.out;
+}
+
 }  // namespace
 }  // namespace octshape::test

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "octshape/retina/radial_geometry.h"
 #include "octshape/retina/scan_geometry.h"
 
 namespace octshape::retina {
@@ -35,6 +36,46 @@ json grid_json(const io::ThicknessGrid& g, const ScanGeometry& geo, bool volume_
     } else if (g.is_rectangular()) {
         j["rows"] = g.rows;
         j["cols"] = g.cols;
+    }
+    return j;
+}
+
+// A radial scan as it is: lines, their length, crossing, misses and angular steps.
+json radial_json(const io::Scan& scan) {
+    json j;
+    try {
+        const RadialGeometry g = radial_geometry(scan);
+        j["num_lines"] = static_cast<int>(g.lines.size());
+        j["line_length_mm"] = tidy(g.mean_length_mm);
+        j["line_length_from_header_mm"] = tidy(g.header_length_mm);
+        j["crossing_slo_mm"] = {tidy(g.crossing_slo_mm.x()), tidy(g.crossing_slo_mm.y())};
+        j["max_miss_mm"] = tidy(g.max_miss_mm);
+        j["rms_miss_mm"] = tidy(g.rms_miss_mm);
+        j["lines_cross"] = g.lines_cross;
+        j["angular_step_deg"] = tidy(g.nominal_step_deg);
+        j["min_step_deg"] = tidy(g.min_step_deg);
+        j["max_step_deg"] = tidy(g.max_step_deg);
+        j["step_tolerance_relative"] = RadialGeometry::kStepTolerance;
+        j["regular"] = g.regular;
+        j["irregular_steps"] = g.irregular_steps;
+        j["angle_convention"] = "anatomical: 0 deg = nasal, 90 deg = superior, both eyes";
+        json lines = json::array();
+        for (const RadialLine& l : g.lines) {
+            lines.push_back({{"bscan", l.bscan},
+                             {"angle_deg", tidy(l.angle_deg)},
+                             {"line_angle_deg", tidy(l.line_angle_deg)},
+                             {"length_mm", tidy(l.length_mm)},
+                             {"miss_mm", tidy(l.miss_mm)}});
+        }
+        j["lines"] = lines;
+        j["bmo_fields"] = {{"bscans_with_fields", g.num_bmo_fields},
+                           {"used", false},
+                           {"why", g.num_bmo_fields > 0
+                                       ? "HSF-OCT-104 BmoCoordLeft/Right read; their meaning is "
+                                         "unverified, so no analysis uses them"
+                                       : "not in this file (HSF-OCT-104 only)"}};
+    } catch (const std::exception& e) {
+        j["error"] = e.what();
     }
     return j;
 }
@@ -72,6 +113,10 @@ json scan_summary(const io::Scan& scan, const SummaryOptions& options) {
             j["circle_radius_from_positions_mm"] =
                 tidy(std::hypot(b.start_x_mm - b.end_x_mm, b.start_y_mm - b.end_y_mm));
         }
+    } else if (is_radial_scan(scan)) {
+        // The B-scans are lines through one point: no parallel spacing, no volume extent.
+        j["bscan_width_mm"] = tidy((m.size_x - 1) * m.scale_x_mm);
+        j["radial"] = radial_json(scan);
     } else {
         j["bscan_width_mm"] = tidy((m.size_x - 1) * m.scale_x_mm);
         j["volume_height_mm"] = tidy(std::max(0, scan.num_bscans() - 1) * m.distance_mm);
@@ -90,7 +135,7 @@ json scan_summary(const io::Scan& scan, const SummaryOptions& options) {
         spacing["matches_header"] = s.matches_header;
     }
     spacing["tolerance_relative"] = SpacingReport::kUniformTolerance;
-    j["bscan_spacing"] = spacing;
+    if (!j.contains("radial")) j["bscan_spacing"] = spacing;
 
     if (volume_like) {
         json o;

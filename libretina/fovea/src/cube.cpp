@@ -10,6 +10,7 @@
 
 #include "cube_stages.h"
 #include "octshape/error.h"
+#include "octshape/retina/radial_geometry.h"
 #include "octshape/retina/scan_geometry.h"
 #include "octshape/retina/scan_limits.h"
 
@@ -19,6 +20,7 @@ namespace {
 
 bool is_volume(const io::Scan& scan) {
     const auto pat = scan.meta.pattern;
+    if (is_radial_scan(scan)) return false;
     return pat == io::ScanPattern::kVolume || pat == io::ScanPattern::kFastVolume ||
            (pat == io::ScanPattern::kUnknown && scan.num_bscans() > 1);
 }
@@ -171,6 +173,7 @@ void CubeParams::validate() const {
 
 CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
     params.validate();
+    if (is_radial_scan(scan)) return analyse_macula_radial(scan, params);
     CubeResult res;
     res.line_scan = check_macula_scan(scan);
     res.map = thickness_map(scan);

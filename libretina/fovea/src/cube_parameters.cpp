@@ -147,7 +147,8 @@ void summarise_macula(CubeResult& res, const CubeParams& params) {
         std::vector<V3> flat_pts;
         for (const auto& h : res.half_lines) {
             auto pt = [&](double r, double z) {
-                const V2 q = res.centre_mm + r * h.direction;
+                const V2 o = std::isnan(h.origin_mm.x()) ? res.centre_mm : h.origin_mm;
+                const V2 q = o + r * h.direction;
                 return V3(q.x(), q.y(), z);
             };
             rim_pts.push_back(pt(h.rim_radius_mm, h.rim_height_mm));
@@ -178,10 +179,12 @@ void macula_qc(CubeResult& res,
     for (const auto& h : res.half_lines) missing_pit += h.num_missing_interior;
     if (missing_pit > 0) res.qc_flags.push_back("missing values in the pit");
     if (res.rmse_um > params.rmse_warning_um) res.qc_flags.push_back("fit RMSE high");
-    if (!res.line_scan && geo.spacing().positions_known && !geo.spacing().uniform) {
+    // A radial scan has no parallel spacing and is oriented by its own lines (radial_qc).
+    if (!res.radial_scan && !res.line_scan && geo.spacing().positions_known &&
+        !geo.spacing().uniform) {
         res.qc_flags.push_back("B-scan spacing not uniform");
     }
-    if (!geo.oriented_from_positions()) {
+    if (!res.radial_scan && !geo.oriented_from_positions()) {
         res.qc_flags.push_back("orientation assumed (B-scan positions unusable)");
     }
     if (!res.line_scan && scan.meta.pattern == io::ScanPattern::kUnknown) {

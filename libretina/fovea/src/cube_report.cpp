@@ -89,14 +89,18 @@ void disk_json(J& v, const std::string& diameter, const std::string& prefix, con
 
 J cube_json(const CubeResult& r, const CubeParams& p) {
     J j;
-    j["analysis"] = r.line_scan ? "line scan (2-D, docs/algorithms/cube.md)" : "volume (3-D)";
+    j["analysis"] = r.line_scan     ? "line scan (2-D, docs/algorithms/cube.md)"
+                    : r.radial_scan ? "radial scan (3-D from the lines' half-lines)"
+                                    : "volume (3-D)";
     j["orientation"] =
         "angles anatomical: 0 deg nasal, 90 deg superior, for both eyes; positions and disk "
         "points in grid mm (x along a B-scan = A-scan index * ScaleX, y across B-scans = "
         "B-scan index * Distance); heights are retinal thickness ILM - BM in mm; disk normals "
         "in the grid frame with z >= 0";
     J o;
-    o["num_half_lines"] = r.line_scan ? 2 : p.num_half_lines;
+    o["num_half_lines"] = r.line_scan     ? 2
+                          : r.radial_scan ? static_cast<int>(r.half_lines.size())
+                                          : p.num_half_lines;
     o["radius_mm"] = p.radius_mm;
     o["sample_spacing_mm"] = r.sample_spacing_mm;
     o["tau_mm"] = p.tau_mm;
@@ -168,6 +172,29 @@ J cube_json(const CubeResult& r, const CubeParams& p) {
         hl.push_back(std::move(e));
     }
     j["half_lines"] = std::move(hl);
+    if (r.radial_scan) {
+        // Positions above are in the radial frame: mm from the lines' crossing, x = SLO +x,
+        // y = superior (docs/coordinates.md "Radial scans").
+        const CubeRadial& q = r.radial;
+        J rad;
+        rad["frame"] = "mm from the lines' crossing: x = SLO +x, y = superior (up on the SLO)";
+        rad["num_lines"] = q.num_lines;
+        rad["line_length_mm"] = num(q.line_length_mm);
+        rad["angular_step_deg"] = num(q.angular_step_deg);
+        rad["regular_steps"] = q.regular;
+        rad["max_line_miss_mm"] = num(q.max_miss_mm);
+        rad["centre_offset_from_crossing_mm"] =
+            J::array({num(q.centre_offset_mm.x()), num(q.centre_offset_mm.y())});
+        rad["centre_offset_distance_mm"] = num(q.centre_offset_distance_mm);
+        rad["centre_offset_limit_mm"] = num(q.centre_offset_limit_mm);
+        rad["bmo_fields"] = J{{"bscans_with_fields", q.num_bmo_fields}, {"used", false}};
+        j["radial"] = std::move(rad);
+        J origins = J::array();
+        for (const auto& h : r.half_lines) {
+            origins.push_back(J::array({num(h.origin_mm.x()), num(h.origin_mm.y())}));
+        }
+        j["radial"]["half_line_origins_mm"] = std::move(origins);
+    }
     j["qc_flags"] = r.qc_flags;
     j["notes"] = r.notes;
     return j;
@@ -184,7 +211,8 @@ std::vector<std::string> cube_csv_header() {
 }
 
 std::vector<std::string> cube_csv_values(const CubeResult& r) {
-    std::vector<std::string> v{r.line_scan ? "line" : "volume", r.centre_source};
+    std::vector<std::string> v{r.line_scan ? "line" : r.radial_scan ? "radial" : "volume",
+                               r.centre_source};
     for (const auto& c : columns()) {
         const double x = c.get(r);
         // A line scan has no y across B-scans: NA, as in the JSON.

@@ -22,6 +22,7 @@
 
 #include "octshape/io/scan.h"
 #include "octshape/retina/cube.h"
+#include "octshape/retina/radial_geometry.h"
 #include "octshape/retina/scan_geometry.h"
 
 namespace octshape::retina::cube_detail {
@@ -171,5 +172,46 @@ void macula_qc(CubeResult& res,
 // (CFT or rim height outside (0, image depth], a negative pit depth or volume, a disk wider
 // than the scan) is refused with AnalysisError naming the value; a success never carries one.
 void check_macula_result(const CubeResult& res, const io::Scan& scan);
+
+// ---- the radial path (cube_radial.cpp, docs/algorithms/cube.md "Radial scans") -------------
+//
+//   radial_check        scales, lines (radial_geometry), the lines long enough for R
+//   thickness_map       M = ILM - BM per line (rows = lines), as for a volume
+//   radial_centre       thickness minimum near the crossing, refined by a quadratic surface
+//   radial_half_lines   two half-lines per B-scan along its own line, from the foot of the
+//                       centre, on the measured A-scans (no interpolation of a map)
+//   cft_pass, final_fit, summarise_macula   as for a volume
+//   radial_qc           the macula QC plus the radial flags (crossing offset, steps, misses)
+
+// Throws AnalysisError when the scan's lines or scales cannot be analysed.
+[[nodiscard]] RadialGeometry radial_check(const io::Scan& scan, const CubeParams& params);
+
+struct RadialCentreInput {
+    const ThicknessMap& map;
+    const RadialGeometry& geo;
+    const CubeParams& params;
+    int size_x = 0;
+};
+
+// The centre in the radial frame (Centre::centre_mm; search_centre_mm = the crossing, 0).
+[[nodiscard]] Centre radial_centre(const RadialCentreInput& in);
+
+// 2 x lines half-lines in angular order (opposite half-lines n/2 apart), samples r_mm from the
+// foot of `centre_mm` on each line at the A-scans within R; h_mm[0] = cft_mm.
+[[nodiscard]] RadialSamples radial_half_lines(const ThicknessMap& m,
+                                              const RadialGeometry& geo,
+                                              const CubeParams& params,
+                                              const V2& centre_mm,
+                                              double cft_mm,
+                                              int size_x);
+
+// The crossing offset beyond which the QC flag "centre off the line crossing" is raised (mm).
+[[nodiscard]] double radial_offset_limit_mm();
+
+void radial_qc(CubeResult& res, const io::Scan& scan, const RadialGeometry& geo,
+               const CubeParams& params);
+
+// The radial driver (analyse_macula hands a radial scan to it).
+[[nodiscard]] CubeResult analyse_macula_radial(const io::Scan& scan, const CubeParams& params);
 
 }  // namespace octshape::retina::cube_detail

@@ -94,8 +94,9 @@ double Rng::gamma(double shape) {
 }
 
 void VolumeLayout::validate() const {
-    require(pattern == io::ScanPattern::kVolume || pattern == io::ScanPattern::kLine, "pattern",
-            "must be volume or line");
+    require(pattern == io::ScanPattern::kVolume || pattern == io::ScanPattern::kLine ||
+                pattern == io::ScanPattern::kRadial,
+            "pattern", "must be volume, line or radial");
     require(laterality == io::Laterality::kOD || laterality == io::Laterality::kOS, "laterality",
             "must be OD or OS");
     require(size_x >= 2 && size_x <= 4096, "size_x", "must be in 2..4096");

@@ -215,7 +215,17 @@ std::string to_string(MaculaFamily f) { return f == MaculaFamily::kBezier ? "bez
 
 void MaculaPhantomParams::validate() const {
     require(eye == io::Laterality::kOD || eye == io::Laterality::kOS, "eye", "must be OD or OS");
-    if (!line) require(num_bscans >= 2 && num_bscans <= 1024, "bscans", "must be in 2..1024");
+    if (!line && !radial) {
+        require(num_bscans >= 2 && num_bscans <= 1024, "bscans", "must be in 2..1024");
+    }
+    require(!(line && radial), "radial", "and line exclude each other");
+    if (radial) {
+        require(radial_lines >= 2 && radial_lines <= 360, "radial_lines", "must be in 2..360");
+        // Two half-lines of R = 2 mm plus a crossing offset of up to 1 mm must fit, and the
+        // profile is defined to 7 mm from the fovea.
+        require(std::isfinite(line_length_mm) && line_length_mm >= 4.0 && line_length_mm <= 12.0,
+                "line_length_mm", "must be in [4, 12] mm");
+    }
     require(size_x >= 16 && size_x <= 4096, "ascans", "must be in 16..4096");
     require(size_z >= 32 && size_z <= 4096, "depth", "must be in 32..4096");
     require(std::isfinite(scale_x_mm) && scale_x_mm >= 0.0, "scale_x_mm", "must be >= 0");
@@ -400,6 +410,21 @@ double macula_thickness_mm(const MaculaPhantomParams& p, double r, double theta_
 phantom::VolumeLayout macula_layout(const MaculaPhantomParams& p) {
     p.validate();
     phantom::VolumeLayout l;
+    if (p.radial) {
+        // The square field of side L about the crossing: its grid is the truth frame; the
+        // lines are placed by make_macula_phantom (radial_line_direction).
+        l.pattern = io::ScanPattern::kRadial;
+        l.laterality = p.eye;
+        l.size_x = p.size_x;
+        l.size_z = p.size_z;
+        l.num_bscans = p.radial_lines;
+        l.scale_x_mm = p.line_length_mm / (p.size_x - 1);
+        l.scale_z_mm = p.scale_z_mm;
+        l.distance_mm = p.line_length_mm / std::max(1, p.radial_lines - 1);
+        l.slo_field_deg = 30;
+        l.validate();
+        return l;
+    }
     l.pattern = p.line ? io::ScanPattern::kLine : io::ScanPattern::kVolume;
     l.laterality = p.eye;
     l.size_x = p.size_x;
@@ -420,6 +445,34 @@ Eigen::Vector2d macula_centre_mm(const MaculaPhantomParams& p) {
     return f.centre_mm() + V2(p.fovea_dx_mm, p.line ? 0.0 : p.fovea_dy_mm);
 }
 
+Eigen::Vector2d radial_line_direction(const MaculaPhantomParams& p, int k) {
+    // Grid +x is SLO +x and grid +y superior (phantom_common.h): the angle runs from SLO +x
+    // towards superior.
+    const double phi = kPi * k / p.radial_lines;
+    return {std::cos(phi), std::sin(phi)};
+}
+
+std::vector<Eigen::Vector2d> macula_sample_points(const MaculaPhantomParams& p) {
+    const phantom::VolumeLayout l = macula_layout(p);
+    const auto nx = static_cast<std::size_t>(l.size_x);
+    const auto nb = static_cast<std::size_t>(l.num_bscans);
+    std::vector<V2> pts;
+    pts.reserve(nb * nx);
+    const V2 crossing = phantom::grid_frame(l).centre_mm();
+    for (std::size_t b = 0; b < nb; ++b) {
+        const V2 u = p.radial ? radial_line_direction(p, static_cast<int>(b)) : V2::Zero();
+        for (std::size_t a = 0; a < nx; ++a) {
+            const double x = static_cast<double>(a) * l.scale_x_mm;
+            if (p.radial) {
+                pts.push_back(crossing + (x - 0.5 * p.line_length_mm) * u);
+            } else {
+                pts.emplace_back(x, static_cast<double>(b) * l.distance_mm);
+            }
+        }
+    }
+    return pts;
+}
+
 MaculaTruth macula_truth(const MaculaPhantomParams& p, const MaculaTruthOptions& o) {
     p.validate();
     o.validate();
@@ -430,8 +483,9 @@ MaculaTruth macula_truth(const MaculaPhantomParams& p, const MaculaTruthOptions&
     t.centre_x_mm = centre.x();
     t.centre_y_mm = centre.y();
     const bool bez_family = p.family == MaculaFamily::kBezier;
-    // A line scan has the two half-lines left and right of the centre (SPEC §4.8).
-    const int n = p.line ? 2 : o.num_half_lines;
+    // A line scan has the two half-lines left and right of the centre (SPEC §4.8); a radial
+    // scan two per line.
+    const int n = p.line ? 2 : p.radial ? 2 * p.radial_lines : o.num_half_lines;
     const double tau = o.tau_mm;
     double quad_vr_err = 0.0;
     double quad_vir_err = 0.0;
@@ -695,10 +749,11 @@ MaculaPhantom make_macula_phantom(const MaculaPhantomParams& p, const MaculaTrut
     std::vector<double> shadow(nb * nx, 0.0);
     double top = -1e9;
     double bottom = 1e9;
+    // Every A-scan's grid position: the same continuous eye for volumes, lines and radial scans.
+    const std::vector<V2> points = macula_sample_points(p);
     for (std::size_t b = 0; b < nb; ++b) {
         for (std::size_t a = 0; a < nx; ++a) {
-            const V2 g(static_cast<double>(a) * layout.scale_x_mm,
-                       static_cast<double>(b) * layout.distance_mm);
+            const V2& g = points[b * nx + a];
             const V2 d = g - out.centre_mm;
             const double th =
                 macula_thickness_mm(p, d.norm(), out.frame.anatomical_angle_deg(d.x(), d.y()));
@@ -845,7 +900,21 @@ MaculaPhantom make_macula_phantom(const MaculaPhantomParams& p, const MaculaTrut
         scan.pixels_loaded = true;
     }
 
-    if (!p.line) {  // line scans carry no thickness grid
+    if (p.radial) {
+        // The lines on the SLO through the crossing; a radial scan has no B-scan Distance.
+        const V2 crossing = out.frame.centre_mm();
+        for (std::size_t b = 0; b < nb; ++b) {
+            const V2 u = radial_line_direction(p, static_cast<int>(b));
+            const V2 start = out.frame.to_slo(crossing - 0.5 * p.line_length_mm * u);
+            const V2 end = out.frame.to_slo(crossing + 0.5 * p.line_length_mm * u);
+            scan.bscans[b].start_x_mm = start.x();
+            scan.bscans[b].start_y_mm = start.y();
+            scan.bscans[b].end_x_mm = end.x();
+            scan.bscans[b].end_y_mm = end.y();
+        }
+        scan.meta.distance_mm = 0.0;
+    }
+    if (!p.line && !p.radial) {  // line and radial scans carry no thickness grid
         const V2 hint = out.centre_mm + V2(p.grid_hint_dx_mm, p.grid_hint_dy_mm);
         scan.grids.push_back(etdrs_grid(p, out.frame, out.centre_mm, hint));
         scan.meta.grid_type = 3;
@@ -870,7 +939,17 @@ nlohmann::ordered_json macula_truth_json(const MaculaTruth& t,
     g["family"] = to_string(p.family);
     g["flat"] = p.flat;
     g["eye"] = p.eye == io::Laterality::kOS ? "OS" : "OD";
-    g["pattern"] = p.line ? "line" : "volume";
+    g["pattern"] = p.line ? "line" : p.radial ? "radial" : "volume";
+    if (p.radial) {
+        // The lines' crossing in the truth's grid frame (the field's centre).
+        const std::array<double, 2> crossing{0.5 * p.line_length_mm, 0.5 * p.line_length_mm};
+        const std::array<double, 3> radial{static_cast<double>(p.radial_lines), p.line_length_mm,
+                                           std::hypot(p.fovea_dx_mm, p.fovea_dy_mm)};
+        g["radial_lines"] = p.radial_lines;
+        g["line_length_mm"] = radial[1];
+        g["crossing_mm"] = crossing;
+        g["crossing_offset_mm"] = radial[2];
+    }
     g["bscans"] = l.num_bscans;
     g["ascans"] = l.size_x;
     g["depth"] = l.size_z;
@@ -900,7 +979,7 @@ nlohmann::ordered_json macula_truth_json(const MaculaTruth& t,
     g["seed"] = p.seed;
     j["generator"] = g;
     J a;
-    a["num_half_lines"] = t.line_scan ? 2 : o.num_half_lines;
+    a["num_half_lines"] = t.line_scan ? 2 : p.radial ? 2 * p.radial_lines : o.num_half_lines;
     a["radius_mm"] = o.radius_mm;
     a["tau_mm"] = o.tau_mm;
     a["inner_radius_mm"] = o.inner_radius_mm;

@@ -184,6 +184,9 @@ struct MaxSlope {
 struct CubeHalfLine {
     double angle_deg = 0.0;                               // anatomical
     Eigen::Vector2d direction = Eigen::Vector2d::Zero();  // unit, grid frame
+    // Where r = 0 lies (grid mm); NaN = the centre. A radial scan's half-line runs along its
+    // B-scan from the foot of the centre on that line.
+    Eigen::Vector2d origin_mm{kMissing, kMissing};
     bool valid = false;  // the fit was possible (else `problem` says why)
     std::string problem;
     std::vector<double> r_mm;  // samples along the half-line
@@ -224,8 +227,28 @@ struct CubeDisk {
 // (Eq. 7.16-7.18). What analyse_macula reports; exposed for bench/macula_crb.
 [[nodiscard]] CubeDisk cube_disk(std::vector<Eigen::Vector3d> points);
 
+// A radial scan's analysis (docs/algorithms/cube.md "Radial scans"): the lines as read
+// (retina/radial_geometry.h) and how far the centre found lies from their crossing.
+struct CubeRadial {
+    int num_lines = 0;
+    double line_length_mm = kMissing;
+    double angular_step_deg = kMissing;
+    bool regular = true;        // angular steps within 2 % of 180 / lines
+    double max_miss_mm = kMissing;  // how far the lines miss their common crossing
+    // The centre (thickness minimum near the crossing) minus the crossing, radial mm, its
+    // length, and the QC limit on it (flag "centre off the line crossing").
+    Eigen::Vector2d centre_offset_mm{kMissing, kMissing};
+    double centre_offset_distance_mm = kMissing;
+    double centre_offset_limit_mm = kMissing;
+    int num_bmo_fields = 0;  // HSF-OCT-104 B-scans with BMO fields (never used)
+};
+
 struct CubeResult {
     bool line_scan = false;     // 2-D parameters only (SPEC §4.8)
+    // A radial scan (ScanPattern 5): positions are in the radial frame (mm from the lines'
+    // crossing, x = SLO +x, y = superior), half-lines run along the B-scans.
+    bool radial_scan = false;
+    CubeRadial radial;
     std::string centre_source;  // "device thickness grid", "scan centre" or "given"
     Eigen::Vector2d search_centre_mm = Eigen::Vector2d::Zero();
     Eigen::Vector2d centre_mm = Eigen::Vector2d::Zero();  // grid mm
@@ -259,8 +282,10 @@ struct CubeResult {
     ThicknessMap map;
 };
 
-// The whole analysis of one scan: a volume (ScanPattern 3/4 or unknown with > 1 B-scan) or a
-// line through the fovea (ScanPattern 1). Throws AnalysisError for other patterns or unusable
+// The whole analysis of one scan: a volume (ScanPattern 3/4 or unknown with > 1 parallel
+// B-scan), a line through the fovea (ScanPattern 1) or a radial scan (ScanPattern 5, or
+// unknown with B-scans that are not parallel; CubeParams::num_half_lines is then twice the
+// number of lines and centre_mm is in the radial frame). Throws AnalysisError for other patterns or unusable
 // segmentation, UsageError for bad params.
 [[nodiscard]] CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params = {});
 

@@ -43,7 +43,9 @@ private:
 
 // Sizes and placement of a synthetic scan. Defaults: a Spectralis 25 x 30 deg macula volume.
 struct VolumeLayout {
-    io::ScanPattern pattern = io::ScanPattern::kVolume;  // kVolume or kLine (one B-scan)
+    // kVolume, kLine (one B-scan) or kRadial (the frame of the field the lines cross: the
+    // generator places the lines itself, phantom_macula.h)
+    io::ScanPattern pattern = io::ScanPattern::kVolume;
     io::Laterality laterality = io::Laterality::kOD;
     int size_x = 768;               // A-scans per B-scan
     int size_z = 496;               // pixels per A-scan

@@ -35,6 +35,15 @@ struct MaculaPhantomParams {
     bool flat = false;      // flat-bottomed pits (Bezier: large alpha; Scheibe: large gamma)
     io::Laterality eye = io::Laterality::kOD;
     bool line = false;      // one horizontal B-scan through the fovea (ScanPattern 1, SPEC §4.8)
+    // Radial scan (ScanPattern 5): radial_lines B-scans of line_length_mm through one point
+    // (the crossing), 180 / radial_lines deg apart, line k at k * 180 / radial_lines deg from
+    // SLO +x towards superior; size_x A-scans per line. The crossing is the centre of the
+    // field; fovea_dx_mm / fovea_dy_mm are then the true fovea minus the crossing (the crossing
+    // offset). The truth frame is the grid of a square field of side line_length_mm centred on
+    // the crossing (x = SLO +x, y = superior), docs/phantoms.md.
+    bool radial = false;
+    int radial_lines = 12;
+    double line_length_mm = 6.0;
     int num_bscans = 61;    // volume only
     int size_x = 768;       // A-scans per B-scan
     int size_z = 496;       // pixels per A-scan
@@ -198,6 +207,12 @@ struct MaculaTruth {
 // Truth for the phantom `p` under the analysis settings `o` (no scan is generated).
 [[nodiscard]] MaculaTruth macula_truth(const MaculaPhantomParams& p,
                                        const MaculaTruthOptions& o = {});
+
+// Grid mm of every A-scan of the phantom `p`, B-scan after B-scan (index b * size_x + a): the
+// points where the volume, line and radial phantoms sample the same continuous eye.
+[[nodiscard]] std::vector<Eigen::Vector2d> macula_sample_points(const MaculaPhantomParams& p);
+// Grid direction of radial line k (unit, Start -> End), radial phantoms only.
+[[nodiscard]] Eigen::Vector2d radial_line_direction(const MaculaPhantomParams& p, int k);
 
 struct MaculaPhantom {
     io::Scan scan;
