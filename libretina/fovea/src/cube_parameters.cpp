@@ -188,10 +188,13 @@ void macula_qc(CubeResult& res,
         res.qc_flags.push_back("orientation assumed (B-scan positions unusable)");
     }
     if (!res.line_scan && scan.meta.pattern == io::ScanPattern::kUnknown) {
-        res.qc_flags.push_back("scan pattern unknown: analysed as a volume");
+        res.qc_flags.push_back(res.radial_scan ? "scan pattern unknown: analysed as radial lines"
+                                               : "scan pattern unknown: analysed as a volume");
         res.notes.push_back("scan pattern code " + std::to_string(scan.meta.scan_pattern_code) +
-                            " is not a known Spectralis pattern; the B-scans were taken as a "
-                            "volume's parallel lines");
+                            " is not a known Spectralis pattern; the B-scans were taken as " +
+                            (res.radial_scan ? "radial lines through one crossing (they are not "
+                                               "parallel)"
+                                             : "a volume's parallel lines"));
     }
     if (scan.meta.laterality == io::Laterality::kUnknown) {
         res.qc_flags.push_back("eye unknown: nasal assumed on SLO +x");

@@ -178,6 +178,12 @@ EtdrsReport etdrs_report(const io::Scan& scan,
                         scan.find_line(lower) == std::optional<int>(1);
     const ThicknessMap other = retina ? ThicknessMap{} : layer_thickness_map(scan, upper, lower);
     const ThicknessMap& m = retina ? res.map : other;
+    if (res.radial_scan) {
+        // The map's rows are lines 7.5-30 deg apart, not a grid: nothing to integrate between
+        // them yet.
+        out.notes.push_back("ETDRS sectors are not computed on radial scans");
+        return out;
+    }
     out.device = device_etdrs(scan, geo);
     if (!res.line_scan) {
         out.at_fovea = etdrs_grid(m, geo, res.centre_mm, p);
