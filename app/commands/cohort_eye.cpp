@@ -197,11 +197,7 @@ int analyse_eye(const CohortOptions& o, const SubjectSource& subjects, const Ite
             }
             r = analyse_macula_eye(item.path, facts, input, eo, subjects);
             // The first reading's time and the run's start, before the analysis's stages.
-            nlohmann::ordered_json p = read.json();
-            for (const auto& [k, v] : r.json["provenance"]["seconds"].items()) {
-                p["seconds"][k] = v;
-            }
-            r.json["provenance"] = p;
+            prepend_stages(r.json["provenance"], read);
         }
         // Atomic, not fsync'ed: the parent syncs the file system once before the tables.
         io::write_text_atomically((out / "eyes" / (item.key + ".json")).string(),

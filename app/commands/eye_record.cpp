@@ -276,7 +276,6 @@ nlohmann::ordered_json cohort_record(const FileFacts& facts,
     c["eye_key"] = eye_key(facts.path);
     c["size_bytes"] = facts.size;
     c["mtime_ns"] = facts.mtime_ns;
-    c["octshape_version"] = kVersion;
     c["options"] = options_text;
     c["fingerprint"] = fingerprint(options_text);
     c["scan_type"] = scan_type;
