@@ -126,15 +126,9 @@ MaculaEye analyse_macula_eye(const std::string& file,
 
     if (!o.qc_dir.empty()) {
         const std::string stem = o.qc_stem.empty() ? std::string("eye") : o.qc_stem;
-        if (scan.pixels_loaded) {
-            write_macula_qc(r, scan, o.qc_dir, stem);
-        } else {
-            // A scan read without pixels (the cohort reads headers and segmentation only):
-            // read it again with them for the B-scan picture.
-            io::ReadOptions read;
-            read.pixels = true;
-            write_macula_qc(r, io::read_scan(file, read), o.qc_dir, stem);
-        }
+        // The caller read the pixels with the rest (MaculaEyeOptions::qc_dir): the file is
+        // read once.
+        write_macula_qc(r, scan, o.qc_dir, stem);
         prov.mark("qc_pictures");
     }
     j["provenance"] = prov.json();
