@@ -14,7 +14,6 @@
 #include "commands/command.h"
 #include "commands/provenance.h"
 #include "octshape/error.h"
-#include "octshape/version.h"
 
 namespace {
 

@@ -10,12 +10,14 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <new>
 #include <random>
 
 #include "commands/provenance.h"
+#include "commands/qc_names.h"
 #include "octshape/error.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/io/scan_reader.h"
@@ -130,8 +132,11 @@ std::optional<Item> load_item(const std::string& f, const fs::path& out, const C
             const std::string type = j.contains("cohort")
                                          ? j["cohort"].value("scan_type", std::string())
                                          : std::string();
-            const char* picture = type == "onh" ? "_enface.png" : "_thickness.png";
-            const bool qc_ok = !o.qc || fs::exists(out / "qc" / (it.key + picture));
+            const auto pictures = qc::picture_names(it.key, type);
+            const bool qc_ok = !o.qc || std::all_of(pictures.begin(), pictures.end(),
+                                                    [&](const std::string& name) {
+                                                        return fs::exists(out / "qc" / name, ec);
+                                                    });
             const RecordState state = j.contains("cohort")
                                           ? record_state(j["cohort"], it.facts, sig.eye(type))
                                           : RecordState::kFileChanged;
@@ -165,7 +170,11 @@ int analyse_eye(const CohortOptions& o, const SubjectSource& subjects, const Ite
     try {
         const FileFacts facts = file_facts(item.path);
         Provenance read;
-        const io::HashedScan input = io::read_scan_hashed(item.path);
+        // With --qc the macula's B-scan picture shows the pixels: read them now, so that the
+        // file is read once (an ONH eye is read again below, with what its ILM source needs).
+        io::ReadOptions read_options;
+        read_options.pixels = o.qc;
+        io::HashedScan input = io::read_scan_hashed(item.path, read_options);
         read.mark("read_hash");
         const io::Scan& scan = input.scan;
         retina::ScanType type = retina::ScanType::kMacula;
@@ -186,7 +195,9 @@ int analyse_eye(const CohortOptions& o, const SubjectSource& subjects, const Ite
                 eo.qc_dir = (out / "qc").string();
                 eo.qc_stem = item.key;
             }
-            // Reads (and hashes) the file again, with the pixels the level set needs.
+            // Reads (and hashes) the file again, with the pixels the level set needs; the first
+            // reading is freed before, so that the eye's peak memory stays that of one reading.
+            input = io::HashedScan{};
             r = analyse_onh_eye(item.path, facts, eo, subjects);
         } else {
             MaculaEyeOptions eo = o.eye;
@@ -197,11 +208,7 @@ int analyse_eye(const CohortOptions& o, const SubjectSource& subjects, const Ite
             }
             r = analyse_macula_eye(item.path, facts, input, eo, subjects);
             // The first reading's time and the run's start, before the analysis's stages.
-            nlohmann::ordered_json p = read.json();
-            for (const auto& [k, v] : r.json["provenance"]["seconds"].items()) {
-                p["seconds"][k] = v;
-            }
-            r.json["provenance"] = p;
+            prepend_stages(r.json["provenance"], read);
         }
         // Atomic, not fsync'ed: the parent syncs the file system once before the tables.
         io::write_text_atomically((out / "eyes" / (item.key + ".json")).string(),

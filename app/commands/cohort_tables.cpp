@@ -6,8 +6,11 @@
 
 #include <algorithm>
 #include <map>
+#include <set>
 
 #include "commands/gallery.h"
+#include "commands/provenance.h"
+#include "octshape/io/sha256.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/retina/report_util.h"
 
@@ -54,6 +57,41 @@ std::string inputs_csv(const std::vector<Item>& items, const std::vector<Skipped
     return s;
 }
 
+std::string tables_provenance(const std::vector<Item>& items, const GroupMap& groups, bool qc) {
+    Provenance p("cohort tables");
+    std::vector<const Item*> done;
+    for (const auto& it : items) {
+        if (it.done) done.push_back(&it);
+    }
+    std::sort(done.begin(), done.end(),
+              [](const Item* a, const Item* b) { return a->key < b->key; });
+    std::set<std::string> fingerprints;
+    std::map<std::string, nlohmann::ordered_json> options;  // by the canonical text
+    for (const Item* it : done) {
+        std::string sha;
+        if (it->slim.contains("input") && it->slim["input"].is_object()) {
+            sha = it->slim["input"].value("sha256", std::string());
+        }
+        p.add_input(sha, "", {{"eye_key", it->key}});
+        if (it->slim.contains("cohort") && it->slim["cohort"].is_object()) {
+            const auto& c = it->slim["cohort"];
+            fingerprints.insert(c.value("fingerprint", std::string()));
+            const std::string text = c.value("options", std::string());
+            options.emplace(text, options_from_text(text));
+        }
+    }
+    nlohmann::ordered_json o;
+    o["groups_sha256"] =
+        groups.path().empty() ? nlohmann::ordered_json(nullptr)
+                              : nlohmann::ordered_json(io::sha256_file(groups.path()));
+    o["qc"] = qc;
+    o["eye_fingerprints"] = fingerprints;
+    o["eye_options"] = nlohmann::ordered_json::array();
+    for (const auto& [text, parsed] : options) o["eye_options"].push_back(parsed);
+    p.set_options(std::move(o));
+    return p.json_untimed().dump(2) + "\n";
+}
+
 CohortTables write_cohort_tables(const fs::path& out, const std::vector<Item>& items,
                                  const std::vector<Skipped>& skipped, GroupMap groups, bool qc) {
     std::vector<nlohmann::json> eyes;
@@ -84,6 +122,8 @@ CohortTables write_cohort_tables(const fs::path& out, const std::vector<Item>& i
     if (any_onh) io::write_text_atomically((out / "eyes_onh.csv").string(), onh_table);
     io::write_text_atomically((out / "failures.csv").string(),
                               failures_csv(items, skipped, false));
+    io::write_text_atomically((out / "provenance.json").string(),
+                              tables_provenance(items, groups, qc));
     io::write_text_atomically((private_dir / "failures.csv").string(),
                               failures_csv(items, skipped, true));
     io::write_text_atomically((private_dir / "inputs.csv").string(), inputs_csv(items, skipped));

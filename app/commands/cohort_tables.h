@@ -30,8 +30,16 @@ struct CohortTables {
     std::size_t failed = 0;  // rows of failures.csv
 };
 
+// OUTDIR/provenance.json: the provenance block (commands/provenance.h, without run times, so
+// that a re-run writes the same folder byte for byte) of the tables: command "cohort tables",
+// every eye in eyes.csv/eyes_onh.csv by its input's SHA-256 and eye key, and as options the
+// groups file by its SHA-256, `qc`, and the fingerprints and effective options of the records
+// the tables were made from.
+[[nodiscard]] std::string tables_provenance(const std::vector<Item>& items,
+                                            const GroupMap& groups, bool qc);
+
 // Writes OUTDIR/eyes.csv, OUTDIR/eyes_onh.csv (when an item is an ONH eye), OUTDIR/failures.csv,
-// OUTDIR/private/failures.csv and OUTDIR/private/inputs.csv (each atomically and durably) from
+// OUTDIR/provenance.json, OUTDIR/private/failures.csv and OUTDIR/private/inputs.csv (each atomically and durably) from
 // the items' records, and with `qc` the gallery OUTDIR/qc/index.html. The records must be on
 // disk (the gallery reads them). A groups file matching no eye is refused before any table is
 // written.

@@ -16,7 +16,6 @@
 #include "octshape/mesh/envt.h"
 #include "octshape/mesh/pointset.h"
 #include "octshape/mesh/rofi.h"
-#include "octshape/version.h"
 
 namespace octshape::app {
 namespace {
@@ -46,6 +45,7 @@ struct DenoiseOptions {
 
 // --method pointset: point-set NVT denoising (thesis §4, docs/algorithms/pointset.md).
 void run_pointset_denoise(const DenoiseOptions& o) {
+    Provenance prov("denoise");
     if (o.use_auto) throw UsageError("--auto applies to the mesh methods");
     mesh::PointSetParams p;
     if (o.tau) p.tau = *o.tau;
@@ -75,16 +75,15 @@ void run_pointset_denoise(const DenoiseOptions& o) {
         {"epsilon_mm", r.epsilon},
         {"normals", p.normals == mesh::NormalEstimator::kShifted ? "shifted" : "pca"},
         {"snap_edges", p.snap_edges}};
-    io::write_point_set(o.output, r.V, &r.normals,
-                        mesh_provenance("denoise", {o.input}, {input_sha},
-                                        {{"method", o.method}, {"parameters", parameters},
-                                         {"threads", o.threads}}, o.record_paths));
+    describe_mesh_run(prov, {o.input}, {input_sha},
+                      {{"method", o.method}, {"parameters", parameters}, {"threads", o.threads}},
+                      o.record_paths);
+    io::write_point_set(o.output, r.V, &r.normals, mesh_provenance_line(prov));
     spdlog::info("{}: {} iterations of pointset in {:.3f} s (+{:.3f} s set-up), written to {}",
                  o.input, r.iterations, r.seconds_iterations, r.seconds_setup, o.output);
     if (!o.json) return;
     const nlohmann::json j = {
-        {"software", std::string("octshape ") + kVersion},
-         {"provenance", mesh_software()},
+        {"provenance", nlohmann::json(prov.json())},
         {"input", shown_path(o.input, o.record_paths)},
         {"input_sha256", input_sha},
         {"output", shown_path(o.output, o.record_paths)},
@@ -107,6 +106,7 @@ void run_pointset_denoise(const DenoiseOptions& o) {
 }
 
 void run_denoise(const DenoiseOptions& o) {
+    Provenance prov("denoise");
     const bool rofi_option = o.sigma_s || o.lambda_i || !o.similarity.empty() ||
                              o.radius_factor || o.sigma_c_factor;
     const auto rofi_only = [] {
@@ -183,6 +183,7 @@ void run_denoise(const DenoiseOptions& o) {
                   {"sigma_c_factor", p.sigma_c_factor},
                   {"similarity", p.similarity == mesh::Similarity::kTukey ? "tukey" : "gaussian"},
                   {"repair_folds", p.repair_folds},
+                  {"fix_boundary", p.fix_boundary},
                   {"stop", p.stop == mesh::RofiStop::kNone ? "none" : "white_residual"}};
         result = run_on_mesh(o.input, o.radius_factor.has_value(),
                              [&] { return mesh::rofi_denoise(in.V, in.F, p); });
@@ -210,15 +211,14 @@ void run_denoise(const DenoiseOptions& o) {
     const std::string input_sha = io::sha256_file(o.input);
     nlohmann::json options = {{"method", o.method}, {"auto", use_auto}, {"parameters", params},
                               {"threads", o.threads}};
-    io::write_mesh(o.output, result.V, in.F, {},
-                   mesh_provenance("denoise", {o.input}, {input_sha}, options, o.record_paths));
+    describe_mesh_run(prov, {o.input}, {input_sha}, options, o.record_paths);
+    io::write_mesh(o.output, result.V, in.F, {}, mesh_provenance_line(prov));
     spdlog::info("{}: {} iterations of {} in {:.3f} s (+{:.3f} s set-up), written to {}",
                  o.input, result.iterations, o.method, result.seconds_iterations,
                  result.seconds_setup, o.output);
     if (o.json) {
         const nlohmann::json j = {
-            {"software", std::string("octshape ") + kVersion},
-         {"provenance", mesh_software()},
+            {"provenance", nlohmann::json(prov.json())},
             {"input", shown_path(o.input, o.record_paths)},
             {"input_sha256", input_sha},
             {"output", shown_path(o.output, o.record_paths)},

@@ -1,6 +1,7 @@
 #include "commands/eye_output.h"
 
 #include "commands/eye_record.h"
+#include "commands/provenance.h"
 
 #include <filesystem>
 #include <iostream>
@@ -9,7 +10,6 @@
 #include "octshape/error.h"
 #include "octshape/retina/report_util.h"
 #include "octshape/retina/scan_summary.h"
-#include "octshape/version.h"
 
 namespace octshape::app {
 
@@ -19,7 +19,6 @@ nlohmann::ordered_json eye_json_preamble(const std::string& command,
                                          const io::Scan& scan,
                                          bool record_paths) {
     nlohmann::ordered_json j;
-    j["octshape_version"] = kVersion;
     j["command"] = command;
     j["provenance"] = nlohmann::ordered_json::object();
     j["input"] = {{"sha256", sha256}};
@@ -27,6 +26,14 @@ nlohmann::ordered_json eye_json_preamble(const std::string& command,
     j["scan"] = retina::scan_summary(scan);  // without identifiers
     if (!record_paths) j["scan"].erase("file");
     return j;
+}
+
+nlohmann::ordered_json eye_provenance_options(const std::string& options_text,
+                                              const std::string& qc_dir, bool record_paths) {
+    nlohmann::ordered_json o = options_from_text(options_text);
+    o["qc_pictures"] = !qc_dir.empty();
+    o["record_paths"] = record_paths;
+    return o;
 }
 
 std::vector<std::string> eye_csv_header(bool record_paths) {

@@ -1,6 +1,6 @@
 #pragma once
 // What every per-eye command (macula, onh) writes around its own results: the JSON preamble
-// (version, command, input path + SHA-256, scan summary without identifiers), the leading CSV
+// (command, provenance, input SHA-256, scan summary without identifiers), the leading CSV
 // columns, and the atomic publication of the JSON and CSV files (or the JSON on stdout).
 
 #include <nlohmann/json.hpp>
@@ -14,8 +14,7 @@
 
 namespace octshape::app {
 
-// {"octshape_version", "command", "provenance": {} (filled by the caller at the end:
-// commands/provenance.h), "input": {"sha256"}, "scan": summary without identifiers and without
+// {"command", "provenance": {} (filled by the caller at the end: commands/provenance.h), "input": {"sha256"}, "scan": summary without identifiers and without
 // the file's path}. `record_paths` (`--record-paths`, identifying): "input" and "scan" also
 // hold the input's path.
 [[nodiscard]] nlohmann::ordered_json eye_json_preamble(const std::string& command,
@@ -23,6 +22,13 @@ namespace octshape::app {
                                                        const std::string& sha256,
                                                        const io::Scan& scan,
                                                        bool record_paths);
+
+// The provenance options of a per-eye result (commands/provenance.h): every effective parameter
+// (`options_text`, the fingerprint's text, as options_from_text reads it), and whether QC
+// pictures were drawn and paths recorded (choices of output that change no number).
+[[nodiscard]] nlohmann::ordered_json eye_provenance_options(const std::string& options_text,
+                                                            const std::string& qc_dir,
+                                                            bool record_paths);
 
 // Leading CSV columns of every per-eye row: eye_key, sha256, eye, scan_pattern, num_bscans;
 // with `record_paths` the input's path comes first in a column `file`.

@@ -30,33 +30,16 @@ std::string trim(const std::string& s) {
     return s.substr(b, e - b + 1);
 }
 
-// One RFC 4180 record without embedded newlines (enough for the small map files).
-std::vector<std::string> split_csv(const std::string& line) {
-    std::vector<std::string> out;
-    std::string cur;
-    bool quoted = false;
-    for (std::size_t i = 0; i < line.size(); ++i) {
-        const char c = line[i];
-        if (quoted) {
-            if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
-                cur += '"';
-                ++i;
-            } else if (c == '"') {
-                quoted = false;
-            } else {
-                cur += c;
-            }
-        } else if (c == '"') {
-            quoted = true;
-        } else if (c == ',') {
-            out.push_back(trim(cur));
-            cur.clear();
-        } else {
-            cur += c;
-        }
+// A small hand-written table (a subject or groups map, the private inputs table): io::read_csv,
+// with the spaces around each field and header name dropped (written by hand, "file, group"
+// means the column "group").
+io::CsvTable read_small_table(const std::string& path) {
+    io::CsvTable t = io::read_csv_file(path);
+    for (auto& h : t.header) h = trim(h);
+    for (auto& row : t.rows) {
+        for (auto& f : row) f = trim(f);
     }
-    out.push_back(trim(cur));
-    return out;
+    return t;
 }
 
 std::string slurp_input(const std::string& path) {
@@ -75,35 +58,25 @@ std::string slurp_input(const std::string& path) {
 std::pair<std::string, std::vector<std::pair<std::string, std::string>>> read_map(
     const std::string& path, const std::string& value_column,
     const std::vector<std::string>& key_columns) {
-    std::istringstream in(slurp_input(path));
-    std::string line;
-    std::size_t line_no = 0;
-    std::string key_name;
-    std::vector<std::pair<std::string, std::string>> rows;
-    while (std::getline(in, line)) {
-        ++line_no;
-        if (trim(line).empty()) continue;
-        const auto f = split_csv(line);
-        if (key_name.empty()) {
-            if (f.size() != 2 || f[1] != value_column ||
-                std::find(key_columns.begin(), key_columns.end(), f[0]) == key_columns.end()) {
-                std::string expected;
-                for (const auto& k : key_columns) {
-                    expected += (expected.empty() ? "" : " or ") + k + "," + value_column;
-                }
-                throw InputError::corrupt(path, "header must be " + expected);
-            }
-            key_name = f[0];
-            continue;
+    const io::CsvTable t = read_small_table(path);
+    const auto& h = t.header;
+    if (h.size() != 2 || h[1] != value_column ||
+        std::find(key_columns.begin(), key_columns.end(), h[0]) == key_columns.end()) {
+        std::string expected;
+        for (const auto& k : key_columns) {
+            expected += (expected.empty() ? "" : " or ") + k + "," + value_column;
         }
-        if (f.size() != 2 || f[0].empty()) {
-            throw InputError::corrupt(path, "line " + std::to_string(line_no) +
-                                                ": expected two fields, the first non-empty");
-        }
-        rows.emplace_back(f[0], f[1]);
+        throw InputError::corrupt(path, "header must be " + expected);
     }
-    if (key_name.empty()) throw InputError::corrupt(path, "empty file (no header)");
-    return {key_name, rows};
+    std::vector<std::pair<std::string, std::string>> rows;
+    for (std::size_t i = 0; i < t.rows.size(); ++i) {
+        if (t.rows[i][0].empty()) {
+            throw InputError::corrupt(path, "row " + std::to_string(i + 1) +
+                                                ": the first field is empty");
+        }
+        rows.emplace_back(t.rows[i][0], t.rows[i][1]);
+    }
+    return {h[0], rows};
 }
 
 std::string str_or_na(const nlohmann::json& j) {
@@ -277,7 +250,6 @@ nlohmann::ordered_json cohort_record(const FileFacts& facts,
     c["eye_key"] = eye_key(facts.path);
     c["size_bytes"] = facts.size;
     c["mtime_ns"] = facts.mtime_ns;
-    c["octshape_version"] = kVersion;
     c["options"] = options_text;
     c["fingerprint"] = fingerprint(options_text);
     c["scan_type"] = scan_type;
@@ -366,29 +338,18 @@ void GroupMap::check_matches() const {
 }
 
 std::map<std::string, std::string> load_input_paths(const std::string& path) {
-    std::istringstream in(slurp_input(path));
-    std::string line;
-    std::size_t line_no = 0;
-    bool header = false;
+    const io::CsvTable t = read_small_table(path);
+    if (t.header.size() < 2 || t.header[0] != "eye_key" || t.header[1] != "file") {
+        throw InputError::corrupt(path, "header must begin with eye_key,file");
+    }
     std::map<std::string, std::string> paths;
-    while (std::getline(in, line)) {
-        ++line_no;
-        if (trim(line).empty()) continue;
-        const auto f = split_csv(line);
-        if (!header) {
-            if (f.size() < 2 || f[0] != "eye_key" || f[1] != "file") {
-                throw InputError::corrupt(path, "header must begin with eye_key,file");
-            }
-            header = true;
-            continue;
-        }
-        if (f.size() < 2 || f[0].empty()) {
-            throw InputError::corrupt(path, "line " + std::to_string(line_no) +
+    for (std::size_t i = 0; i < t.rows.size(); ++i) {
+        if (t.rows[i][0].empty()) {
+            throw InputError::corrupt(path, "row " + std::to_string(i + 1) +
                                                 ": expected eye_key,file");
         }
-        paths[f[0]] = f[1];
+        paths[t.rows[i][0]] = t.rows[i][1];
     }
-    if (!header) throw InputError::corrupt(path, "empty file (no header)");
     return paths;
 }
 

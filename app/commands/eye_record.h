@@ -82,7 +82,7 @@ struct FileFacts {
 [[nodiscard]] std::string absolute_path(const std::string& file);
 
 // The "cohort" object of a per-eye JSON (and of a failure record): the eye key (never the
-// path), the file's size and mtime, the version, the parameter text and its fingerprint
+// path), the file's size and mtime, the parameter text and its fingerprint
 // (commands/provenance.h), the scan type.
 [[nodiscard]] nlohmann::ordered_json cohort_record(const FileFacts& facts,
                                                    const std::string& options_text,
@@ -136,6 +136,7 @@ public:
     void set_paths(std::map<std::string, std::string> paths) { paths_ = std::move(paths); }
     [[nodiscard]] bool by_file() const { return key_ == "file"; }
     [[nodiscard]] bool empty() const { return path_.empty(); }
+    [[nodiscard]] const std::string& path() const { return path_; }  // empty: no groups file
     // "NA" when unmapped (or no map). Counts the eyes asked about and those matched.
     [[nodiscard]] std::string group_of(const std::string& subject_id,
                                        const std::string& eye_key) const;

@@ -23,6 +23,7 @@ struct FeaturesOptions {
 };
 
 void run_features(const FeaturesOptions& o) {
+    Provenance prov("features");
     const io::MeshFormat format = io::mesh_format_from_extension(o.output);
     if (format != io::MeshFormat::kVtp && format != io::MeshFormat::kPly) {
         throw UsageError(o.output + ": face scalars need a .vtp or .ply output");
@@ -40,14 +41,15 @@ void run_features(const FeaturesOptions& o) {
                         "report this input)");
         }
     }
+    describe_mesh_run(prov, {o.input}, {io::sha256_file(o.input)},
+                      {{"radius_mm", f.radius}, {"threads", o.threads}}, o.record_paths);
     io::write_mesh(o.output, in.V, in.F,
                    {{"envt_lambda1", f.eigenvalues.col(0)},
                     {"envt_lambda2", f.eigenvalues.col(1)},
                     {"envt_lambda3", f.eigenvalues.col(2)},
                     {"feature_strength", f.strength},
                     {"mean_curvature_per_mm", f.mean_curvature}},
-                   mesh_provenance("features", {o.input}, {io::sha256_file(o.input)},
-                                   {{"radius_mm", f.radius}, {"threads", o.threads}}, o.record_paths));
+                   mesh_provenance_line(prov));
     spdlog::info("{}: features of {} faces (radius {:.4g} mm) written to {}", o.input,
                  in.F.rows(), f.radius, o.output);
 }

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "commands/command.h"
+#include "commands/qc_names.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/error.h"
 #include "octshape/retina/eye_stats.h"
@@ -115,13 +116,6 @@ std::string short_value(const std::string& v) {
     const double d = std::strtod(v.c_str(), &end);
     if (v.empty() || end != v.c_str() + v.size() || !std::isfinite(d)) return v;
     return fmt::format("{:.4g}", d);
-}
-
-// What a picture shows, from its name KEY_KIND.png ("thickness", "profiles", ...).
-std::string picture_kind(const std::string& key, const std::string& png) {
-    std::string k = png.substr(std::min(png.size(), key.size() + 1));
-    if (k.ends_with(".png")) k.resize(k.size() - 4);
-    return k;
 }
 
 struct EyeRow {
@@ -327,7 +321,8 @@ GalleryResult write_qc_gallery(const fs::path& outdir, bool allow_empty) {
         eyes.push_back(std::move(row));
     }
 
-    // QC pictures: each qc/*.png goes to the longest eye key it starts with (KEY_...).
+    // QC pictures: each qc/*.png goes to the longest eye key whose picture name it is
+    // (KEY_KIND.png, commands/qc_names.h).
     std::vector<std::string> pngs;
     if (fs::is_directory(outdir / "qc", ec)) {
         for (const auto& e : fs::directory_iterator(outdir / "qc")) {
@@ -340,8 +335,7 @@ GalleryResult write_qc_gallery(const fs::path& outdir, bool allow_empty) {
     for (const auto& png : pngs) {
         EyeRow* best = nullptr;
         for (auto& e : eyes) {
-            const std::string prefix = e.key + "_";
-            if (png.compare(0, prefix.size(), prefix) == 0 &&
+            if (!qc::picture_kind(e.key, png).empty() &&
                 (best == nullptr || e.key.size() > best->key.size())) {
                 best = &e;
             }
@@ -478,7 +472,7 @@ GalleryResult write_qc_gallery(const fs::path& outdir, bool allow_empty) {
             for (const auto& p : e->pictures) {
                 const std::string u = url_name(p);
                 h << "<a class=\"thumb\" href=\"" << u << "\"><img src=\"" << u
-                  << "\" alt=\"QC picture " << escape(picture_kind(e->key, p)) << "\"></a>";
+                  << "\" alt=\"QC picture " << escape(qc::picture_kind(e->key, p)) << "\"></a>";
             }
         }
         h << "</td></tr>\n";

@@ -13,7 +13,6 @@
 #include "commands/command.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/retina/scan_summary.h"
-#include "octshape/version.h"
 
 namespace octshape::app {
 namespace {
@@ -162,17 +161,19 @@ void add_info_command(CLI::App& app, RunContext& /*ctx*/) {
                   "--json: also write the file's path (identifying: export names often hold the "
                   "patient's name)");
     cmd->callback([opts] {
+        Provenance prov("info");
         const io::HashedScan input = io::read_scan_hashed(opts->file);
+        prov.mark("read_hash");
         json j = retina::scan_summary(input.scan, {.identifiers = opts->identifiers});
         j["sha256"] = input.sha256;
-        j["octshape_version"] = kVersion;
         if (opts->json) {
             // The file is identified by its SHA-256; its name (often the patient's) only on
             // request.
             if (!opts->record_paths) j.erase("file");
-            nlohmann::ordered_json p = Provenance().json();
-            p.erase("seconds");
-            j["provenance"] = p;
+            prov.add_input(input.sha256, opts->record_paths ? opts->file : std::string());
+            prov.set_options({{"show_identifiers", opts->identifiers},
+                              {"record_paths", opts->record_paths}});
+            j["provenance"] = json(prov.json());
             std::cout << j.dump(2) << '\n';
         } else {
             print_text(j, std::cout);

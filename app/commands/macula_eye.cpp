@@ -13,7 +13,6 @@
 #include "octshape/retina/cube_report.h"
 #include "octshape/retina/scan_summary.h"
 #include "octshape/retina/scan_type.h"
-#include "octshape/version.h"
 
 namespace octshape::app {
 
@@ -109,11 +108,8 @@ MaculaEye analyse_macula_eye(const std::string& file,
     read.mark("read_hash");
     MaculaEye r = analyse_macula_eye(file, facts, input, std::move(options), subjects);
     if (!segmentation.is_null()) r.json["input"]["segmentation"] = segmentation;
-    // The reading's time first, as it came first.
-    nlohmann::ordered_json seconds = read.json()["seconds"];
-    for (const auto& [k, v] : r.json["provenance"]["seconds"].items()) seconds[k] = v;
-    r.json["provenance"]["utc"] = read.json()["utc"];
-    r.json["provenance"]["seconds"] = seconds;
+    add_segmentation_input(r.json["provenance"]["inputs"], segmentation);
+    prepend_stages(r.json["provenance"], read);  // the reading came first
     return r;
 }
 
@@ -122,7 +118,7 @@ MaculaEye analyse_macula_eye(const std::string& file,
                              const io::HashedScan& input,
                              MaculaEyeOptions o,
                              const SubjectSource& subjects) {
-    Provenance prov;
+    Provenance prov("macula");
     const io::Scan& scan = input.scan;
     const std::string& sha = input.sha256;
     o.params.tau_mm = o.tau_um * 1e-3;
@@ -161,22 +157,17 @@ MaculaEye analyse_macula_eye(const std::string& file,
     out.csv_row = eye_csv_values(file, sha, scan, o.record_paths);
     out.csv_header.insert(out.csv_header.end(), cols.begin(), cols.end());
     out.csv_row.insert(out.csv_row.end(), vals.begin(), vals.end());
-    attach_cohort_record(j, cols, vals, facts,
-                         macula_options_text(o) + " subjects=" + subjects.fingerprint(), "macula",
-                         scan, subjects, file);
+    const std::string options_text =
+        macula_options_text(o) + " subjects=" + subjects.fingerprint();
+    attach_cohort_record(j, cols, vals, facts, options_text, "macula", scan, subjects, file);
+    prov.add_input(sha, o.record_paths ? file : std::string());
+    prov.set_options(eye_provenance_options(options_text, o.qc_dir, o.record_paths));
 
     if (!o.qc_dir.empty()) {
         const std::string stem = o.qc_stem.empty() ? std::string("eye") : o.qc_stem;
-        // A segmentation file alone has no pixels to read again.
-        if (scan.pixels_loaded || scan.meta.format == io::SourceFormat::kIowaSurfaces) {
-            write_macula_qc(r, scan, o.qc_dir, stem);
-        } else {
-            // A scan read without pixels (the cohort reads headers and segmentation only):
-            // read it again with them for the B-scan picture.
-            io::ReadOptions read;
-            read.pixels = true;
-            write_macula_qc(r, io::read_scan(file, read), o.qc_dir, stem);
-        }
+        // The caller read the pixels with the rest (MaculaEyeOptions::qc_dir): the file is
+        // read once.
+        write_macula_qc(r, scan, o.qc_dir, stem);
         prov.mark("qc_pictures");
     }
     j["provenance"] = prov.json();

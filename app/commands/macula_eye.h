@@ -19,7 +19,7 @@ struct MaculaEyeOptions {
     retina::CubeParams params;  // tau_mm is set from tau_um by analyse_macula_eye
     double tau_um = 5.0;        // pit-flat threshold above CFT (um), the user option
     std::string rim_point = "crest";  // params.rim_point, the user option (crest | maximum)
-    std::string qc_dir;         // empty: no QC pictures
+    std::string qc_dir;         // empty: no QC pictures; else the scan must be read with pixels
     std::string qc_stem;        // QC file names DIR/STEM_*.png; empty: "eye" (never the input's name)
     bool record_paths = false;  // --record-paths: the input's path in the JSON and CSV (identifying)
     // Refuse (AnalysisError) a volume that retina::classify_scan calls an ONH scan: a CuBe fit
@@ -40,7 +40,7 @@ using MaculaEye = EyeResult;
                                            MaculaEyeOptions options,
                                            const SubjectSource& subjects);
 // The same on a scan already read from `file` with its hash (io::read_scan_hashed; headers and
-// segmentation, pixels not needed), `facts` being the file's state taken *before* it was read
+// segmentation, and the pixels when QC pictures are asked for), `facts` being the file's state taken *before* it was read
 // (a file changed meanwhile is then redone by the next cohort run).
 [[nodiscard]] MaculaEye analyse_macula_eye(const std::string& file,
                                            const FileFacts& facts,

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "commands/qc_draw.h"
+#include "commands/qc_names.h"
 #include "octshape/error.h"
 
 namespace octshape::app {
@@ -392,9 +393,9 @@ void write_macula_qc(const retina::CubeResult& r, const io::Scan& scan, const st
     const std::string title = scan_title(scan.meta, scan.num_bscans());
     const bool one_row = r.line_scan || r.map.rows < 2;
     save_png(one_row ? thickness_line_picture(r, title) : thickness_map_picture(r, title),
-             (d / (stem + "_thickness.png")).string());
-    save_png(profiles_picture(r, title), (d / (stem + "_profiles.png")).string());
-    save_png(bscan_picture(r, scan, title), (d / (stem + "_bscan.png")).string());
+             (d / qc::picture_name(stem, qc::kThickness)).string());
+    save_png(profiles_picture(r, title), (d / qc::picture_name(stem, qc::kProfiles)).string());
+    save_png(bscan_picture(r, scan, title), (d / qc::picture_name(stem, qc::kBscan)).string());
 }
 
 }  // namespace octshape::app

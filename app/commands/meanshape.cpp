@@ -18,7 +18,6 @@
 #include "commands/mesh_common.h"
 #include "octshape/io/registration.h"
 #include "octshape/mesh/meanshape.h"
-#include "octshape/version.h"
 
 namespace octshape::app {
 namespace {
@@ -39,6 +38,7 @@ void run_meanshape(const MeanShapeOptions& o) {
         throw UsageError(o.output + ": the mean shape carries per-vertex SD: use .vtp or .ply");
     }
     const auto t0 = std::chrono::steady_clock::now();
+    Provenance prov("meanshape");
     io::IcpParams icp;
     icp.max_iterations = o.max_iterations;
     icp.refine_iterations = o.refine_iterations;
@@ -90,17 +90,19 @@ void run_meanshape(const MeanShapeOptions& o) {
     }
     std::vector<std::string> hashes;
     for (const auto& f : o.inputs) hashes.push_back(io::sha256_file(f));
-    io::write_mesh_vertex_scalars(
-        o.output, result.mean, reference.F, {{"sd_mm", result.sd}},
-        mesh_provenance("meanshape", o.inputs, hashes,
-                        {{"icp_max_iterations", o.max_iterations},
-                         {"icp_refine_iterations", o.refine_iterations},
-                         {"threads", o.threads}},
-                        o.record_paths));
+    describe_mesh_run(prov, o.inputs, hashes,
+                      {{"icp_max_iterations", icp.max_iterations},
+                       {"icp_refine_iterations", icp.refine_iterations},
+                       {"icp_tolerance", icp.tolerance},
+                       {"icp_max_landmarks", icp.max_landmarks},
+                       {"icp_match_centroids", icp.match_centroids},
+                       {"threads", o.threads}},
+                      o.record_paths);
+    io::write_mesh_vertex_scalars(o.output, result.mean, reference.F, {{"sd_mm", result.sd}},
+                                  mesh_provenance_line(prov));
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    const nlohmann::json j = {{"software", std::string("octshape ") + kVersion},
-         {"provenance", mesh_software()},
+    const nlohmann::json j = {{"provenance", nlohmann::json(prov.json())},
                               {"output", shown_path(o.output, o.record_paths)},
                               {"reference", shown_path(o.inputs[0], o.record_paths)},
                               {"surfaces", surfaces},

@@ -1,7 +1,7 @@
 #pragma once
 // Shared by the mesh commands (denoise, metrics, features, meanshape): reading a mesh (an
-// invalid one is an InputError naming the file), and the provenance line written into their
-// output meshes.
+// invalid one is an InputError naming the file), and their provenance block (in their JSON
+// and, as one line, in their output meshes).
 
 #include <filesystem>
 #include <string>
@@ -15,13 +15,8 @@
 #include "octshape/io/mesh_io.h"
 #include "octshape/io/sha256.h"
 #include "octshape/mesh/mesh.h"
-#include "octshape/version.h"
 
 namespace octshape::app {
-
-// The software identity (version, source revision, modified, build type) in every JSON the mesh
-// commands write (commands/provenance.h).
-inline nlohmann::json mesh_software() { return nlohmann::json(software_json()); }
 
 // Reads and validates a mesh; an invalid mesh is an InputError naming the file.
 inline io::MeshData read_valid_mesh(const std::filesystem::path& path) {
@@ -34,28 +29,25 @@ inline io::MeshData read_valid_mesh(const std::filesystem::path& path) {
     return mesh;
 }
 
-// The provenance of an output mesh (io::write_mesh): one line of JSON with the software
-// version, the command, every input by its SHA-256 (`hashes`, in the order of `inputs`; the
-// path too only with `record_paths`, --record-paths: a file name may name the patient) and
-// the options used.
-inline std::string mesh_provenance(const std::string& command,
-                                   const std::vector<std::string>& inputs,
-                                   const std::vector<std::string>& hashes,
-                                   const nlohmann::json& options,
-                                   bool record_paths = false) {
-    nlohmann::json in = nlohmann::json::array();
+// Fills the provenance block of a mesh command (commands/provenance.h; `p` made when the run
+// started, with the command's name): every input by its SHA-256 (`hashes`, in the order of
+// `inputs`; the path too only with `record_paths`, --record-paths: a file name may name the
+// patient) and the effective options. Its JSON (`p.json()`) goes into the command's JSON
+// output, its untimed JSON (`mesh_provenance_line`) into the output mesh (io::write_mesh), so
+// that a re-run writes the same mesh byte for byte.
+inline void describe_mesh_run(Provenance& p,
+                              const std::vector<std::string>& inputs,
+                              const std::vector<std::string>& hashes,
+                              const nlohmann::json& options,
+                              bool record_paths = false) {
     for (std::size_t i = 0; i < inputs.size(); ++i) {
-        nlohmann::json e = {{"sha256", hashes.at(i)}};
-        if (record_paths) e["path"] = inputs[i];
-        in.push_back(e);
+        p.add_input(hashes.at(i), record_paths ? inputs[i] : std::string());
     }
-    return nlohmann::json{{"software", std::string("octshape ") + kVersion},
-         {"provenance", mesh_software()},
-                          {"command", command},
-                          {"inputs", in},
-                          {"options", options}}
-        .dump();
+    p.set_options(nlohmann::ordered_json::parse(options.dump()));
 }
+
+// The one line of JSON written into an output mesh (`octshape_provenance`).
+inline std::string mesh_provenance_line(const Provenance& p) { return p.json_untimed().dump(); }
 
 // A path field of a command's JSON: the path with --record-paths (identifying: a file name may
 // name the patient), else null; the SHA-256 beside it identifies the file.

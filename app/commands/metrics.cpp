@@ -13,7 +13,6 @@
 #include "commands/mesh_common.h"
 #include "octshape/io/sha256.h"
 #include "octshape/mesh/metrics.h"
-#include "octshape/version.h"
 
 namespace octshape::app {
 namespace {
@@ -33,12 +32,18 @@ bool same_triangulation(const io::MeshData& a, const io::MeshData& b) {
 void run_metrics(const MetricsOptions& o) {
     const io::MeshData m = read_valid_mesh(o.mesh);
     const io::MeshData r = read_valid_mesh(o.reference);
-    nlohmann::json j = {{"software", std::string("octshape ") + kVersion},
-         {"provenance", mesh_software()},
+    Provenance prov("metrics");
+    const std::string mesh_sha = io::sha256_file(o.mesh);
+    const std::string reference_sha = io::sha256_file(o.reference);
+    prov.add_input(mesh_sha, o.record_paths ? o.mesh : std::string(), {{"role", "mesh"}});
+    prov.add_input(reference_sha, o.record_paths ? o.reference : std::string(),
+                   {{"role", "reference"}});
+    prov.set_options({{"input", !o.input.empty()}, {"json", o.json}});
+    nlohmann::json j = {{"provenance", nullptr},
                         {"mesh", shown_path(o.mesh, o.record_paths)},
-                        {"mesh_sha256", io::sha256_file(o.mesh)},
+                        {"mesh_sha256", mesh_sha},
                         {"reference", shown_path(o.reference, o.record_paths)},
-                        {"reference_sha256", io::sha256_file(o.reference)},
+                        {"reference_sha256", reference_sha},
                         {"vertices", m.V.rows()},
                         {"faces", m.F.rows()}};
     const bool same = same_triangulation(m, r);
@@ -59,7 +64,10 @@ void run_metrics(const MetricsOptions& o) {
         j["closed"] = c.closed;
         if (!o.input.empty()) {
             const io::MeshData in = read_valid_mesh(o.input);
-            j["input_sha256"] = io::sha256_file(o.input);
+            const std::string input_sha = io::sha256_file(o.input);
+            j["input_sha256"] = input_sha;
+            prov.add_input(input_sha, o.record_paths ? o.input : std::string(),
+                           {{"role", "input"}});
             if (!same_triangulation(in, m)) {
                 throw UsageError("--input " + o.input +
                                  ": not the same triangulation as the mesh (flips created by "
@@ -92,6 +100,7 @@ void run_metrics(const MetricsOptions& o) {
                         std::string(key) + " undefined: " + which + " has a face of zero area";
         }
     }
+    j["provenance"] = nlohmann::json(prov.json());
     for (const auto& [key, value] : j.items()) {
         if (value.is_number_float() && !std::isfinite(value.get<double>())) {
             throw Error(o.mesh + ": metric " + key + " is not finite (please report this input)");

@@ -120,7 +120,7 @@ EyeResult analyse_onh_eye(const std::string& file,
                           const FileFacts& facts,
                           OnhEyeOptions o,
                           const SubjectSource& subjects) {
-    Provenance prov;
+    Provenance prov("onh");
     o.params.local_features = !o.mesh_dir.empty();  // the ENVT map is a mesh scalar only
     o.params.validate();
     const retina::IlmSource source = retina::ilm_source_from_string(o.ilm);
@@ -173,9 +173,15 @@ EyeResult analyse_onh_eye(const std::string& file,
     out.csv_row = eye_csv_values(file, sha, scan, o.record_paths);
     out.csv_header.insert(out.csv_header.end(), cols.begin(), cols.end());
     out.csv_row.insert(out.csv_row.end(), vals.begin(), vals.end());
-    attach_cohort_record(j, cols, vals, facts,
-                         onh_options_text(o) + " subjects=" + subjects.fingerprint(), "onh", scan,
-                         subjects, file);
+    const std::string options_text = onh_options_text(o) + " subjects=" + subjects.fingerprint();
+    attach_cohort_record(j, cols, vals, facts, options_text, "onh", scan, subjects, file);
+    prov.add_input(sha, o.record_paths ? file : std::string());
+    if (!segmentation.is_null()) {
+        prov.add_input(segmentation["sha256"].get<std::string>(),
+                       o.record_paths ? o.segmentation.file : std::string(),
+                       {{"role", "segmentation"}});
+    }
+    prov.set_options(eye_provenance_options(options_text, o.qc_dir, o.record_paths));
 
     const std::string stem = o.qc_stem.empty() ? std::string("eye") : o.qc_stem;
     if (!o.qc_dir.empty()) {
@@ -183,9 +189,7 @@ EyeResult analyse_onh_eye(const std::string& file,
         prov.mark("qc_pictures");
     }
     if (!o.mesh_dir.empty()) {
-        write_meshes(r, o, stem,
-                     mesh_provenance("onh", {file}, {sha}, {{"options", onh_options_text(o)}},
-                                     o.record_paths));
+        write_meshes(r, o, stem, mesh_provenance_line(prov));
         prov.mark("meshes");
     }
     j["provenance"] = prov.json();

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "commands/qc_draw.h"
+#include "commands/qc_names.h"
 #include "octshape/error.h"
 
 namespace octshape::app {
@@ -308,9 +309,9 @@ void write_onh_qc(const io::Scan& scan,
     if (ec) throw OutputError(dir, "cannot create the QC directory: " + ec.message());
     const std::filesystem::path d(dir);
     const std::string title = scan_title(scan.meta, scan.num_bscans());
-    save_png(enface_picture(r, p, title), (d / (stem + "_enface.png")).string());
-    save_png(bscans_picture(scan, r, title), (d / (stem + "_bscans.png")).string());
-    save_png(mrw_picture(r, title), (d / (stem + "_mrw.png")).string());
+    save_png(enface_picture(r, p, title), (d / qc::picture_name(stem, qc::kEnface)).string());
+    save_png(bscans_picture(scan, r, title), (d / qc::picture_name(stem, qc::kBscans)).string());
+    save_png(mrw_picture(r, title), (d / qc::picture_name(stem, qc::kMrw)).string());
 }
 
 }  // namespace octshape::app

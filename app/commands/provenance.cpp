@@ -1,6 +1,7 @@
 #include "commands/provenance.h"
 
 #include <ctime>
+#include <sstream>
 
 #include "build_info.h"
 #include "octshape/io/sha256.h"
@@ -41,7 +42,40 @@ std::string fingerprint(const std::string& parameters_text) {
     return io::sha256_hex(identity + parameters_text).substr(0, 16);
 }
 
-Provenance::Provenance() : utc_(utc_now_iso()), last_(std::chrono::steady_clock::now()) {}
+nlohmann::ordered_json options_from_text(const std::string& text) {
+    nlohmann::ordered_json o = nlohmann::ordered_json::object();
+    std::istringstream in(text);
+    std::string token;
+    std::string group;  // inside "group(k1=v1 ... kn=vn)"
+    while (in >> token) {
+        const auto eq = token.find('=');
+        if (eq == std::string::npos) continue;
+        std::string key = token.substr(0, eq);
+        std::string value = token.substr(eq + 1);
+        if (const auto open = key.find('('); open != std::string::npos) {
+            group = key.substr(0, open);
+            key = key.substr(open + 1);
+        }
+        const bool closes = !group.empty() && value.ends_with(")");
+        if (closes) value.pop_back();
+        const auto number = nlohmann::ordered_json::parse(value, nullptr, false);
+        nlohmann::ordered_json& into = group.empty() ? o : o[group];
+        into[key] = number.is_number() ? number : nlohmann::ordered_json(value);
+        if (closes) group.clear();
+    }
+    return o;
+}
+
+Provenance::Provenance(std::string command)
+    : command_(std::move(command)), utc_(utc_now_iso()), last_(std::chrono::steady_clock::now()) {}
+
+void Provenance::add_input(const std::string& sha256, const std::string& path,
+                           const nlohmann::ordered_json& extra) {
+    nlohmann::ordered_json e = {{"sha256", sha256}};
+    if (!path.empty()) e["path"] = path;
+    for (const auto& [k, v] : extra.items()) e[k] = v;
+    inputs_.push_back(std::move(e));
+}
 
 void Provenance::mark(const std::string& stage) {
     const auto now = std::chrono::steady_clock::now();
@@ -51,8 +85,24 @@ void Provenance::mark(const std::string& stage) {
     last_ = now;
 }
 
-nlohmann::ordered_json Provenance::json() const {
+void prepend_stages(nlohmann::ordered_json& block, const Provenance& earlier) {
+    const nlohmann::ordered_json e = earlier.json();
+    nlohmann::ordered_json seconds = e["seconds"];
+    for (const auto& [k, v] : block["seconds"].items()) seconds[k] = v;
+    block["utc"] = e["utc"];
+    block["seconds"] = std::move(seconds);
+}
+
+nlohmann::ordered_json Provenance::json_untimed() const {
     nlohmann::ordered_json j = software_json();
+    j["command"] = command_;
+    j["inputs"] = inputs_;
+    j["options"] = options_;
+    return j;
+}
+
+nlohmann::ordered_json Provenance::json() const {
+    nlohmann::ordered_json j = json_untimed();
     j["utc"] = utc_;
     j["seconds"] = seconds_;
     return j;

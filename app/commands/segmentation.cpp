@@ -42,6 +42,14 @@ nlohmann::ordered_json apply_segmentation_file(io::Scan& scan,
     return j;
 }
 
+void add_segmentation_input(nlohmann::ordered_json& provenance_inputs,
+                            const nlohmann::ordered_json& segmentation) {
+    if (segmentation.is_null()) return;
+    nlohmann::ordered_json in = {{"sha256", segmentation["sha256"]}, {"role", "segmentation"}};
+    if (segmentation.contains("path")) in["path"] = segmentation["path"];
+    provenance_inputs.push_back(in);
+}
+
 std::string file_fingerprint(const std::string& path) {
     try {
         return "sha256:" + io::sha256_file(path);

@@ -30,6 +30,11 @@ void add_segmentation_options(CLI::App* cmd, SegmentationOptions& o, bool per_ey
                                                              const SegmentationOptions& o,
                                                              bool record_paths);
 
+// The segmentation record (apply_segmentation_file's) as a provenance input: {"sha256",
+// "role": "segmentation"} (+ "path"); nothing for null.
+void add_segmentation_input(nlohmann::ordered_json& provenance_inputs,
+                            const nlohmann::ordered_json& segmentation);
+
 // "sha256:HEX" of a file an analysis reads besides its input (a segmentation, BMO points), for
 // the fingerprint's text (never the path); "unreadable" when it cannot be read (the analysis
 // then reports it, naming the file).

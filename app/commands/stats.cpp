@@ -15,6 +15,8 @@
 #include <string>
 
 #include "commands/command.h"
+#include "commands/provenance.h"
+#include "octshape/io/sha256.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/error.h"
 #include "octshape/retina/cube_report.h"
@@ -135,8 +137,10 @@ std::string retest_text(const retina::RetestStats& r) {
 nlohmann::ordered_json to_json(const retina::GroupStats& g,
                                const retina::RetestStats* r,
                                const std::string& input,
-                               const std::string& analysis) {
+                               const std::string& analysis,
+                               const nlohmann::ordered_json& provenance) {
     nlohmann::ordered_json j;
+    j["provenance"] = provenance;
     j["input"] = input;
     if (!analysis.empty()) j["analysis"] = analysis;
     j["group_column"] = g.group_column;
@@ -230,7 +234,22 @@ std::string keep_one_analysis(retina::EyeTable& t, const StatsOptions& o) {
     return keep;
 }
 
+// Every effective option of a stats run (the provenance's options), defaults included.
+nlohmann::ordered_json stats_options(const StatsOptions& o, const std::string& analysis) {
+    return {{"group_column", o.groups.group_column},
+            {"all_scans", o.groups.all_scans},
+            {"analysis", analysis.empty() ? nlohmann::ordered_json(nullptr)
+                                          : nlohmann::ordered_json(analysis)},
+            {"retest", o.retest},
+            {"same_visit", o.retest_params.same_visit},
+            {"sessions", o.retest_params.sessions},
+            {"icc_confidence", o.retest_params.icc.confidence},
+            {"output", !o.table_out.empty()},
+            {"retest_output", !o.retest_out.empty()}};
+}
+
 void run(const StatsOptions& o) {
+    Provenance prov("stats");
     retina::EyeTable t = retina::read_eye_table_file(o.input);
     // failures.csv (file, reason, exit_code) is the cohort's other table: say so.
     if (t.column("reason") >= 0 && t.column("subject_id") < 0) {
@@ -272,7 +291,10 @@ void run(const StatsOptions& o) {
     if (!o.table_out.empty()) io::write_text_atomically(o.table_out, groups_csv(g));
     if (r && !o.retest_out.empty()) io::write_text_atomically(o.retest_out, retest_csv(*r));
     if (o.json) {
-        std::cout << to_json(g, r.get(), o.input, analysis).dump(2) << '\n';
+        prov.mark("statistics");
+        prov.add_input(io::sha256_file(o.input));
+        prov.set_options(stats_options(o, analysis));
+        std::cout << to_json(g, r.get(), o.input, analysis, prov.json()).dump(2) << '\n';
     } else {
         if (!analysis.empty()) {
             std::cout << "Analysis: "

@@ -782,6 +782,98 @@ SLOW_TEST(CohortKill, SigkillAtRandomMomentsThenRerunGivesTheUninterruptedTables
     EXPECT_GE(interrupted_midway, 4);
 }
 
+// Every file under `dir` (relative name -> content, masked as folder_files masks it).
+std::map<std::string, std::string> tree_files(const fs::path& dir) {
+    std::map<std::string, std::string> m;
+    for (const char* sub : {"", "eyes", "failures", "qc", "private"}) {
+        for (const auto& [name, text] : folder_files(dir / sub)) {
+            if (fs::is_directory(dir / sub / name)) continue;
+            m[(fs::path(sub) / name).string()] = text;
+        }
+    }
+    return m;
+}
+
+// Issue "safe to hand over": a cohort run with no subject option makes its own key
+// (OUT/private/subject.key); SIGKILL of the cohort (the parent) in the middle of the batch,
+// then a re-run, gives the folder of one uninterrupted run under that key, byte for byte
+// (run times masked): tables, records, QC pictures, gallery, provenance and private/. The
+// resumed run reuses the key (and says so), keeps the eyes finished before the kill and writes
+// nothing half-done. The reference run is made at the same path (the records hold nothing of
+// it, but one folder path for both rules out any difference from it), with the key copied in.
+TEST(CohortKill, WithoutASubjectOptionAKilledRunResumesToTheUninterruptedFolder) {
+    test::TempDir dir;
+    const fs::path in = dir / "in";
+    fs::create_directories(in);
+    write_macula(dir / "m0.vol", retina::MaculaFamily::kBezier, io::Laterality::kOD, 1);
+    write_macula(dir / "m1.vol", retina::MaculaFamily::kScheibe, io::Laterality::kOS, 2);
+    constexpr int kEyes = 12;
+    for (int i = 0; i < kEyes; ++i) {
+        fs::create_hard_link(dir / (i % 2 == 0 ? "m0.vol" : "m1.vol"),
+                             in / ("eye" + std::to_string(100 + i) + ".vol"));
+    }
+    const std::string good = slurp(dir / "m0.vol");
+    spit(in / "truncated.vol", good.substr(0, good.size() / 3));
+    const fs::path out = dir / "out";
+    const std::vector<std::string> args{"cohort", in.string(), "-o", out.string(), "--jobs", "2",
+                                        "--qc"};
+    const fs::path key = out / "private" / "subject.key";
+
+    // Kill the cohort once 3 eyes are finished (each eye takes a fraction of a second: the
+    // batch is then in its middle).
+    const pid_t pid = spawn_octshape(args);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    for (;;) {
+        std::size_t n = 0;
+        std::error_code ec;
+        for (fs::directory_iterator it(out / "eyes", ec), end; !ec && it != end;
+             it.increment(ec)) {
+            n += it->path().filename().string()[0] != '.' ? 1 : 0;
+        }
+        if (n >= 3 || std::chrono::steady_clock::now() > deadline) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    ::kill(pid, SIGKILL);
+    EXPECT_EQ(wait_exit(pid), -SIGKILL);
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));  // orphans die too
+    auto survived = json_mtimes(out / "eyes");
+    std::erase_if(survived, [](const auto& kv) { return kv.first[0] == '.'; });
+    ASSERT_GE(survived.size(), 3U);
+    ASSERT_LT(survived.size(), static_cast<std::size_t>(kEyes)) << "the kill came too late";
+    EXPECT_FALSE(fs::exists(out / "eyes.csv"));  // the tables come after the batch
+    ASSERT_TRUE(fs::exists(key));
+    const std::string made = slurp(key);
+
+    const std::string cmd = "cohort " + q(in) + " -o " + q(out) + " --jobs 2 --qc";
+    const auto resumed = test::run_octshape(cmd);
+    ASSERT_EQ(resumed.exit_code, 1) << resumed.err;  // the truncated export failed
+    EXPECT_NE(resumed.err.find("made by an earlier run"), std::string::npos) << resumed.err;
+    EXPECT_EQ(slurp(key), made);
+    const auto after = json_mtimes(out / "eyes");
+    for (const auto& [name, t] : survived) EXPECT_EQ(after.at(name), t) << name << " redone";
+    const auto got = tree_files(out);
+    for (const auto& file : got) {
+        EXPECT_EQ(file.first.find(".tmp-"), std::string::npos) << file.first;
+    }
+
+    const fs::path killed = dir / "killed";
+    fs::rename(out, killed);
+    fs::create_directories(out / "private");
+    fs::permissions(out / "private", fs::perms::owner_all);
+    fs::copy_file(killed / "private" / "subject.key", key);
+    const auto reference = test::run_octshape(cmd);
+    ASSERT_EQ(reference.exit_code, 1) << reference.err;
+    const auto want = tree_files(out);
+    EXPECT_EQ(want.size(), static_cast<std::size_t>(kEyes) + 1 + 3 * kEyes + 7)
+        << "eyes, a failure record, 3 pictures per eye, index.html, eyes.csv, failures.csv, "
+           "provenance.json, private/{inputs.csv, failures.csv, subject.key}";
+    ASSERT_EQ(got.size(), want.size());
+    for (const auto& [name, text] : want) {
+        ASSERT_TRUE(got.count(name)) << name;
+        EXPECT_TRUE(got.at(name) == text) << name << " differs";
+    }
+}
+
 }  // namespace
 }  // namespace octshape
 

@@ -11,6 +11,7 @@
 #include "octshape/io/sha256.h"
 #include "octshape/io/vol.h"
 #include "octshape/retina/phantom_macula.h"
+#include "octshape/version.h"
 #include "retina/macula_bounds.h"
 #include "test_paths.h"
 
@@ -37,7 +38,8 @@ TEST(MaculaCli, BezierSampleMatchesItsTruth) {
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const json j = json::parse(slurp(dir / "eye.json"));
     EXPECT_EQ(j["input"]["sha256"], io::sha256_file(vol.string()));
-    EXPECT_FALSE(j["octshape_version"].get<std::string>().empty());
+    EXPECT_EQ(j["provenance"]["version"], kVersion);
+    EXPECT_EQ(j["provenance"]["inputs"][0]["sha256"], io::sha256_file(vol.string()));
     EXPECT_EQ(slurp(dir / "eye.json").find("FAKE-PHANTOM"), std::string::npos);  // no identifiers
     EXPECT_NE(j["orientation"].get<std::string>().find("0 deg nasal"), std::string::npos);
     EXPECT_EQ(j["centre"]["source"], "device thickness grid");

@@ -180,7 +180,7 @@ TEST(Privacy, SingleEyeOutputsHoldNoNameUnlessAskedAndPicturesFollowTheOutput) {
 TEST(Provenance, VersionRevisionTimeStagesAndAFingerprintOfEveryParameter) {
     const auto v = test::run_octshape("--version");
     ASSERT_EQ(v.exit_code, 0);
-    // "octshape 0.1.0 (revision <12 hex>|unknown[, modified]; <describe>; build <type>)".
+    // "octshape X.Y.Z (revision <12 hex>|unknown[, modified]; <describe>; build <type>)".
     // (Checked by hand: GCC 12's <regex> trips -Wmaybe-uninitialized under the sanitizers.)
     const std::string head = "octshape ";
     ASSERT_EQ(v.out.rfind(head, 0), 0U) << v.out;

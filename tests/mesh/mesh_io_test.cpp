@@ -65,7 +65,7 @@ TEST(MeshIo, ProvenanceIsWrittenAndReadBack) {
     // JSON-like text: quotes, braces, spaces); binary STL has no room for it. The geometry reads back as without it.
     TempDir tmp;
     const auto m = with_noise(icosphere(1), 0.01);
-    const std::string line = R"({"software": "octshape test", "inputs": [{"sha256": "ab"}]})";
+    const std::string line = R"({"version": "test", "command": "denoise", "inputs": [{"sha256": "ab"}]})";
     for (const std::string ext : {".ply", ".off", ".vtp", ".obj", ".stl"}) {
         const auto path = tmp / ("p" + ext);
         io::write_mesh(path, m.V, m.F, {}, line);

@@ -624,7 +624,7 @@ TEST(PhantomOnhCommand, WritesTheVolAndItsTruth) {
     ASSERT_TRUE(std::filesystem::exists(truth_path));
     std::ifstream tf(truth_path);
     const nlohmann::json j = nlohmann::json::parse(tf);
-    EXPECT_EQ(j["octshape_version"], kVersion);
+    EXPECT_EQ(j["provenance"]["version"], kVersion);
     EXPECT_EQ(j["options"]["shape"], "overhang");
     EXPECT_EQ(j["options"]["eye"], "OS");
     EXPECT_EQ(j["options"]["bscans"], 9);

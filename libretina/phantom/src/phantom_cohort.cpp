@@ -143,7 +143,9 @@ CohortPlan plan_macula_cohort(const CohortPhantomParams& p) {
 
     nlohmann::ordered_json& j = plan.manifest;
     j["kind"] = "octshape phantom cohort manifest";
-    j["octshape_version"] = kVersion;
+    // The version only (docs/outputs.md, "Provenance"): the documented command reproduces the
+    // file bit for bit from any revision of it.
+    j["provenance"] = {{"version", kVersion}};
     j["design"] = {{"subjects", p.subjects},
                    {"seed", p.seed},
                    {"groups", {"control", "case"}},

@@ -930,7 +930,9 @@ nlohmann::ordered_json macula_truth_json(const MaculaTruth& t,
     const phantom::VolumeLayout l = macula_layout(p);
     J j;
     j["kind"] = "octshape macula phantom truth";
-    j["octshape_version"] = kVersion;
+    // The version only (docs/outputs.md, "Provenance"): the documented command reproduces the
+    // file bit for bit from any revision of it.
+    j["provenance"] = {{"version", kVersion}};
     j["frame"] =
         "grid mm: x along a B-scan (A-scan index * ScaleX), y across B-scans (B-scan index * "
         "Distance), heights are thickness (ILM - BM) in mm; angles anatomical (0 deg nasal, "

@@ -1165,7 +1165,9 @@ nlohmann::json onh_truth_to_json(const OnhPhantomParams& params,
     const OnhPhantomGeometry g(params);
     json j;
     j["generator"] = "octshape phantom onh";
-    j["octshape_version"] = kVersion;
+    // The version only (docs/outputs.md, "Provenance"): the documented command reproduces the
+    // file bit for bit from any revision of it.
+    j["provenance"] = {{"version", kVersion}};
     j["conventions"] = {
         {"frame",
          "grid mm: x = A-scan index * ScaleX, y = B-scan index * Distance "
