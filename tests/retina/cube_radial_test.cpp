@@ -211,7 +211,9 @@ void expect_within_volume_targets(const RadialErrors& e, const MaculaTruth& t, b
     EXPECT_LE(e.slope_deg, 0.2);
     EXPECT_LE(e.vr_rel, 0.01);
     EXPECT_LE(e.vir_rel, 0.01);
-    if (pit_volume) EXPECT_LE(e.vp_rel, 0.01);
+    if (pit_volume) {
+        EXPECT_LE(e.vp_rel, 0.01);
+    }
     EXPECT_LE(e.flat_diameter, scheibe ? 0.17 * t.pit_flat_diameter_mm : tol(t.pit_flat_diameter_mm));
 }
 
