@@ -123,8 +123,13 @@ std::string retest_text(const retina::RetestStats& r) {
     for (const auto& p : r.parameters) {
         const bool warn = !icc_warning(p.icc).empty();
         few = few || warn;
-        o << fmt::format("{:<36} {:>6} {:>8.4f} {:>8.4f} {:>8.4f} {:>10.3g}{}\n", p.parameter,
-                         p.icc.n, p.icc.icc, p.icc.lower, p.icc.upper, p.icc.p, warn ? " *" : "");
+        // A value the data do not determine prints as NA, never "nan".
+        const auto v = [](double x, const char* spec) {
+            return std::isfinite(x) ? fmt::format(fmt::runtime(spec), x) : std::string("NA");
+        };
+        o << fmt::format("{:<36} {:>6} {:>8} {:>8} {:>8} {:>10}{}\n", p.parameter, p.icc.n,
+                         v(p.icc.icc, "{:.4f}"), v(p.icc.lower, "{:.4f}"), v(p.icc.upper, "{:.4f}"),
+                         v(p.icc.p, "{:.3g}"), warn ? " *" : "");
     }
     if (few) {
         o << fmt::format("* fewer than {} eyes: the 95% CI is not informative (it may leave the "

@@ -864,9 +864,9 @@ TEST(CohortKill, WithoutASubjectOptionAKilledRunResumesToTheUninterruptedFolder)
     const auto reference = test::run_octshape(cmd);
     ASSERT_EQ(reference.exit_code, 1) << reference.err;
     const auto want = tree_files(out);
-    EXPECT_EQ(want.size(), static_cast<std::size_t>(kEyes) + 1 + 3 * kEyes + 7)
+    EXPECT_EQ(want.size(), static_cast<std::size_t>(kEyes) + 1 + 3 * kEyes + 8)
         << "eyes, a failure record, 3 pictures per eye, index.html, eyes.csv, failures.csv, "
-           "provenance.json, private/{inputs.csv, failures.csv, subject.key}";
+           "provenance.json, .lock, private/{inputs.csv, failures.csv, subject.key}";
     ASSERT_EQ(got.size(), want.size());
     for (const auto& [name, text] : want) {
         ASSERT_TRUE(got.count(name)) << name;

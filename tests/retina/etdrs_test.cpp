@@ -254,10 +254,10 @@ TEST(Etdrs, LineScanHasNoSectorsButTheDeviceCentre) {
     const double expected = th(a0) + (fa - a0) * (th(a0 + 1) - th(a0));
     EXPECT_NEAR(r.ours_at_device_centre_mm, expected, 1e-9);
     // The device's number does not come from this B-scan's segmentation: its minimum central
-    // thickness (within 0.5 mm of the centre) is below the line's own minimum there by more
-    // than a pixel, which no interpolation of the line can give. So a one-pixel agreement at
-    // the centre cannot be required of the line (measured +5.27 um = 1.36 px): the difference
-    // stays below the QC limit (2 px, docs/algorithms/etdrs.md) and no flag is raised.
+    // thickness (within 0.5 mm of the centre) is below the line's own minimum there by 0.8 px,
+    // which no interpolation of the line can give. So a one-pixel agreement at the centre
+    // cannot be required of the line (measured +5.27 um = 1.36 px); the difference is
+    // reported as a value, never a flag (docs/algorithms/etdrs.md).
     double line_min = 1e9;
     for (int a = 0; a < scan.meta.size_x; ++a) {
         if (std::fabs(a - fa) * scan.meta.scale_x_mm <= 0.5 && !std::isnan(th(a))) {
@@ -267,7 +267,6 @@ TEST(Etdrs, LineScanHasNoSectorsButTheDeviceCentre) {
     std::printf("device min central %.4f mm, the line's minimum within 0.5 mm %.4f mm\n",
                 scan.grids[0].min_central_thickness_mm, line_min);
     EXPECT_LT(scan.grids[0].min_central_thickness_mm, line_min - scan.meta.scale_z_mm * 0.75);
-    EXPECT_LE(std::fabs(r.central_difference_um), 2e3 * scan.meta.scale_z_mm);
     EXPECT_TRUE(r.qc_flags.empty());
 }
 

@@ -208,15 +208,9 @@ EtdrsReport etdrs_report(const io::Scan& scan,
                                                      : m.sample(d.centre_mm.x(), d.centre_mm.y());
         if (std::isfinite(d.central_thickness_mm) && std::isfinite(out.ours_at_device_centre_mm)) {
             out.central_difference_um = 1e3 * (out.ours_at_device_centre_mm - d.central_thickness_mm);
-            // The same segmentation gives the same thickness up to interpolation between A-scans
-            // (well below a pixel); two pixels' height means another segmentation or another
-            // centre.
-            const double limit_um = 2e3 * scan.meta.scale_z_mm;
-            if (std::fabs(out.central_difference_um) > limit_um) {
-                out.qc_flags.push_back("thickness at the device grid centre differs from the "
-                                       "device's central thickness by " +
-                                       fixed(out.central_difference_um, 1) + " um (more than 2 px)");
-            }
+            // Reported as a QC value, not a flag: what the device calls its central thickness,
+            // and from which data it computed it, are not documented (docs/algorithms/etdrs.md
+            // "Against the device": on the real line scan it is not this B-scan's).
         }
         if (res.line_scan && d.centre_off_scan_mm > 0.5 * scan.meta.scale_x_mm) {
             out.notes.push_back("the device grid centre lies " + fixed(1e3 * d.centre_off_scan_mm, 0) +

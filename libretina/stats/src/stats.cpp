@@ -198,9 +198,13 @@ IccResult icc_2_1(const Eigen::MatrixXd& x, const IccParams& params) {
     if (!(denom > 0.0)) return r;  // all ratings equal: undefined
     r.icc = (bms - ems) / denom;
     if (!(ems > 0.0)) {
-        // No residual variation: F is infinite and the interval degenerate; leave it NaN.
+        // No residual variation: F is infinite. With no rater variation either (every repeat
+        // identical, the targets differing) the ICC is exactly 1 and the interval is [1, 1], the
+        // limit of Eq. 8-9 as EMS and JMS go to 0 (what psych::ICC reports); otherwise the
+        // interval is degenerate and stays NaN.
         r.f = std::numeric_limits<double>::infinity();
         r.p = 0.0;
+        if (!(jms > 0.0)) r.lower = r.upper = r.icc;
         return r;
     }
     r.f = bms / ems;
