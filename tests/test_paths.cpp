@@ -93,6 +93,13 @@ RunResult run_through_shell(const std::string& prefix, const std::string& args, 
 
 RunResult run_octshape(const std::string& args) { return run_through_shell("", args, false); }
 
+std::string failure_kind(int exit_code) {
+    if (exit_code == 137) return "hang";
+    if (exit_code >= 128) return "crash";
+    if (exit_code == 70) return "internal error";
+    return "";
+}
+
 RunResult run_octshape_limited(const std::string& args, int seconds) {
     return run_through_shell("timeout -s KILL " + std::to_string(seconds) + " ", args, true);
 }

@@ -53,5 +53,8 @@ RunResult run_octshape(const std::string& args);
 // The same, killed (SIGKILL) after `seconds`; a run ended by a signal has exit code 128 + the
 // signal (a run killed at the limit: 137), as a shell reports it.
 RunResult run_octshape_limited(const std::string& args, int seconds);
+// A campaign's verdict on an exit code that is never acceptable: "hang" (killed at the limit),
+// "crash" (another signal), "internal error" (70); "" for any other code.
+[[nodiscard]] std::string failure_kind(int exit_code);
 
 }  // namespace octshape::test

@@ -54,6 +54,29 @@ bool check_macula_scan(const io::Scan& scan) {
     return line_scan;
 }
 
+void take_centre(CubeResult& res, Centre&& centre) {
+    res.search_centre_mm = centre.search_centre_mm;
+    res.centre_source = std::move(centre.source);
+    res.centre_mm = centre.centre_mm;
+    res.cft_mm = centre.cft_mm;
+    res.num_tied_minima = centre.num_tied_minima;
+    res.centre_fit_radius_mm = centre.fit_radius_mm;
+    res.notes = std::move(centre.notes);
+    res.qc_flags = std::move(centre.qc_flags);
+}
+
+void fit_half_lines(CubeResult& res, RadialSamples& samples, double centre_sample_mm,
+                    const CubeParams& params, double crest_mm) {
+    // CFT as a model estimate (docs/algorithms/cube.md "CFT"): every interior fitted with its
+    // start height free; CFT = the mean of those heights (the shared P0.y of Eq. 7.5); then
+    // every half-line fitted with P0 = (0, CFT) as the thesis' model has it.
+    res.cft_sample_mm = res.cft_mm;
+    const CftPass cft = cft_pass(samples.half_lines, centre_sample_mm, res.cft_mm, params, crest_mm);
+    res.cft_mm = cft.cft_mm;
+    final_fit(samples, cft, params, crest_mm);
+    res.half_lines = std::move(samples.half_lines);
+}
+
 CftPass cft_pass(const std::vector<CubeHalfLine>& lines,
                  double centre_sample_mm,
                  double cft_sample_mm,
@@ -194,29 +217,14 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
                                  .line_scan = res.line_scan,
                                  .noisy = noisy,
                                  .noise_sd_mm = noise_sd_mm});
-    res.search_centre_mm = centre.search_centre_mm;
-    res.centre_source = std::move(centre.source);
-    res.centre_mm = centre.centre_mm;
-    res.cft_mm = centre.cft_mm;
-    res.num_tied_minima = centre.num_tied_minima;
-    res.centre_fit_radius_mm = centre.fit_radius_mm;
-    res.notes = std::move(centre.notes);
-    res.qc_flags = std::move(centre.qc_flags);
+    const double centre_sample_mm = centre.sample_mm;
+    take_centre(res, std::move(centre));
 
     RadialSamples samples = radial_samples(res.map, geo, params, res.centre_mm, res.cft_mm,
                                            scan.meta.scale_x_mm, res.line_scan, noisy);
     res.sample_spacing_mm = samples.spacing_mm;
     res.noise_adaptive_samples = samples.noise_adaptive;
-
-    // CFT as a model estimate (docs/algorithms/cube.md "CFT"): every interior fitted with its
-    // start height free; CFT = the mean of those heights (the shared P0.y of Eq. 7.5); then
-    // every half-line fitted with P0 = (0, CFT) as the thesis' model has it.
-    res.cft_sample_mm = res.cft_mm;
-    const CftPass cft =
-        cft_pass(samples.half_lines, centre.sample_mm, res.cft_mm, params, crest_mm);
-    res.cft_mm = cft.cft_mm;
-    final_fit(samples, cft, params, crest_mm);
-    res.half_lines = std::move(samples.half_lines);
+    fit_half_lines(res, samples, centre_sample_mm, params, crest_mm);
 
     summarise_macula(res, params);
     macula_qc(res, scan, geo, params);

@@ -280,23 +280,13 @@ CubeResult analyse_macula_radial(const io::Scan& scan, const CubeParams& params)
 
     Centre centre = radial_centre(
         {.map = res.map, .geo = geo, .params = params, .size_x = scan.meta.size_x});
-    res.search_centre_mm = centre.search_centre_mm;
-    res.centre_source = std::move(centre.source);
-    res.centre_mm = centre.centre_mm;
-    res.cft_mm = centre.cft_mm;
-    res.centre_fit_radius_mm = centre.fit_radius_mm;
-    res.notes = std::move(centre.notes);
-    res.qc_flags = std::move(centre.qc_flags);
+    const double centre_sample_mm = centre.sample_mm;
+    take_centre(res, std::move(centre));
 
     RadialSamples samples = radial_half_lines(res.map, geo, params, res.centre_mm, res.cft_mm,
                                               scan.meta.size_x);
     res.sample_spacing_mm = samples.spacing_mm;
-    res.cft_sample_mm = res.cft_mm;
-    const CftPass cft =
-        cft_pass(samples.half_lines, centre.sample_mm, res.cft_mm, params, crest_mm);
-    res.cft_mm = cft.cft_mm;
-    final_fit(samples, cft, params, crest_mm);
-    res.half_lines = std::move(samples.half_lines);
+    fit_half_lines(res, samples, centre_sample_mm, params, crest_mm);
 
     CubeRadial& r = res.radial;
     r.num_lines = static_cast<int>(geo.lines.size());

@@ -147,6 +147,16 @@ struct CftPass {
                                const CubeParams& params,
                                double crest_mm);
 
+// The found centre into the result (source, position, CFT sample, ties, fit window, its notes
+// and flags): the same for volumes, lines and radial scans (cube.cpp).
+void take_centre(CubeResult& res, Centre&& centre);
+
+// Stages 4 and 5 on any half-lines (a volume's interpolated ones or a radial scan's measured
+// ones): the CFT pass from the centre's sample, then the final fit; res.cft_sample_mm keeps the
+// raw sample, res.cft_mm becomes the model's CFT, res.half_lines the fitted lines (cube.cpp).
+void fit_half_lines(CubeResult& res, RadialSamples& samples, double centre_sample_mm,
+                    const CubeParams& params, double crest_mm);
+
 // Stage 5: every half-line fitted with P0 = (0, CFT), started from the CFT pass (cube.cpp).
 void final_fit(RadialSamples& s, const CftPass& cft, const CubeParams& params, double crest_mm);
 
