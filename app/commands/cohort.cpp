@@ -49,8 +49,8 @@ public:
         if (fd_ < 0) throw OutputError(p.string(), std::strerror(errno));
         if (::flock(fd_, (exclusive ? LOCK_EX : LOCK_SH) | LOCK_NB) != 0) {
             ::close(fd_);
-            throw UsageError("another `octshape cohort` is writing " + dir.string() +
-                             " (lock " + p.string() + ")");
+            throw UsageError(dir.string() + ": another `octshape cohort` is writing this "
+                             "folder (lock " + p.string() + ")");
         }
     }
     ~DirLock() { ::close(fd_); }

@@ -48,8 +48,8 @@ void run_metrics(const MetricsOptions& o) {
                         {"faces", m.F.rows()}};
     const bool same = same_triangulation(m, r);
     if (!same && !o.input.empty()) {
-        throw UsageError("--input " + o.input + ": flips need the mesh and the reference to "
-                         "share the triangulation, and " + o.reference + " does not");
+        throw UsageError(o.reference + ": --input needs the mesh and the reference to share "
+                         "the triangulation (to count flips), and this reference does not");
     }
     if (same) {
         const mesh::MeshComparison c = mesh::compare_meshes(m.V, m.F, r.V, r.F);
@@ -69,9 +69,9 @@ void run_metrics(const MetricsOptions& o) {
             prov.add_input(input_sha, o.record_paths ? o.input : std::string(),
                            {{"role", "input"}});
             if (!same_triangulation(in, m)) {
-                throw UsageError("--input " + o.input +
-                                 ": not the same triangulation as the mesh (flips created by "
-                                 "a denoiser need the mesh it was given)");
+                throw UsageError(o.input + ": --input is not the same triangulation as " +
+                                 o.mesh + " (flips created by a denoiser need the mesh it was "
+                                 "given)");
             }
             const mesh::FlipTransitions t = mesh::flip_transitions(m.V, in.V, r.V, m.F);
             j["input"] = shown_path(o.input, o.record_paths);

@@ -38,7 +38,7 @@ std::string truth_path(const std::string& vol_path) {
 
 void run(MaculaOptions& o) {
     if (std::filesystem::path(o.output).extension() != ".vol") {
-        throw UsageError("phantom macula: the output must end in .vol (got " + o.output + ")");
+        throw UsageError(o.output + ": the output of phantom macula must end in .vol");
     }
     retina::MaculaPhantomParams& p = o.params;
     p.family = o.family == "scheibe" ? retina::MaculaFamily::kScheibe

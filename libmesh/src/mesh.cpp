@@ -64,6 +64,20 @@ void validate_mesh(const Vertices& V, const Faces& F) {
             throw DataError("face " + std::to_string(f) + " repeats a vertex");
         }
     }
+    // Single faces of no area are tolerated (their normal is zero, the filters skip them); a
+    // mesh whose every face has no area has no normal field, no neighbourhood scale c_a and no
+    // surface to measure.
+    bool some_area = F.rows() == 0;
+    for (Eigen::Index f = 0; f < F.rows() && !some_area; ++f) {
+        const Eigen::Vector3d a = V.row(F(f, 0));
+        some_area = (Eigen::Vector3d(V.row(F(f, 1))) - a)
+                        .cross(Eigen::Vector3d(V.row(F(f, 2))) - a)
+                        .squaredNorm() > 0.0;
+    }
+    if (!some_area) {
+        throw DataError("every face has zero area (the vertices coincide or lie on one line): "
+                        "no surface");
+    }
 }
 
 void compute_face_geometry(const Vertices& V, const Faces& F, FaceGeometry& out) {

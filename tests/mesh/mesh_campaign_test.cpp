@@ -89,8 +89,10 @@ std::vector<Case> hostile_cases(const TestMesh& m) {
         {"no_vertex.obj", "f 1 2 3\n", 65, true},
         {"two_coords.obj", "v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", 65, true},
         {"repeat.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 1 2\n", 65, true},
-        {"collinear.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", 0, false},
-        {"collapsed.obj", "v 0 0 0\nv 0 0 0\nv 0 0 0\nv 0 0 0\nf 1 2 3\nf 1 3 4\n", 0, false},
+        // Faces of no area only: no surface, no normals to filter or compare (refused since
+        // the message test; a mesh with some faces of area keeps its degenerate ones).
+        {"collinear.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", 65, false},
+        {"collapsed.obj", "v 0 0 0\nv 0 0 0\nv 0 0 0\nv 0 0 0\nf 1 2 3\nf 1 3 4\n", 65, false},
         {"out_of_range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99\n", 65, true},
         {"negative_out.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n", 65, true},
         {"huge_index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999\n", 65, true},

@@ -269,5 +269,22 @@ TEST(MeshValidate, NamesTheBadFaceOrVertex) {
                  octshape::UsageError);
 }
 
+TEST(MeshValidate, ASurfaceNeedsAFaceWithArea) {
+    // Two faces: one on a line (no area) is tolerated while the other has area; both on the
+    // same line is no surface at all.
+    mesh::Vertices V(4, 3);
+    V << 0, 0, 0, 1, 0, 0, 2, 0, 0, 0, 1, 0;
+    mesh::Faces F(2, 3);
+    F << 0, 1, 2, 0, 1, 3;
+    EXPECT_NO_THROW(mesh::validate_mesh(V, F));
+    V.row(3) << 3, 0, 0;
+    try {
+        mesh::validate_mesh(V, F);
+        FAIL() << "a mesh of collinear vertices accepted";
+    } catch (const octshape::DataError& e) {
+        EXPECT_NE(std::string(e.what()).find("zero area"), std::string::npos) << e.what();
+    }
+}
+
 }  // namespace
 }  // namespace octshape::test

@@ -36,8 +36,8 @@ using Vertices = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 // #F×3 vertex indices per triangle, 0-based, counter-clockwise about the normal.
 using Faces = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
-// Checks that F indexes only rows of V, that no triangle repeats a vertex and that V is
-// finite. Throws DataError naming the first bad face or vertex.
+// Checks that F indexes only rows of V, that no triangle repeats a vertex, that V is finite and
+// that some face has an area. Throws DataError naming the first bad face or vertex.
 void validate_mesh(const Vertices& V, const Faces& F);
 
 // Per-face geometry of the current vertex positions.
