@@ -42,84 +42,72 @@ double median(std::vector<double> v) {
     return v[v.size() / 2];
 }
 
+// One row: write the phantom `p` to `path`, then read, hash and analyse it `runs` times
+// (medians; the analysis's CPU time is the fastest run's). `size` is the row's first column
+// (B-scans or radial lines). False when the hash is not a SHA-256.
+bool bench_row(const retina::MaculaPhantomParams& p, int size, const std::string& path, int runs) {
+    io::write_vol_file(retina::make_macula_phantom(p).scan, path);
+    std::vector<double> tr, th, ta;
+    double ta_cpu = 1e300;
+    double rmse = 0.0;
+    std::string sha;
+    for (int i = 0; i < runs; ++i) {
+        auto t0 = Clock::now();
+        const io::Scan scan = io::read_scan(path);
+        tr.push_back(ms_since(t0));
+        t0 = Clock::now();
+        sha = io::sha256_file(path);
+        th.push_back(ms_since(t0));
+        t0 = Clock::now();
+        const double c0 = cpu_ms();
+        const retina::CubeResult r = retina::analyse_macula(scan);
+        ta_cpu = std::min(ta_cpu, cpu_ms() - c0);
+        ta.push_back(ms_since(t0));
+        rmse = r.rmse_um;
+    }
+    const double mb = static_cast<double>(std::filesystem::file_size(path)) / 1e6;
+    std::printf("%-8d %-9.1f %-10.1f %10.1f %10.1f %12.1f %16.1f %12.1f %12.3f\n", size,
+                p.noise_um, mb, median(tr), median(th), median(ta), ta_cpu,
+                median(tr) + median(th) + median(ta), rmse);
+    std::filesystem::remove(path);
+    return sha.size() == 64;
+}
+
+void print_header(const char* first) {
+    std::printf("%-8s %-9s %-10s %10s %10s %12s %16s %12s %12s\n", first, "noise_um", "file_MB",
+                "read_ms", "sha256_ms", "analysis_ms", "analysis_cpu_ms", "total_ms", "rmse_um");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
     const int runs = argc > 1 ? std::max(1, std::atoi(argv[1])) : 5;
     const auto dir = std::filesystem::temp_directory_path();
-    std::printf("%-8s %-9s %-10s %10s %10s %12s %16s %12s %12s\n", "B-scans", "noise_um",
-                "file_MB", "read_ms", "sha256_ms", "analysis_ms", "analysis_cpu_ms", "total_ms",
-                "rmse_um");
-    for (const double noise_um : {0.0, 2.0})
-    for (const int nb : {61, 97, 193}) {
-        retina::MaculaPhantomParams p;
-        p.num_bscans = nb;
-        p.noise_um = noise_um;
-        p.pixels = false;  // the file still holds every pixel (kNoPixelData), as large as real
-        const auto path = (dir / ("octshape_macula_bench_" + std::to_string(nb) + ".vol")).string();
-        io::write_vol_file(retina::make_macula_phantom(p).scan, path);
-        std::vector<double> tr, th, ta;
-        double ta_cpu = 1e300;
-        double rmse = 0.0;
-        std::string sha;
-        for (int i = 0; i < runs; ++i) {
-            auto t0 = Clock::now();
-            const io::Scan scan = io::read_scan(path);
-            tr.push_back(ms_since(t0));
-            t0 = Clock::now();
-            sha = io::sha256_file(path);
-            th.push_back(ms_since(t0));
-            t0 = Clock::now();
-            const double c0 = cpu_ms();
-            const retina::CubeResult r = retina::analyse_macula(scan);
-            ta_cpu = std::min(ta_cpu, cpu_ms() - c0);
-            ta.push_back(ms_since(t0));
-            rmse = r.rmse_um;
+    print_header("B-scans");
+    for (const double noise_um : {0.0, 2.0}) {
+        for (const int nb : {61, 97, 193}) {
+            retina::MaculaPhantomParams p;
+            p.num_bscans = nb;
+            p.noise_um = noise_um;
+            p.pixels = false;  // the file still holds every pixel (kNoPixelData), as large as real
+            const auto path = dir / ("octshape_macula_bench_" + std::to_string(nb) + ".vol");
+            if (!bench_row(p, nb, path.string(), runs)) return 1;
         }
-        const double mb = static_cast<double>(std::filesystem::file_size(path)) / 1e6;
-        std::printf("%-8d %-9.1f %-10.1f %10.1f %10.1f %12.1f %16.1f %12.1f %12.3f\n", nb,
-                    noise_um, mb, median(tr), median(th), median(ta), ta_cpu, median(tr) + median(th) + median(ta), rmse);
-        std::filesystem::remove(path);
-        if (sha.size() != 64) return 1;
     }
-    std::printf("\n%-8s %-9s %-10s %10s %10s %12s %16s %12s %12s\n", "lines", "noise_um",
-                "file_MB", "read_ms", "sha256_ms", "analysis_ms", "analysis_cpu_ms", "total_ms",
-                "rmse_um");
-    for (const double noise_um : {0.0, 2.0})
-    for (const int lines : {12, 24}) {
-        retina::MaculaPhantomParams p;
-        p.radial = true;
-        p.radial_lines = lines;
-        p.fovea_dx_mm = 0.03;  // the crossing 30 um off the fovea
-        p.noise_um = noise_um;
-        p.pixels = false;
-        const auto path =
-            (dir / ("octshape_macula_bench_radial_" + std::to_string(lines) + ".vol")).string();
-        io::write_vol_file(retina::make_macula_phantom(p).scan, path);
-        std::vector<double> tr, th, ta;
-        double ta_cpu = 1e300;
-        double rmse = 0.0;
-        std::string sha;
-        for (int i = 0; i < runs; ++i) {
-            auto t0 = Clock::now();
-            const io::Scan scan = io::read_scan(path);
-            tr.push_back(ms_since(t0));
-            t0 = Clock::now();
-            sha = io::sha256_file(path);
-            th.push_back(ms_since(t0));
-            t0 = Clock::now();
-            const double c0 = cpu_ms();
-            const retina::CubeResult r = retina::analyse_macula(scan);
-            ta_cpu = std::min(ta_cpu, cpu_ms() - c0);
-            ta.push_back(ms_since(t0));
-            rmse = r.rmse_um;
+    std::printf("\n");
+    print_header("lines");
+    for (const double noise_um : {0.0, 2.0}) {
+        for (const int lines : {12, 24}) {
+            retina::MaculaPhantomParams p;
+            p.radial = true;
+            p.radial_lines = lines;
+            p.fovea_dx_mm = 0.03;  // the crossing 30 um off the fovea
+            p.noise_um = noise_um;
+            p.pixels = false;
+            const auto path =
+                dir / ("octshape_macula_bench_radial_" + std::to_string(lines) + ".vol");
+            if (!bench_row(p, lines, path.string(), runs)) return 1;
         }
-        const double mb = static_cast<double>(std::filesystem::file_size(path)) / 1e6;
-        std::printf("%-8d %-9.1f %-10.1f %10.1f %10.1f %12.1f %16.1f %12.1f %12.3f\n", lines,
-                    noise_um, mb, median(tr), median(th), median(ta), ta_cpu,
-                    median(tr) + median(th) + median(ta), rmse);
-        std::filesystem::remove(path);
-        if (sha.size() != 64) return 1;
     }
     return 0;
 }

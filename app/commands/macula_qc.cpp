@@ -16,22 +16,22 @@
 namespace octshape::app {
 namespace {
 
-const cv::Scalar kRim(40, 40, 230);        // red (BGR)
-const cv::Scalar kSlope(0, 200, 255);      // yellow
-const cv::Scalar kFlat(255, 255, 255);     // white
-const cv::Scalar kInterior(60, 180, 60);   // green
-const cv::Scalar kExterior(220, 120, 30);  // blue
-const cv::Scalar kCentre(255, 0, 255);     // magenta
-const cv::Scalar kIlm(60, 200, 60);        // green
-const cv::Scalar kBm(230, 150, 40);        // blue
-const cv::Scalar kFit(0, 220, 255);        // yellow
-const cv::Scalar kText(230, 230, 230);
-const cv::Scalar kPanel(30, 30, 30);
+const cv::Scalar& kRim = palette::kRed;
+const cv::Scalar& kSlope = palette::kAmber;
+const cv::Scalar& kFlat = palette::kWhite;
+const cv::Scalar& kInterior = palette::kDarkGreen;
+const cv::Scalar& kExterior = palette::kDeepBlue;
+const cv::Scalar& kCentre = palette::kMagenta;
+const cv::Scalar& kIlm = palette::kGreen;
+const cv::Scalar& kBm = palette::kBlue;
+const cv::Scalar& kFit = palette::kYellow;
+const cv::Scalar& kText = palette::kText;
+const cv::Scalar& kPanel = palette::kPanel;
 
 // A dark strip of `h` pixels with the title on it.
 cv::Mat title_strip(int w, int h, const std::string& title) {
     cv::Mat s(h, w, CV_8UC3, kPanel);
-    outlined_text(s, title, {8, h - 10}, 0.55, cv::Scalar(255, 255, 255));
+    outlined_text(s, title, {8, h - 10}, 0.55, palette::kWhite);
     return s;
 }
 
@@ -115,10 +115,10 @@ cv::Mat thickness_map_picture(const retina::CubeResult& r, const std::string& ti
         if (label == nullptr) continue;
         const Eigen::Vector2d e = r.centre_mm + (h.r_mm.back() + 0.15) * h.direction;
         outlined_text(img, label, to_px(e.x(), e.y()) + cv::Point(-7, 7), 0.7,
-                      cv::Scalar(255, 255, 255));
+                      palette::kWhite);
     }
     cv::drawMarker(img, to_px(r.centre_mm.x(), r.centre_mm.y()), kCentre, cv::MARKER_CROSS, 18, 2);
-    scale_bar(img, {14, H - 16}, px_per_mm, cv::Scalar(255, 255, 255));
+    scale_bar(img, {14, H - 16}, px_per_mm, palette::kWhite);
 
     const int bar_w = 130;
     cv::Mat body(H + 40, W + bar_w, CV_8UC3, kPanel);
@@ -143,7 +143,7 @@ cv::Mat thickness_line_picture(const retina::CubeResult& r, const std::string& t
     const retina::ThicknessMap& m = r.map;
     const int W = 930;
     const int H = 400;
-    cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
+    cv::Mat img(H, W, CV_8UC3, palette::kWhite);
     const auto [lo, hi] = thickness_range(r);
     Axes a;
     a.plot = cv::Rect(70, 30, W - 100, H - 120);
@@ -186,7 +186,7 @@ cv::Mat profiles_picture(const retina::CubeResult& r, const std::string& title) 
     const int rows = (n + cols - 1) / cols;
     const int pw = 300;
     const int ph = 200;
-    cv::Mat img(rows * ph, cols * pw, CV_8UC3, cv::Scalar(255, 255, 255));
+    cv::Mat img(rows * ph, cols * pw, CV_8UC3, palette::kWhite);
     double hmin = 1e9;
     double hmax = -1e9;
     double rmax = 0.0;
@@ -242,7 +242,7 @@ cv::Mat profiles_picture(const retina::CubeResult& r, const std::string& title) 
         cv::putText(img, t, {ox + 46, oy + 18}, cv::FONT_HERSHEY_SIMPLEX, 0.45,
                     h.valid ? cv::Scalar(0, 0, 0) : cv::Scalar(0, 0, 200), 1, cv::LINE_AA);
     }
-    cv::Mat legend(56, img.cols, CV_8UC3, cv::Scalar(255, 255, 255));
+    cv::Mat legend(56, img.cols, CV_8UC3, palette::kWhite);
     plain_text(legend,
                "thickness (um, y) against the distance r from the centre (mm, x) along each "
                "half-line (anatomical angle: 0 nasal, 90 superior)",
@@ -353,11 +353,11 @@ cv::Mat bscan_picture(const retina::CubeResult& r, const io::Scan& scan, const s
                               : scan.meta.format == io::SourceFormat::kIowaSurfaces
                                     ? "; a segmentation file has no pixels"
                                     : "; the export has no pixels"),
-                  {10, 24}, 0.55, cv::Scalar(255, 255, 255));
-    scale_bar(img, {14, H - 14}, W / (w * scan.meta.scale_x_mm), cv::Scalar(255, 255, 255));
+                  {10, 24}, 0.55, palette::kWhite);
+    scale_bar(img, {14, H - 14}, W / (w * scan.meta.scale_x_mm), palette::kWhite);
 
     // Axes around the picture: x in mm, depth in um (from the top of the B-scan).
-    cv::Mat framed(H + 72, W + 90, CV_8UC3, cv::Scalar(255, 255, 255));
+    cv::Mat framed(H + 72, W + 90, CV_8UC3, palette::kWhite);
     img.copyTo(framed(cv::Rect(70, 24, W, H)));
     Axes a;
     a.plot = cv::Rect(70, 24, W, H);

@@ -17,14 +17,14 @@
 namespace octshape::app {
 namespace {
 
-const cv::Scalar kEllipse(40, 40, 230);    // red (BGR)
-const cv::Scalar kDisc(0, 220, 255);       // yellow
-const cv::Scalar kBmo(255, 255, 255);      // white
-const cv::Scalar kDeviceIlm(60, 200, 60);  // green
-const cv::Scalar kUsedIlm(40, 40, 240);    // red
-const cv::Scalar kBm(230, 150, 40);        // blue
-const cv::Scalar kFilled(230, 230, 0);     // cyan
-const cv::Scalar kMrw(230, 60, 230);       // magenta
+const cv::Scalar& kEllipse = palette::kRed;
+const cv::Scalar& kDisc = palette::kYellow;
+const cv::Scalar& kBmo = palette::kWhite;
+const cv::Scalar& kDeviceIlm = palette::kGreen;
+const cv::Scalar& kUsedIlm = palette::kRed;  // was (40, 40, 240): the one red of the palette
+const cv::Scalar& kBm = palette::kBlue;
+const cv::Scalar& kFilled = palette::kCyan;
+const cv::Scalar& kMrw = palette::kPink;
 
 // Height above the RPE of the topmost ILM face over each grid cell.
 cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
@@ -105,13 +105,13 @@ cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
     const Eigen::Vector2d sup = inv.col(1).normalized();
     const double lr = p.disc_radius_mm + 0.12;
     outlined_text(img, "N", px(c.x() + lr * nasal.x(), c.y() + lr * nasal.y()) + cv::Point(-7, 7),
-                  0.7, cv::Scalar(255, 255, 255));
+                  0.7, palette::kWhite);
     outlined_text(img, "S", px(c.x() + lr * sup.x(), c.y() + lr * sup.y()) + cv::Point(-7, 7), 0.7,
-                  cv::Scalar(255, 255, 255));
-    scale_bar(img, {14, H - 16}, ppm, cv::Scalar(255, 255, 255));
+                  palette::kWhite);
+    scale_bar(img, {14, H - 16}, ppm, palette::kWhite);
     const int bar_w = 140;
-    cv::Mat out(34 + H + 40 + 96, W + bar_w, CV_8UC3, cv::Scalar(30, 30, 30));
-    outlined_text(out, title, {8, 24}, 0.55, cv::Scalar(255, 255, 255));
+    cv::Mat out(34 + H + 40 + 96, W + bar_w, CV_8UC3, palette::kPanel);
+    outlined_text(out, title, {8, 24}, 0.55, palette::kWhite);
     img.copyTo(out(cv::Rect(0, 34 + 30, W, H)));
     colour_bar(out, cv::Rect(W + 18, 34 + 36, 22, H - 12), lo, hi, cv::COLORMAP_VIRIDIS,
                "ILM above RPE (um)", 1e3, "%.0f");
@@ -123,14 +123,14 @@ cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
          {LegendItem::kLine, kDisc, printf_number("disc, %.1f mm radius", p.disc_radius_mm)},
          {LegendItem::kLine, cv::Scalar(0, 0, 0), "cup edge (ILM at RPE height)"},
          {LegendItem::kCross, cv::Scalar(255, 0, 255), "BMO centre"}},
-        0.45, cv::Scalar(230, 230, 230), W + bar_w - 8);
+        0.45, palette::kText, W + bar_w - 8);
     plain_text(out, "ILM surface: " + r.ilm_source, {8, end + 14}, 0.45,
-               cv::Scalar(230, 230, 230));
+               palette::kText);
     plain_text(out,
                "BMO area " + printf_number("%.3f mm2", r.ellipse.area_mm2) + "   cup volume " +
                    printf_number("%.3f mm3", r.cup_volume_mm3) + "   CONHT " +
                    printf_number("%.0f um", r.conht_mm * 1e3),
-               {8, end + 40}, 0.45, cv::Scalar(230, 230, 230));
+               {8, end + 40}, 0.45, palette::kText);
     return out;
 }
 
@@ -200,8 +200,8 @@ cv::Mat bscan_panel(const io::Scan& scan, const retina::OnhResult& r, int b) {
         cv::line(img, px(p.x(), p.z()), px(q.x(), q.z()), kMrw, 1, cv::LINE_AA);
     }
     outlined_text(img, "B-scan " + std::to_string(b + 1) + " of " + std::to_string(scan.num_bscans()),
-                  {6, 18}, 0.5, cv::Scalar(255, 255, 255));
-    scale_bar(img, {10, H - 14}, 1.0 / dx, cv::Scalar(255, 255, 255));
+                  {6, 18}, 0.5, palette::kWhite);
+    scale_bar(img, {10, H - 14}, 1.0 / dx, palette::kWhite);
     return img;
 }
 
@@ -223,8 +223,8 @@ cv::Mat bscans_picture(const io::Scan& scan, const retina::OnhResult& r,
     for (const int b : picks) panels.push_back(bscan_panel(scan, r, b));
     cv::Mat row;
     cv::hconcat(panels, row);
-    cv::Mat out(34 + row.rows + 70, row.cols, CV_8UC3, cv::Scalar(30, 30, 30));
-    outlined_text(out, title, {8, 24}, 0.55, cv::Scalar(255, 255, 255));
+    cv::Mat out(34 + row.rows + 70, row.cols, CV_8UC3, palette::kPanel);
+    outlined_text(out, title, {8, 24}, 0.55, palette::kWhite);
     row.copyTo(out(cv::Rect(0, 34, row.cols, row.rows)));
     draw_legend(out, {8, 34 + row.rows + 24},
                 {{LegendItem::kLine, kDeviceIlm, "device ILM"},
@@ -233,21 +233,21 @@ cv::Mat bscans_picture(const io::Scan& scan, const retina::OnhResult& r,
                  {LegendItem::kDot, kFilled, "filled RPE"},
                  {LegendItem::kRing, kDisc, "BMO points"},
                  {LegendItem::kLine, kMrw, "MRW vectors"}},
-                0.45, cv::Scalar(230, 230, 230), row.cols - 8);
+                0.45, palette::kText, row.cols - 8);
     plain_text(out,
                "each B-scan " + printf_number("%.2f mm wide", scan.meta.size_x * scan.meta.scale_x_mm) +
                    printf_number(", %.2f mm deep (depth drawn stretched)",
                                  scan.meta.size_z * scan.meta.scale_z_mm),
-               {8, 34 + row.rows + 56}, 0.45, cv::Scalar(230, 230, 230));
+               {8, 34 + row.rows + 56}, 0.45, palette::kText);
     return out;
 }
 
 cv::Mat mrw_picture(const retina::OnhResult& r, const std::string& title) {
     const int W = 930;
     const int H = 420;
-    cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
-    cv::rectangle(img, cv::Rect(0, 0, W, 34), cv::Scalar(30, 30, 30), -1);
-    outlined_text(img, title, {8, 24}, 0.55, cv::Scalar(255, 255, 255));
+    cv::Mat img(H, W, CV_8UC3, palette::kWhite);
+    cv::rectangle(img, cv::Rect(0, 0, W, 34), palette::kPanel, -1);
+    outlined_text(img, title, {8, 24}, 0.55, palette::kWhite);
     double hi = 0.05;
     for (const double m : r.mrw_mm) {
         if (std::isfinite(m)) hi = std::max(hi, m);
@@ -270,7 +270,7 @@ cv::Mat mrw_picture(const retina::OnhResult& r, const std::string& title) {
         plain_text(img, deg, q + cv::Point(-4 * static_cast<int>(deg.size()), 18), 0.42, ink);
         if (k % 3 == 0) {
             static const char* kDir[] = {"N", "S", "T", "I", "N"};
-            outlined_text(img, kDir[k / 3], q + cv::Point(-6, 42), 0.7, cv::Scalar(255, 255, 255));
+            outlined_text(img, kDir[k / 3], q + cv::Point(-6, 42), 0.7, palette::kWhite);
         }
     }
     cv::rectangle(img, a.plot, ink, 1);

@@ -10,6 +10,24 @@
 
 namespace octshape::app {
 
+// The one palette of every QC picture (BGR), so that a layer or a kind of mark has the same
+// colour in the macula's and the optic nerve head's pictures; each picture names its uses.
+namespace palette {
+inline const cv::Scalar kRed(40, 40, 230);
+inline const cv::Scalar kYellow(0, 220, 255);
+inline const cv::Scalar kAmber(0, 200, 255);
+inline const cv::Scalar kWhite(255, 255, 255);
+inline const cv::Scalar kGreen(60, 200, 60);
+inline const cv::Scalar kDarkGreen(60, 180, 60);
+inline const cv::Scalar kBlue(230, 150, 40);
+inline const cv::Scalar kDeepBlue(220, 120, 30);
+inline const cv::Scalar kMagenta(255, 0, 255);
+inline const cv::Scalar kPink(230, 60, 230);
+inline const cv::Scalar kCyan(230, 230, 0);
+inline const cv::Scalar kText(230, 230, 230);
+inline const cv::Scalar kPanel(30, 30, 30);
+}  // namespace palette
+
 // Encodes `img` as PNG and writes it atomically to `path` (OutputError on failure).
 void save_png(const cv::Mat& img, const std::string& path);
 

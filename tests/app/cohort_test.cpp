@@ -29,6 +29,7 @@
 #include "octshape/retina/cube_report.h"
 #include "octshape/retina/etdrs.h"
 #include "octshape/retina/phantom_macula.h"
+#include "fixtures/small_macula.h"
 #include "test_paths.h"
 #include "slow_test.h"
 
@@ -49,19 +50,9 @@ using nlohmann::json;
 
 
 
-// A small macula volume (25 B-scans x 192 A-scans, no pixels: fast to write and analyse).
+// A small macula volume (tests/fixtures/small_macula.h).
 io::Scan macula_scan(retina::MaculaFamily family, io::Laterality eye, std::uint64_t seed) {
-    retina::MaculaPhantomParams p;
-    p.family = family;
-    p.eye = eye;
-    p.num_bscans = 25;
-    p.size_x = 192;
-    p.size_z = 128;
-    p.scale_z_mm = 0.0154868;
-    p.pixels = false;
-    p.noise_um = 2.0;
-    p.seed = seed;
-    return retina::make_macula_phantom(p).scan;
+    return test::small_macula_scan(family, eye, seed);
 }
 
 void write_macula(const fs::path& path, retina::MaculaFamily family, io::Laterality eye,

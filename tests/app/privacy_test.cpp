@@ -20,6 +20,7 @@
 
 #include "octshape/io/vol.h"
 #include "octshape/retina/phantom_macula.h"
+#include "fixtures/small_macula.h"
 #include "test_paths.h"
 
 namespace octshape {
@@ -44,16 +45,7 @@ constexpr const char* kFolder = "Mustermann_Max";
 
 // A small macula volume (25 x 192, no pixels) whose header identifiers all hold the name.
 void write_named_macula(const fs::path& path, io::Laterality eye, std::uint64_t seed) {
-    retina::MaculaPhantomParams p;
-    p.eye = eye;
-    p.num_bscans = 25;
-    p.size_x = 192;
-    p.size_z = 128;
-    p.scale_z_mm = 0.0154868;
-    p.pixels = false;
-    p.noise_um = 2.0;
-    p.seed = seed;
-    io::Scan s = retina::make_macula_phantom(p).scan;
+    io::Scan s = test::small_macula_scan(retina::MaculaFamily::kBezier, eye, seed);
     s.meta.ids.id = "Mustermann_Max";
     s.meta.ids.reference_id = "Mustermann";
     s.meta.ids.patient_id = "Mustermann_Max_4711";
