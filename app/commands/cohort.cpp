@@ -300,8 +300,10 @@ void run_eye(CohortOptions& o, const std::string& file, RunContext& ctx) {
         if (it) items.push_back(std::move(*it));
     }
     if (items.empty()) {
-        for (const auto& k : skipped) spdlog::warn("{}: {}", k.path, k.reason);
-        if (skipped.empty()) spdlog::warn("{}: not a supported export, ignored", file);
+        for (const auto& k : skipped) {
+            spdlog::warn("{}: {}", log_name(k.path), scrub(k.reason, absolute_path(k.path)));
+        }
+        if (skipped.empty()) spdlog::warn("{}: not a supported export, ignored", log_name(file));
         ctx.exit_code = static_cast<int>(ExitCode::kPartial);
         return;
     }

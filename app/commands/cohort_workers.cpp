@@ -90,13 +90,14 @@ public:
         if (bar_) {
             if (!ok) {
                 clear();
-                spdlog::warn("{}: {}", item.path, reason);
+                spdlog::warn("eye {}: {}", item.key, scrub(reason, item.path));
             }
             draw();
         } else if (ok) {
-            spdlog::info("[{}/{}] {} ({:.1f} s)", done_, pending_, item.path, seconds);
+            spdlog::info("[{}/{}] eye {} ({:.1f} s)", done_, pending_, item.key, seconds);
         } else {
-            spdlog::warn("[{}/{}] {}: FAILED: {}", done_, pending_, item.path, reason);
+            spdlog::warn("[{}/{}] eye {}: FAILED: {}", done_, pending_, item.key,
+                         scrub(reason, item.path));
         }
     }
     void end() {

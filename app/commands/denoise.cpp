@@ -79,8 +79,9 @@ void run_pointset_denoise(const DenoiseOptions& o) {
                       {{"method", o.method}, {"parameters", parameters}, {"threads", o.threads}},
                       o.record_paths);
     io::write_point_set(o.output, r.V, &r.normals, mesh_provenance_line(prov));
-    spdlog::info("{}: {} iterations of pointset in {:.3f} s (+{:.3f} s set-up), written to {}",
-                 o.input, r.iterations, r.seconds_iterations, r.seconds_setup, o.output);
+    spdlog::info("{}: {} iterations of pointset in {:.3f} s (+{:.3f} s set-up), written",
+                 log_name(o.input, "points"), r.iterations, r.seconds_iterations,
+                 r.seconds_setup);
     if (!o.json) return;
     const nlohmann::json j = {
         {"provenance", nlohmann::json(prov.json())},
@@ -201,7 +202,7 @@ void run_denoise(const DenoiseOptions& o) {
         result = run_on_mesh(o.input, o.radius_mm.has_value(),
                              [&] { return mesh::envt_denoise(in.V, in.F, p); });
     }
-    for (const auto& w : result.warnings) spdlog::warn("{}: {}", o.input, w);
+    for (const auto& w : result.warnings) spdlog::warn("{}: {}", log_name(o.input, "mesh"), w);
     params["radius_mm"] = result.radius;
     if (rofi_like) {
         params["sigma_c_mm"] =
@@ -213,9 +214,9 @@ void run_denoise(const DenoiseOptions& o) {
                               {"threads", o.threads}};
     describe_mesh_run(prov, {o.input}, {input_sha}, options, o.record_paths);
     io::write_mesh(o.output, result.V, in.F, {}, mesh_provenance_line(prov));
-    spdlog::info("{}: {} iterations of {} in {:.3f} s (+{:.3f} s set-up), written to {}",
-                 o.input, result.iterations, o.method, result.seconds_iterations,
-                 result.seconds_setup, o.output);
+    spdlog::info("{}: {} iterations of {} in {:.3f} s (+{:.3f} s set-up), written",
+                 log_name(o.input, "mesh"), result.iterations, o.method,
+                 result.seconds_iterations, result.seconds_setup);
     if (o.json) {
         const nlohmann::json j = {
             {"provenance", nlohmann::json(prov.json())},

@@ -229,6 +229,12 @@ std::string absolute_path(const std::string& file) {
     return fs::absolute(fs::path(file)).lexically_normal().string();
 }
 
+std::string log_name(const std::string& file, const char* noun) {
+    const std::string key = eye_key(absolute_path(file));
+    spdlog::debug("{} {} is {}", noun, key, file);
+    return std::string(noun) + " " + key;
+}
+
 FileFacts file_facts(const std::string& file) {
     struct stat st {};
     if (::stat(file.c_str(), &st) != 0) {
@@ -375,7 +381,7 @@ void attach_cohort_record(nlohmann::ordered_json& j,
     const auto subject = subjects.subject_id(scan, facts.path);
     rec["subject_id"] = subject ? nlohmann::json(*subject) : nlohmann::json(nullptr);
     if (!subject && subjects.kind() != SubjectSource::Kind::kNone) {
-        spdlog::warn("{}: no subject id for this eye (NA)", file);
+        spdlog::warn("{}: no subject id for this eye (NA)", log_name(file));
     }
     const auto visit = visit_date(scan);
     rec["visit_date"] = visit ? nlohmann::json(*visit) : nlohmann::json(nullptr);

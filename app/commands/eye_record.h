@@ -70,6 +70,12 @@ inline constexpr std::size_t kSubjectHexChars = 16;
 // output meant for sharing holds a file or folder name (docs/cohort.md).
 [[nodiscard]] std::string eye_key(const std::string& absolute_path);
 
+// How a log line names an input: "eye KEY" (or "mesh KEY", `noun`) with its eye key, never its
+// path: Heidelberg names exports after the patient, and logs are kept and shared. With -v
+// (debug level) the path is logged beside the key, for the person at the terminal. Error
+// messages (one line naming the file, to the terminal) keep the path.
+[[nodiscard]] std::string log_name(const std::string& file, const char* noun = "eye");
+
 // ---- File facts and the resume record ----------------------------------------------------
 
 struct FileFacts {

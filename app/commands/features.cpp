@@ -50,8 +50,8 @@ void run_features(const FeaturesOptions& o) {
                     {"feature_strength", f.strength},
                     {"mean_curvature_per_mm", f.mean_curvature}},
                    mesh_provenance_line(prov));
-    spdlog::info("{}: features of {} faces (radius {:.4g} mm) written to {}", o.input,
-                 in.F.rows(), f.radius, o.output);
+    spdlog::info("{}: features of {} faces (radius {:.4g} mm) written",
+                 log_name(o.input, "mesh"), in.F.rows(), f.radius);
 }
 
 }  // namespace

@@ -139,8 +139,9 @@ MaculaEye analyse_macula_eye(const std::string& file,
     // The device comparison's flags are the eye's: in the JSON's and the CSV's qc_flags.
     r.qc_flags.insert(r.qc_flags.end(), etdrs.qc_flags.begin(), etdrs.qc_flags.end());
     prov.mark("analysis");
-    for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", file, f);
-    for (const auto& n : r.notes) spdlog::info("{}: {}", file, n);
+    const std::string who = log_name(file);
+    for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", who, f);
+    for (const auto& n : r.notes) spdlog::info("{}: {}", who, n);
 
     MaculaEye out;
     auto& j = out.json;
@@ -171,7 +172,7 @@ MaculaEye analyse_macula_eye(const std::string& file,
         prov.mark("qc_pictures");
     }
     j["provenance"] = prov.json();
-    spdlog::info("{}: {} eye, CFT {:.4f} mm, rim height {:.4f} mm, RMSE {:.2f} um", file, eye,
+    spdlog::info("{}: {} eye, CFT {:.4f} mm, rim height {:.4f} mm, RMSE {:.2f} um", who, eye,
                  r.cft_mm, r.rim_height_mm, r.rmse_um);
     return out;
 }

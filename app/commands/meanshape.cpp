@@ -61,7 +61,8 @@ void run_meanshape(const MeanShapeOptions& o) {
         const io::IcpResult r = io::icp_rigid(m.V, reference.V, reference.F, icp);
         spdlog::info("{}: ICP {} + {} point-to-plane iterations, rotation {:.3f} deg, RMS "
                      "residual {:.4g} mm",
-                     o.inputs[s], r.iterations, r.refine_iterations, r.rotation_deg,
+                     log_name(o.inputs[s], "mesh"), r.iterations, r.refine_iterations,
+                     r.rotation_deg,
                      r.rms_distance);
         surfaces.push_back({{"input", shown_path(o.inputs[s], o.record_paths)},
                             {"vertices", m.V.rows()},

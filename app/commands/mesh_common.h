@@ -10,6 +10,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "commands/eye_record.h"
 #include "commands/provenance.h"
 #include "octshape/error.h"
 #include "octshape/io/mesh_io.h"

@@ -153,8 +153,9 @@ EyeResult analyse_onh_eye(const std::string& file,
     const retina::OnhResult r =
         with_file_named(file, [&] { return retina::analyse_onh(scan, ilm, o.params, bmo); });
     prov.mark("analysis");
-    for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", file, f);
-    for (const auto& n : r.notes) spdlog::info("{}: {}", file, n);
+    const std::string who = log_name(file);
+    for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", who, f);
+    for (const auto& n : r.notes) spdlog::info("{}: {}", who, n);
 
     EyeResult out;
     auto& j = out.json;
@@ -196,7 +197,7 @@ EyeResult analyse_onh_eye(const std::string& file,
     spdlog::info(
         "{}: {} eye, ILM {}, BMO area {:.4f} mm2, cup {:.4f} mm3, CONHT {:.4f} mm, "
         "MRW {:.4f} mm",
-        file, r.eye, r.ilm_source, r.ellipse.area_mm2, r.cup_volume_mm3, r.conht_mm,
+        who, r.eye, r.ilm_source, r.ellipse.area_mm2, r.cup_volume_mm3, r.conht_mm,
         r.mrw_mean_mm);
     return out;
 }

@@ -119,6 +119,11 @@ TEST(Privacy, APlantedNameReachesNothingOutsidePrivate) {
     ASSERT_EQ(read_csv(out / "eyes.csv").size(), 3U);      // header + 2 maculae
     ASSERT_EQ(read_csv(out / "eyes_onh.csv").size(), 2U);  // header + the ONH eye
     ASSERT_EQ(read_csv(out / "failures.csv").size(), 2U);  // header + the truncated file
+    // The log at its default level names eyes by their key, never by path (a log is kept and
+    // shared); the failure's reason is scrubbed as in failures.csv.
+    EXPECT_EQ(lower(r.err).find("mustermann"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("<input>"), std::string::npos) << r.err;
+    EXPECT_EQ(lower(g.err).find("mustermann"), std::string::npos) << g.err;
 
     const Scan shared = search(out, out / "private");
     std::cerr << "[ planted name ] outside private/: " << shared.files << " files, "
@@ -147,6 +152,14 @@ TEST(Privacy, SingleEyeOutputsHoldNoNameUnlessAskedAndPicturesFollowTheOutput) {
     const auto r = test::run_octshape("macula " + q(vol) + " -o " + q(out / "left.json") +
                                       " --csv " + q(out / "left.csv") + " --qc " + q(out / "qc"));
     ASSERT_EQ(r.exit_code, 0) << r.err;
+    // The log names the eye by its key; -v (debug) adds the path, for the person at the
+    // terminal.
+    EXPECT_EQ(lower(r.err).find("mustermann"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("eye "), std::string::npos) << r.err;
+    const auto verbose = test::run_octshape("macula " + q(vol) + " -v -o " +
+                                            q(dir / "verbose.json"));
+    ASSERT_EQ(verbose.exit_code, 0) << verbose.err;
+    EXPECT_NE(verbose.err.find(vol.string()), std::string::npos) << verbose.err;
     const auto info = test::run_octshape("info --json " + q(vol));
     ASSERT_EQ(info.exit_code, 0) << info.err;
     spit(out / "info.json", info.out);
