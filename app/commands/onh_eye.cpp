@@ -16,6 +16,7 @@
 #include "octshape/io/scan_reader.h"
 #include "octshape/retina/bmo.h"
 #include "octshape/retina/levelset.h"
+#include "octshape/retina/radial_geometry.h"
 #include "octshape/retina/scan_type.h"
 #include "octshape/io/sha256.h"
 #include "octshape/retina/onh_report.h"
@@ -137,7 +138,21 @@ EyeResult analyse_onh_eye(const std::string& file,
         apply_segmentation_file(scan, o.segmentation, o.record_paths);
     const std::string& sha = input.sha256;
     prov.mark("read_hash");
-    with_file_named(file, [&] { retina::require_onh_volume(scan); });
+    with_file_named(file, [&] { retina::require_onh_scan(scan); });
+    if (retina::is_radial_scan(scan)) {
+        // What the radial path does not do yet is refused before any work (usage, exit 64).
+        if (source == retina::IlmSource::kLevelSet) {
+            throw UsageError("--ilm levelset is not available on radial scans (the level set "
+                             "needs a volume's 3-D grid): use --ilm device");
+        }
+        if (!o.bmo_file.empty()) {
+            throw UsageError("--bmo is not available on radial scans yet (their BMO points are "
+                             "the BM segmentation's ends in each B-scan)");
+        }
+        if (!o.qc_dir.empty()) {
+            throw UsageError("--qc: the ONH QC pictures of radial scans are not available yet");
+        }
+    }
     std::optional<std::vector<retina::BmoPoint>> bmo;
     if (!o.bmo_file.empty()) bmo = retina::read_bmo_csv(o.bmo_file, scan.meta, scan.num_bscans());
     // The scan's record as read (pixels_loaded included), before the level set may free them.
