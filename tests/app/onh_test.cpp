@@ -9,6 +9,7 @@
 
 #include "octshape/io/mesh_io.h"
 #include "octshape/io/sha256.h"
+#include "octshape/io/scan_reader.h"
 #include "octshape/io/vol.h"
 #include "octshape/retina/phantom_onh.h"
 #include "test_paths.h"
@@ -159,6 +160,105 @@ TEST(OnhCli, RefusalsHaveTheirExitCodesAndWriteNothing) {
                            (dir / "b.json").string());
     EXPECT_EQ(bad_bmo.exit_code, 65) << bad_bmo.err;
     EXPECT_FALSE(std::filesystem::exists(dir / "b.json"));
+}
+
+
+// ---- Radial scans -------------------------------------------------------------------------
+
+const char* const kRadialSampleCommand =
+    "phantom onh --pattern radial --lines 12 --ascans 128 --eye OS --crossing-offset-um 50 "
+    "--seed 4";
+
+std::string file_bytes(const std::filesystem::path& path) {
+    std::string text(std::filesystem::file_size(path), '\0');
+    std::ifstream in(path, std::ios::binary);
+    in.read(text.data(), static_cast<std::streamsize>(text.size()));
+    return text;
+}
+
+// sample_scans/README.md promises that its command reproduces the sample bit for bit.
+TEST(OnhCli, RadialSampleIsReproducedBitForBit) {
+    const test::TempDir dir;
+    const auto vol = dir / "r.vol";
+    const auto r = test::run_octshape(std::string(kRadialSampleCommand) + " -o " + vol.string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto sample = test::source_dir() / "sample_scans";
+    EXPECT_TRUE(file_bytes(vol) == file_bytes(sample / "onh_radial_cupped_os.vol"));
+    EXPECT_EQ(file_bytes(dir / "r.truth.json"),
+              file_bytes(sample / "onh_radial_cupped_os.truth.json"));
+}
+
+TEST(OnhCli, RadialSampleJsonCsvAgainstItsTruth) {
+    const test::TempDir dir;
+    const auto sample = test::source_dir() / "sample_scans" / "onh_radial_cupped_os.vol";
+    const json truth =
+        json::parse(slurp(test::source_dir() / "sample_scans" / "onh_radial_cupped_os.truth.json"));
+    const auto r = test::run_octshape("onh " + sample.string() + " --ilm device -o " +
+                                      (dir / "eye.json").string() + " --csv " +
+                                      (dir / "eye.csv").string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const std::string text = slurp(dir / "eye.json");
+    EXPECT_EQ(text.find("onh_radial_cupped_os"), std::string::npos);  // no file name
+    const json j = json::parse(text);
+    const json& v = j["parameters"];
+    const json& t = truth["truth"];
+    // The sample is coarse (12 lines, 128 A-scans: ds = 34 um) but deterministic: measured
+    // BMO area +0.03 %, volumes within 0.9 %, CONHT 0.2 um, MRWs 0.6 um. The targets
+    // (1 %, 2 %, 5 um) are asserted.
+    auto rel = [&](const char* k) { return v[k].get<double>() / t[k].get<double>() - 1.0; };
+    EXPECT_LT(std::fabs(rel("bmo_area_mm2")), 0.01);
+    for (const char* k : {"cup_volume_mm3", "bmo_volume_mm3", "total_volume_mm3",
+                          "annular_volume_mm3"}) {
+        EXPECT_LT(std::fabs(rel(k)), 0.02) << k;
+    }
+    for (const char* k : {"conht_mm", "mrw_mean_mm", "mrw_inplane_mean_mm"}) {
+        EXPECT_NEAR(v[k].get<double>(), t[k].get<double>(), 0.005) << k;
+    }
+    const json& rad = j["radial"];
+    EXPECT_EQ(rad["lines"], 12);
+    EXPECT_EQ(rad["mrw_inplane_points"].size(), 24U);
+    EXPECT_EQ(j["bmo"]["measured_points"], 24);
+    EXPECT_TRUE(j["qc_flags"].empty()) << j["qc_flags"];
+    // The CSV: the in-plane columns appended after the volume's, filled.
+    const auto rows = read_csv(dir / "eye.csv");
+    ASSERT_EQ(rows.size(), 2U);
+    const auto& h = rows[0];
+    ASSERT_GE(h.size(), 13U);
+    EXPECT_EQ(h[h.size() - 13], "mrw_inplane_mean_mm");
+    EXPECT_EQ(h.back(), "mrw_inplane_sector_330_mm");
+    EXPECT_NE(rows[1][h.size() - 13], "NA");
+    EXPECT_NEAR(std::stod(rows[1][h.size() - 13]), v["mrw_inplane_mean_mm"].get<double>(), 1e-6);
+}
+
+TEST(OnhCli, RadialRefusalsHaveTheirExitCodesAndWriteNothing) {
+    const test::TempDir dir;
+    const auto sample = test::source_dir() / "sample_scans" / "onh_radial_cupped_os.vol";
+    const auto out = (dir / "x.json").string();
+    // What the radial path does not do: usage errors (64), before any output.
+    for (const std::string& opts : std::vector<std::string>{
+             "", "--ilm levelset", "--ilm device --qc " + (dir / "qc").string()}) {
+        const auto r = test::run_octshape("onh " + sample.string() + " " + opts + " -o " + out);
+        EXPECT_EQ(r.exit_code, 64) << opts << ": " << r.err;
+        EXPECT_NE(r.err.find("radial"), std::string::npos) << r.err;
+        EXPECT_FALSE(std::filesystem::exists(out));
+        EXPECT_FALSE(std::filesystem::exists(dir / "qc"));
+    }
+    // Impossible geometry: one line with Start = End on the SLO (69, one line naming the file).
+    io::ReadOptions with_pixels;
+    with_pixels.pixels = true;
+    io::Scan scan = io::read_scan(sample.string(), with_pixels);
+    scan.bscans[3].end_x_mm = scan.bscans[3].start_x_mm;
+    scan.bscans[3].end_y_mm = scan.bscans[3].start_y_mm;
+    const auto broken = dir / "broken.vol";
+    io::write_vol_file(scan, broken.string());
+    const auto r = test::run_octshape("onh " + broken.string() + " --ilm device -o " + out +
+                                      " --csv " + (dir / "x.csv").string());
+    EXPECT_EQ(r.exit_code, 69) << r.err;
+    EXPECT_NE(r.err.find("broken.vol"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("Start = End"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(out));
+    EXPECT_FALSE(std::filesystem::exists(dir / "x.csv"));
 }
 
 }  // namespace

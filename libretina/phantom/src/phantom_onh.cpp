@@ -1436,8 +1436,8 @@ nlohmann::json onh_truth_to_json(const OnhPhantomParams& params,
                       {"undercut", pr.undercut},
                       {"undercut_height_mm", pr.undercut_height_mm},
                       {"undercut_halfwidth_mm", pr.undercut_halfwidth_mm}}}};
-    j["options"]["pattern"] = params.radial ? "radial" : "volume";
-    if (params.radial) {
+    if (params.radial) {  // only then (a volume's truth file stays bit for bit as before)
+        j["options"]["pattern"] = "radial";
         const Eigen::Vector2d c = onh_radial_crossing(params);
         j["options"]["radial_lines"] = params.radial_lines;
         j["options"]["line_length_mm"] = params.line_length_mm;
