@@ -619,8 +619,7 @@ void minimum_rim_width(double dx_mm, double dy_mm, OnhResult& r) {
         r.mrw_mm[i] = hit.distance;
         const double deg = anatomical_deg(r, p.x() - c.x(), p.y() - c.y());
         r.bmo_anatomical_deg[i] = deg;
-        // Sector k holds the angles [30k - 15, 30k + 15).
-        const auto k = static_cast<std::size_t>(static_cast<int>((deg + 15.0) / 30.0) % 12);
+        const std::size_t k = clock_hour(deg);
         sector_sum[k] += hit.distance;
         r.mrw_sector_points[k] += 1;
         sum += hit.distance;

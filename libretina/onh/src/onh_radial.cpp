@@ -238,8 +238,7 @@ void inplane_rim_width(const io::Scan& scan, const RadialOnhGrid& grid, OnhResul
         m.ilm_mm = {q.x(), q.y(), qz};
         m.mrw_mm = d;
         m.anatomical_deg = anatomical_deg(r, p.mm.x() - c.x(), p.mm.y() - c.y());
-        const auto sector =
-            static_cast<std::size_t>(static_cast<int>((m.anatomical_deg + 15.0) / 30.0) % 12);
+        const std::size_t sector = clock_hour(m.anatomical_deg);
         sum[sector] += d;
         r.mrw_inplane_sector_points[sector] += 1;
         total += d;

@@ -16,6 +16,7 @@
 // Each stage reads the fields of OnhResult that the stages before it wrote and writes the
 // fields named at its declaration. Decisions and measurements: docs/algorithms/onh.md.
 
+#include <cstddef>
 #include <optional>
 #include <vector>
 
@@ -105,6 +106,10 @@ void check_ilm_mesh(const IlmSurface& ilm);
 
 // Anatomical angle (deg, [0, 360)) of a grid direction under r.grid_to_anatomical.
 [[nodiscard]] double anatomical_deg(const OnhResult& r, double dx, double dy);
+// Clock-hour sector of an anatomical angle: k holds [30 k - 15, 30 k + 15) deg, k in 0..11.
+[[nodiscard]] inline std::size_t clock_hour(double anatomical_deg) {
+    return static_cast<std::size_t>(static_cast<int>((anatomical_deg + 15.0) / 30.0) % 12);
+}
 
 // ---------------------------------------------------------------------------------------------
 // The radial path (onh_radial.cpp, docs/algorithms/onh.md "Radial scans"): analyse_onh_radial

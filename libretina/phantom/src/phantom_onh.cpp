@@ -587,6 +587,12 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// Clock-hour sector of an anatomical angle: k holds [30 k - 15, 30 k + 15) deg (the truth's
+// own copy of the convention: the phantom shares no code with the analysis).
+std::size_t clock_hour(double anatomical_deg) {
+    return static_cast<std::size_t>(static_cast<int>((anatomical_deg + 15.0) / 30.0) % 12);
+}
+
 struct TruthPass {
     double cup = 0.0;
     double bmo = 0.0;
@@ -820,7 +826,7 @@ TruthPass truth_pass(const OnhPhantomGeometry& g,
         const double m = (q - p).norm();
         const double speed = (frame * Eigen::Vector2d(-std::sin(tt), std::cos(tt))).norm();
         const double deg = gf.anatomical_angle_deg(d.x(), d.y());
-        const auto sector = static_cast<std::size_t>(static_cast<int>((deg + 15.0) / 30.0) % 12);
+        const std::size_t sector = clock_hour(deg);
         t.bmo_points.push_back(p);
         t.mrw_points.push_back(q);
         t.mrw.push_back(m);
@@ -931,8 +937,7 @@ OnhInplaneTruth inplane_truth(const OnhPhantomGeometry& g, const OnhPhantomParam
             const double m = (q - p).norm();
             const double deg =
                 gf.anatomical_angle_deg(p.x() - centre.x(), p.y() - centre.y());
-            const auto sector =
-                static_cast<std::size_t>(static_cast<int>((deg + 15.0) / 30.0) % 12);
+            const std::size_t sector = clock_hour(deg);
             t.bmo_points_mm.push_back(p);
             t.mrw_points_mm.push_back(q);
             t.mrw_mm.push_back(m);
