@@ -230,6 +230,61 @@ TEST(OnhCli, RadialSampleJsonCsvAgainstItsTruth) {
     EXPECT_NEAR(std::stod(rows[1][h.size() - 13]), v["mrw_inplane_mean_mm"].get<double>(), 1e-6);
 }
 
+// A BMO file for a radial scan: ascan,bscan,depth_px (the automatic detection's own points,
+// written back as pixel indices, give the same ellipse); x_mm,y_mm,z_mm is refused (65).
+TEST(OnhCli, RadialBmoFileGivesThePointsOnTheirBscans) {
+    const test::TempDir dir;
+    const auto sample = test::source_dir() / "sample_scans" / "onh_radial_cupped_os.vol";
+    const auto a = test::run_octshape("onh " + sample.string() + " --ilm device -o " +
+                                      (dir / "a.json").string());
+    ASSERT_EQ(a.exit_code, 0) << a.err;
+    const json ja = json::parse(slurp(dir / "a.json"));
+    // The radial grid mm back to A-scan indices: along each line from its Start (A-scan 0).
+    const io::Scan scan = io::read_scan(sample.string(), {});
+    std::ostringstream csv;
+    csv << "ascan,bscan,depth_px\n";
+    csv.precision(17);
+    const json& pts = ja["bmo"]["measured"];
+    const double ds = scan.meta.scale_x_mm;
+    const json& ip = ja["radial"]["mrw_inplane_points"];
+    ASSERT_EQ(ip.size(), pts.size());
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+        const int b = pts[i]["bscan"].get<int>();
+        const io::BScan& bs = scan.bscans[static_cast<std::size_t>(b)];
+        // The line's direction in the grid frame (x = SLO +x, y = SLO -y); the point's distance
+        // along it from the crossing, plus the crossing's A-scan (the lines are centred on it).
+        const double len = std::hypot(bs.end_x_mm - bs.start_x_mm, bs.end_y_mm - bs.start_y_mm);
+        const double ux = (bs.end_x_mm - bs.start_x_mm) / len;
+        const double uy = -(bs.end_y_mm - bs.start_y_mm) / len;
+        const double cx = ja["radial"]["crossing_mm"][0].get<double>();
+        const double cy = ja["radial"]["crossing_mm"][1].get<double>();
+        const double along = (pts[i]["x_mm"].get<double>() - cx) * ux +
+                             (pts[i]["y_mm"].get<double>() - cy) * uy;
+        const double foot_ascan = 0.5 * (scan.meta.size_x - 1);
+        csv << foot_ascan + along / ds << ',' << b << ','
+            << -pts[i]["z_mm"].get<double>() / scan.meta.scale_z_mm << '\n';
+    }
+    spit(dir / "bmo.csv", csv.str());
+    const auto f = test::run_octshape("onh " + sample.string() + " --ilm device --bmo " +
+                                      (dir / "bmo.csv").string() + " -o " +
+                                      (dir / "f.json").string());
+    ASSERT_EQ(f.exit_code, 0) << f.err;
+    const json jf = json::parse(slurp(dir / "f.json"));
+    EXPECT_EQ(jf["options"]["bmo_source"], "file");
+    EXPECT_NEAR(jf["parameters"]["bmo_area_mm2"].get<double>(),
+                ja["parameters"]["bmo_area_mm2"].get<double>(), 1e-6);
+    EXPECT_NEAR(jf["parameters"]["mrw_inplane_mean_mm"].get<double>(),
+                ja["parameters"]["mrw_inplane_mean_mm"].get<double>(), 1e-6);
+    EXPECT_EQ(jf["radial"]["mrw_inplane_points"].size(), pts.size());
+    spit(dir / "mm.csv", "x_mm,y_mm,z_mm\n1,1,-1\n1,2,-1\n2,1,-1\n2,2,-1\n1.5,1,-1\n1,1.5,-1\n");
+    const auto mm = test::run_octshape("onh " + sample.string() + " --ilm device --bmo " +
+                                       (dir / "mm.csv").string() + " -o " +
+                                       (dir / "m.json").string());
+    EXPECT_EQ(mm.exit_code, 65) << mm.err;
+    EXPECT_NE(mm.err.find("ascan,bscan,depth_px"), std::string::npos) << mm.err;
+    EXPECT_FALSE(std::filesystem::exists(dir / "m.json"));
+}
+
 TEST(OnhCli, RadialRefusalsHaveTheirExitCodesAndWriteNothing) {
     const test::TempDir dir;
     const auto sample = test::source_dir() / "sample_scans" / "onh_radial_cupped_os.vol";

@@ -107,7 +107,7 @@ TEST(OnhRadial, RefusesWhatItCannotDoAndImpossibleGeometry) {
     EXPECT_NO_THROW(require_onh_scan(scan));
     EXPECT_THROW((void)build_ilm_surface(scan, IlmSource::kLevelSet), UsageError);
     const IlmSurface ilm = device_ilm_surface(scan);
-    std::vector<BmoPoint> file(6);
+    std::vector<BmoPoint> file(6);  // points without their B-scans (not read_radial_bmo_csv's)
     EXPECT_THROW((void)analyse_onh(scan, ilm, {}, file), UsageError);
     // All lines parallel: no crossing.
     io::Scan parallel = scan;

@@ -1,5 +1,6 @@
 // The ONH analysis on a radial scan (ScanPattern 5): the stages of onh_stages.h's "radial
-// path". BMO points are the ends of the BM gap in each B-scan (two per line); the BM and the
+// path". BMO points are the ends of the BM gap in each B-scan (two per line) or a file's points
+// on their B-scans (read_radial_bmo_csv); the BM and the
 // ILM are interpolated between the lines onto a square grid about the crossing, where the
 // volume's stages measure the ellipse, volumes, CONHT, bending energy and the 3-D MRW; the
 // in-plane MRW is measured on each B-scan's own ILM line. Decisions and measurements:
@@ -122,14 +123,30 @@ void radial_check(const io::Scan& scan, const RadialOnhGrid& grid, const IlmSurf
     check_ilm_mesh(ilm);
 }
 
-// Returns the BM field on the grid; writes bmo_source, bmo_measured, bmo_points_per_bscan,
-// bmo_other_gaps and their notes. In each line the BMO is the run of missing BM that holds the
+// Returns the BM field on the grid; writes bmo_source, bmo_measured (the file's points when
+// given), bmo_points_per_bscan, bmo_other_gaps and their notes. In each line the BMO is the run of missing BM that holds the
 // crossing (else the longest), at least the diameter of a gap of min_gap_area_mm2; its ends
 // as in detect_bmo_points: half an A-scan outside the last missing ones, the height
 // extrapolated linearly by half an A-scan from the two present values outside.
 GridSurface radial_bmo_points(const io::Scan& scan, const RadialOnhGrid& grid,
-                              const OnhParams& params, OnhResult& r) {
+                              const OnhParams& params,
+                              const std::optional<std::vector<BmoPoint>>& file_points,
+                              OnhResult& r) {
     GridSurface bm = radial_height_field(scan, grid, io::Layer::kBM);
+    if (file_points) {
+        if (std::all_of(bm.z.begin(), bm.z.end(), [](double v) { return std::isnan(v); })) {
+            throw AnalysisError("the BM segmentation is missing everywhere");
+        }
+        for (const BmoPoint& p : *file_points) {
+            if (p.bscan < 0 || p.bscan >= static_cast<int>(grid.geo.lines.size())) {
+                throw UsageError("radial scan: BMO file points must come from "
+                                 "read_radial_bmo_csv (each with its B-scan)");
+            }
+        }
+        r.bmo_source = "file";
+        r.bmo_measured = *file_points;
+        return bm;
+    }
     r.bmo_source = "automatic";
     const int nx = grid.size_x;
     const int nl = static_cast<int>(grid.geo.lines.size());
@@ -424,15 +441,11 @@ OnhResult analyse_onh_radial(const io::Scan& scan, const IlmSurface& ilm,
                              const std::optional<std::vector<BmoPoint>>& bmo_file_points) {
     const auto t0 = std::chrono::steady_clock::now();
     params.validate();
-    if (bmo_file_points) {
-        throw UsageError("--bmo is not available on radial scans yet: the BMO points come from "
-                         "the BM segmentation's ends in each B-scan");
-    }
     const RadialOnhGrid grid = radial_onh_grid(scan);
     OnhResult r;
     r.ilm_source = ilm.source;
     radial_check(scan, grid, ilm, r);
-    GridSurface bm = radial_bmo_points(scan, grid, params, r);
+    GridSurface bm = radial_bmo_points(scan, grid, params, bmo_file_points, r);
     bmo_ellipse(params, r);
     rpe_surface(std::move(bm), r, &grid.scanned);
     const mesh::FaceGeometry g = orient_ilm(ilm, r);
@@ -458,3 +471,35 @@ OnhResult analyse_onh_radial(const io::Scan& scan, const IlmSurface& ilm,
 }
 
 }  // namespace octshape::retina::onh_detail
+
+namespace octshape::retina {
+
+std::vector<BmoPoint> read_radial_bmo_csv(const std::string& path, const io::Scan& scan) {
+    const onh_detail::RadialOnhGrid grid = onh_detail::radial_onh_grid(scan);
+    // Read in index units (x = A-scan, y = B-scan, z = -depth px): read_bmo_csv's range check
+    // is then the scan's A-scan and B-scan ranges.
+    io::ScanMeta units = scan.meta;
+    units.scale_x_mm = 1.0;
+    units.distance_mm = 1.0;
+    units.scale_z_mm = 1.0;
+    bool pixel_header = false;
+    std::vector<BmoPoint> pts = read_bmo_csv(path, units, scan.num_bscans(), &pixel_header);
+    if (!pixel_header) {
+        throw InputError::corrupt(path, "a radial scan's BMO file needs the header "
+                                        "'ascan,bscan,depth_px' (each point on its B-scan)");
+    }
+    for (BmoPoint& p : pts) {
+        const double b = std::round(p.mm.y());
+        if (std::fabs(p.mm.y() - b) > 1e-9) {
+            throw InputError::corrupt(path, "a BMO point's bscan is not a whole number");
+        }
+        const int k = static_cast<int>(b);
+        const Eigen::Vector2d xy = grid.ascan_grid_mm(k, p.mm.x());
+        p.mm = {xy.x(), xy.y(), p.mm.z() * scan.meta.scale_z_mm};
+        p.bscan = k;
+        p.side = 0;
+    }
+    return pts;
+}
+
+}  // namespace octshape::retina

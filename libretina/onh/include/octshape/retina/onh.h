@@ -214,7 +214,7 @@ struct OnhRegions {
 // points from a file instead of the automatic detection. Throws AnalysisError when the scan is
 // neither a volume nor a radial scan, has no BM line, or no BMO can be found. A radial scan
 // (is_radial_scan) takes the radial path (onh_radial.cpp): its ILM must come from
-// build_ilm_surface of the same scan; a BMO file is refused there (UsageError).
+// build_ilm_surface of the same scan, its file points from read_radial_bmo_csv.
 [[nodiscard]] OnhResult analyse_onh(
     const io::Scan& scan,
     const IlmSurface& ilm,
@@ -224,6 +224,13 @@ struct OnhRegions {
 // Throws AnalysisError with a one-line reason unless `scan` is a volume scan with a B-scan
 // distance (the ONH analysis needs the 3-D grid).
 void require_onh_volume(const io::Scan& scan);
+
+// BMO points of a radial scan from a CSV file (read_bmo_csv's format): only the header
+// `ascan,bscan,depth_px` (each point on its B-scan, A-scan index along the line, as a radial
+// export gives them); the points come back in the radial analysis's grid mm with their B-scan.
+// InputError (path, reason) for an `x_mm,y_mm,z_mm` file, a point off the scan or fewer than 6.
+[[nodiscard]] std::vector<BmoPoint> read_radial_bmo_csv(const std::string& path,
+                                                        const io::Scan& scan);
 
 // A volume (require_onh_volume) or a radial scan whose lines can be placed (radial_geometry:
 // AnalysisError for lines that do not cross, a zero-length or non-finite line) with at least
