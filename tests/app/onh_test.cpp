@@ -77,6 +77,11 @@ TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
     const auto rv = split_csv_line(row);
     ASSERT_EQ(hv.size(), rv.size());
     EXPECT_EQ(hv.front(), "eye_key");  // no file name by default (--record-paths adds it)
+    // A volume has no in-plane MRW (radial scans only): null in the JSON, NA in its columns.
+    EXPECT_TRUE(v["mrw_inplane_mean_mm"].is_null());
+    EXPECT_FALSE(j.contains("radial"));
+    EXPECT_EQ(hv.back(), "mrw_inplane_sector_330_mm");
+    EXPECT_EQ(rv.back(), "NA");
     int checked = 0;
     for (std::size_t i = 0; i < hv.size(); ++i) {
         for (const char* key : {"cup_volume_mm3", "conht_mm", "mrw_mean_mm", "bmo_area_mm2"}) {
