@@ -2,7 +2,9 @@
 // A-scans x 496 px, ~111 MB with pixels, docs/phantoms.md): reading the .vol without and with
 // pixels, SHA-256 of the file, building the device ILM graph mesh, and the parameter stage
 // (RPE thin-plate fill, BMO detection and ellipse, regions and volumes, CONHT, bending energy,
-// MRW) -- and the same with the local ENVT feature map that --mesh-out adds.
+// MRW) -- and the same with the local ENVT feature map that --mesh-out adds. The last row is a
+// radial scan of the cupped eye (24 lines x 384 A-scans x 496 px, the Spectralis ONH radial
+// protocol; onh_radial.cpp): its ILM is the device lines interpolated between the lines.
 // Usage: onh_bench [RUNS]   (default 3; the median per case is printed)
 
 #include <sys/resource.h>
@@ -13,6 +15,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "octshape/io/scan_reader.h"
@@ -46,13 +49,19 @@ double peak_rss_mb() {
 int main(int argc, char** argv) {
     const int runs = argc > 1 ? std::max(1, std::atoi(argv[1])) : 3;
     const auto dir = std::filesystem::temp_directory_path();
-    std::printf("%-9s %8s %8s %9s %9s %8s %8s %11s %13s %9s %10s\n", "shape", "file_MB", "read_ms",
+    std::printf("%-15s %8s %8s %9s %9s %8s %8s %11s %13s %9s %10s\n", "shape", "file_MB", "read_ms",
                 "pixels_ms", "sha256_ms", "ilm_ms", "faces", "params_ms", "+envt_map_ms",
                 "total_ms", "peakRSS_MB");
-    for (const auto shape : {retina::OnhShape::kCupped, retina::OnhShape::kOverhang}) {
-        const auto path =
-            (dir / ("octshape_onh_bench_" + retina::to_string(shape) + ".vol")).string();
-        io::write_vol_file(retina::render_onh_scan(retina::onh_phantom_preset(shape)), path);
+    for (const auto& [shape, radial] : {std::pair{retina::OnhShape::kCupped, false},
+                                        std::pair{retina::OnhShape::kOverhang, false},
+                                        std::pair{retina::OnhShape::kCupped, true}}) {
+        const std::string name = retina::to_string(shape) + (radial ? "/radial24" : "");
+        const auto path = (dir / ("octshape_onh_bench_" + retina::to_string(shape) +
+                                  (radial ? "_radial" : "") + ".vol"))
+                              .string();
+        retina::OnhPhantomParams params = retina::onh_phantom_preset(shape);
+        params.radial = radial;
+        io::write_vol_file(retina::render_onh_scan(params), path);
         const double mb = static_cast<double>(std::filesystem::file_size(path)) / 1e6;
         std::vector<double> tr, tp, th, ti, ta, tn;
         long faces = 0;
@@ -85,8 +94,8 @@ int main(int argc, char** argv) {
             if (r.cup_volume_mm3 != r2.cup_volume_mm3 || sha.empty()) return 1;
         }
         const double total = median(tr) + median(th) + median(ti) + median(ta);
-        std::printf("%-9s %8.1f %8.1f %9.1f %9.1f %8.1f %8ld %11.1f %13.1f %9.1f %10.1f\n",
-                    retina::to_string(shape).c_str(), mb, median(tr), median(tp), median(th),
+        std::printf("%-15s %8.1f %8.1f %9.1f %9.1f %8.1f %8ld %11.1f %13.1f %9.1f %10.1f\n",
+                    name.c_str(), mb, median(tr), median(tp), median(th),
                     median(ti), faces, median(ta), median(tn), total, peak_rss_mb());
         std::filesystem::remove(path);
     }

@@ -44,8 +44,9 @@ void add_onh_command(CLI::App& app, RunContext& /*ctx*/) {
         "onh",
         "Optic nerve head analysis (thesis 8.1): BMO ellipse and area, cup/BMO/total/annular "
         "volumes, CONHT, bending energy, BMO-MRW (mean, clock-hour sectors, area). Needs a "
-        "volume scan");
-    cmd->add_option("file", opts->file, "A Spectralis .vol or Heidelberg XML volume export")
+        "volume scan, or a radial scan (--ilm device; adds the BMO-MRW in the B-scan planes)");
+    cmd->add_option("file", opts->file,
+                    "A Spectralis .vol or Heidelberg XML volume or radial export")
         ->required();
     cmd->add_option("-o,--output", opts->json_out,
                     "Write the per-eye JSON here (default: print it on stdout)");

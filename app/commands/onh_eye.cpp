@@ -16,6 +16,7 @@
 #include "octshape/io/scan_reader.h"
 #include "octshape/retina/bmo.h"
 #include "octshape/retina/levelset.h"
+#include "octshape/retina/radial_geometry.h"
 #include "octshape/retina/scan_type.h"
 #include "octshape/io/sha256.h"
 #include "octshape/retina/onh_report.h"
@@ -101,8 +102,8 @@ void add_onh_analysis_options(CLI::App* cmd, OnhEyeOptions& o, bool per_eye_file
     if (per_eye_files) {
         cmd->add_option("--bmo", o.bmo_file,
                         "BMO points from a CSV file (header x_mm,y_mm,z_mm or "
-                        "ascan,bscan,depth_px; docs/algorithms/onh.md) instead of the automatic "
-                        "detection");
+                        "ascan,bscan,depth_px; radial scans: ascan,bscan,depth_px only; "
+                        "docs/algorithms/onh.md) instead of the automatic detection");
     }
     auto& p = o.params;
     cmd->add_option("--bmo-points", p.bmo_points,
@@ -137,9 +138,23 @@ EyeResult analyse_onh_eye(const std::string& file,
         apply_segmentation_file(scan, o.segmentation, o.record_paths);
     const std::string& sha = input.sha256;
     prov.mark("read_hash");
-    with_file_named(file, [&] { retina::require_onh_volume(scan); });
+    with_file_named(file, [&] { retina::require_onh_scan(scan); });
+    if (retina::is_radial_scan(scan)) {
+        // What the radial path does not do yet is refused before any work (usage, exit 64).
+        if (source == retina::IlmSource::kLevelSet) {
+            throw UsageError("--ilm levelset is not available on radial scans (the level set "
+                             "needs a volume's 3-D grid): use --ilm device");
+        }
+        if (!o.qc_dir.empty()) {
+            throw UsageError("--qc: the ONH QC pictures of radial scans are not available yet");
+        }
+    }
     std::optional<std::vector<retina::BmoPoint>> bmo;
-    if (!o.bmo_file.empty()) bmo = retina::read_bmo_csv(o.bmo_file, scan.meta, scan.num_bscans());
+    if (!o.bmo_file.empty()) {
+        bmo = retina::is_radial_scan(scan)
+                  ? with_file_named(file, [&] { return retina::read_radial_bmo_csv(o.bmo_file, scan); })
+                  : retina::read_bmo_csv(o.bmo_file, scan.meta, scan.num_bscans());
+    }
     // The scan's record as read (pixels_loaded included), before the level set may free them.
     nlohmann::ordered_json preamble = eye_json_preamble("onh", file, sha, scan, o.record_paths);
     if (!segmentation.is_null()) preamble["input"]["segmentation"] = segmentation;

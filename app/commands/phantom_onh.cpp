@@ -27,6 +27,7 @@ struct PhantomOnhState {
     std::vector<double> bmo_axes_mm;
     std::vector<double> tilt;
     retina::OnhProfileParams profile;  // values of the profile override options
+    std::string pattern = "volume";
 };
 
 // FILE.vol -> FILE.truth.json (any other name: NAME.truth.json).
@@ -53,6 +54,10 @@ void run(PhantomOnhState& st, const CLI::App& cmd) {
     p.bmo_rotation_deg = given.bmo_rotation_deg;
     p.eye_radius_mm = given.eye_radius_mm;
     p.speckle_looks = given.speckle_looks;
+    p.radial = st.pattern == "radial";
+    p.radial_lines = given.radial_lines;
+    p.line_length_mm = given.line_length_mm;
+    p.crossing_offset_um = given.crossing_offset_um;
     if (!st.bmo_offset_mm.empty()) {
         p.bmo_offset_x_mm = st.bmo_offset_mm[0];
         p.bmo_offset_y_mm = st.bmo_offset_mm[1];
@@ -78,9 +83,10 @@ void run(PhantomOnhState& st, const CLI::App& cmd) {
 
     const std::string truth_path =
         st.truth_path.empty() ? default_truth_path(st.output) : st.truth_path;
-    spdlog::info("phantom onh: {} {} disc, {} B-scans x {} A-scans x {} px",
+    spdlog::info("phantom onh: {} {} disc, {} {} x {} A-scans x {} px",
                  p.eye == io::Laterality::kOS ? "OS" : "OD", retina::to_string(p.shape),
-                 p.num_bscans, p.num_ascans, p.depth_px);
+                 p.radial ? p.radial_lines : p.num_bscans,
+                 p.radial ? "radial lines" : "B-scans", p.num_ascans, p.depth_px);
     const retina::OnhPhantom phantom = retina::make_onh_phantom(p, st.truth);
     const std::string truth_text =
         retina::onh_truth_to_json(p, st.truth, phantom.truth).dump(2) + "\n";
@@ -99,9 +105,10 @@ void add_phantom_onh_command(CLI::App& phantom, RunContext& /*ctx*/) {
     st->profile = d.profile;
     CLI::App* cmd = phantom.add_subcommand(
         "onh",
-        "Optic nerve head volume (Spectralis HSF-OCT-103, ScanPattern 3) with a curved BM, an "
-        "elliptical BMO and a cupped, swollen or overhanging ILM; writes FILE.vol and "
-        "FILE.truth.json (the true ONH parameters, docs/phantoms.md)");
+        "Optic nerve head volume (Spectralis HSF-OCT-103, ScanPattern 3) or radial scan "
+        "(--pattern radial, ScanPattern 5) with a curved BM, an elliptical BMO and a cupped, "
+        "swollen or overhanging ILM; writes FILE.vol and FILE.truth.json (the true ONH "
+        "parameters, docs/phantoms.md)");
     cmd->add_option("-o,--output", st->output, "Output .vol file")->required();
     cmd->add_option("--truth", st->truth_path, "Truth JSON (default: FILE.truth.json)");
     cmd->add_option("--shape", st->shape, "ILM shape")
@@ -113,7 +120,20 @@ void add_phantom_onh_command(CLI::App& phantom, RunContext& /*ctx*/) {
     cmd->add_option("--seed", st->params.seed, "Speckle seed (same seed, same file)")
         ->capture_default_str();
     cmd->add_option("--bscans", st->params.num_bscans, "Number of B-scans")->capture_default_str();
-    cmd->add_option("--ascans", st->params.num_ascans, "A-scans per B-scan")->capture_default_str();
+    cmd->add_option("--ascans", st->params.num_ascans, "A-scans per B-scan (radial: per line)")
+        ->capture_default_str();
+    cmd->add_option("--pattern", st->pattern,
+                    "volume, or radial: --lines B-scans through one point, the same eye as the "
+                    "volume of the same options")
+        ->check(CLI::IsMember({"volume", "radial"}))
+        ->capture_default_str();
+    cmd->add_option("--lines", st->params.radial_lines, "Radial lines (180 / N deg apart)")
+        ->capture_default_str();
+    cmd->add_option("--line-length-mm", st->params.line_length_mm, "Length of a radial line")
+        ->capture_default_str();
+    cmd->add_option("--crossing-offset-um", st->params.crossing_offset_um,
+                    "The lines' crossing minus the BMO centre, along grid +x (um)")
+        ->capture_default_str();
     cmd->add_option("--depth", st->params.depth_px, "Pixels per A-scan")->capture_default_str();
     cmd->add_option("--field-mm", st->params.field_mm,
                     "Side of the scanned square (ScaleX = field / A-scans, Distance = field / "

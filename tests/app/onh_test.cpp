@@ -9,6 +9,7 @@
 
 #include "octshape/io/mesh_io.h"
 #include "octshape/io/sha256.h"
+#include "octshape/io/scan_reader.h"
 #include "octshape/io/vol.h"
 #include "octshape/retina/phantom_onh.h"
 #include "test_paths.h"
@@ -76,6 +77,11 @@ TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
     const auto rv = split_csv_line(row);
     ASSERT_EQ(hv.size(), rv.size());
     EXPECT_EQ(hv.front(), "eye_key");  // no file name by default (--record-paths adds it)
+    // A volume has no in-plane MRW (radial scans only): null in the JSON, NA in its columns.
+    EXPECT_TRUE(v["mrw_inplane_mean_mm"].is_null());
+    EXPECT_FALSE(j.contains("radial"));
+    EXPECT_EQ(hv.back(), "mrw_inplane_sector_330_mm");
+    EXPECT_EQ(rv.back(), "NA");
     int checked = 0;
     for (std::size_t i = 0; i < hv.size(); ++i) {
         for (const char* key : {"cup_volume_mm3", "conht_mm", "mrw_mean_mm", "bmo_area_mm2"}) {
@@ -159,6 +165,160 @@ TEST(OnhCli, RefusalsHaveTheirExitCodesAndWriteNothing) {
                            (dir / "b.json").string());
     EXPECT_EQ(bad_bmo.exit_code, 65) << bad_bmo.err;
     EXPECT_FALSE(std::filesystem::exists(dir / "b.json"));
+}
+
+
+// ---- Radial scans -------------------------------------------------------------------------
+
+const char* const kRadialSampleCommand =
+    "phantom onh --pattern radial --lines 12 --ascans 128 --eye OS --crossing-offset-um 50 "
+    "--seed 4";
+
+std::string file_bytes(const std::filesystem::path& path) {
+    std::string text(std::filesystem::file_size(path), '\0');
+    std::ifstream in(path, std::ios::binary);
+    in.read(text.data(), static_cast<std::streamsize>(text.size()));
+    return text;
+}
+
+// sample_scans/README.md promises that its command reproduces the sample bit for bit.
+TEST(OnhCli, RadialSampleIsReproducedBitForBit) {
+    const test::TempDir dir;
+    const auto vol = dir / "r.vol";
+    const auto r = test::run_octshape(std::string(kRadialSampleCommand) + " -o " + vol.string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto sample = test::source_dir() / "sample_scans";
+    EXPECT_TRUE(file_bytes(vol) == file_bytes(sample / "onh_radial_cupped_os.vol"));
+    EXPECT_EQ(file_bytes(dir / "r.truth.json"),
+              file_bytes(sample / "onh_radial_cupped_os.truth.json"));
+}
+
+TEST(OnhCli, RadialSampleJsonCsvAgainstItsTruth) {
+    const test::TempDir dir;
+    const auto sample = test::source_dir() / "sample_scans" / "onh_radial_cupped_os.vol";
+    const json truth =
+        json::parse(slurp(test::source_dir() / "sample_scans" / "onh_radial_cupped_os.truth.json"));
+    const auto r = test::run_octshape("onh " + sample.string() + " --ilm device -o " +
+                                      (dir / "eye.json").string() + " --csv " +
+                                      (dir / "eye.csv").string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const std::string text = slurp(dir / "eye.json");
+    EXPECT_EQ(text.find("onh_radial_cupped_os"), std::string::npos);  // no file name
+    const json j = json::parse(text);
+    const json& v = j["parameters"];
+    const json& t = truth["truth"];
+    // The sample is coarse (12 lines, 128 A-scans: ds = 34 um) but deterministic: measured
+    // BMO area +0.03 %, volumes within 0.9 %, CONHT 0.2 um, MRWs 0.6 um. The targets
+    // (1 %, 2 %, 5 um) are asserted.
+    auto rel = [&](const char* k) { return v[k].get<double>() / t[k].get<double>() - 1.0; };
+    EXPECT_LT(std::fabs(rel("bmo_area_mm2")), 0.01);
+    for (const char* k : {"cup_volume_mm3", "bmo_volume_mm3", "total_volume_mm3",
+                          "annular_volume_mm3"}) {
+        EXPECT_LT(std::fabs(rel(k)), 0.02) << k;
+    }
+    for (const char* k : {"conht_mm", "mrw_mean_mm", "mrw_inplane_mean_mm"}) {
+        EXPECT_NEAR(v[k].get<double>(), t[k].get<double>(), 0.005) << k;
+    }
+    const json& rad = j["radial"];
+    EXPECT_EQ(rad["lines"], 12);
+    EXPECT_EQ(rad["mrw_inplane_points"].size(), 24U);
+    EXPECT_EQ(j["bmo"]["measured_points"], 24);
+    EXPECT_TRUE(j["qc_flags"].empty()) << j["qc_flags"];
+    // The CSV: the in-plane columns appended after the volume's, filled.
+    const auto rows = read_csv(dir / "eye.csv");
+    ASSERT_EQ(rows.size(), 2U);
+    const auto& h = rows[0];
+    ASSERT_GE(h.size(), 13U);
+    EXPECT_EQ(h[h.size() - 13], "mrw_inplane_mean_mm");
+    EXPECT_EQ(h.back(), "mrw_inplane_sector_330_mm");
+    EXPECT_NE(rows[1][h.size() - 13], "NA");
+    EXPECT_NEAR(std::stod(rows[1][h.size() - 13]), v["mrw_inplane_mean_mm"].get<double>(), 1e-6);
+}
+
+// A BMO file for a radial scan: ascan,bscan,depth_px (the automatic detection's own points,
+// written back as pixel indices, give the same ellipse); x_mm,y_mm,z_mm is refused (65).
+TEST(OnhCli, RadialBmoFileGivesThePointsOnTheirBscans) {
+    const test::TempDir dir;
+    const auto sample = test::source_dir() / "sample_scans" / "onh_radial_cupped_os.vol";
+    const auto a = test::run_octshape("onh " + sample.string() + " --ilm device -o " +
+                                      (dir / "a.json").string());
+    ASSERT_EQ(a.exit_code, 0) << a.err;
+    const json ja = json::parse(slurp(dir / "a.json"));
+    // The radial grid mm back to A-scan indices: along each line from its Start (A-scan 0).
+    const io::Scan scan = io::read_scan(sample.string(), {});
+    std::ostringstream csv;
+    csv << "ascan,bscan,depth_px\n";
+    csv.precision(17);
+    const json& pts = ja["bmo"]["measured"];
+    const double ds = scan.meta.scale_x_mm;
+    const json& ip = ja["radial"]["mrw_inplane_points"];
+    ASSERT_EQ(ip.size(), pts.size());
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+        const int b = pts[i]["bscan"].get<int>();
+        const io::BScan& bs = scan.bscans[static_cast<std::size_t>(b)];
+        // The line's direction in the grid frame (x = SLO +x, y = SLO -y); the point's distance
+        // along it from the crossing, plus the crossing's A-scan (the lines are centred on it).
+        const double len = std::hypot(bs.end_x_mm - bs.start_x_mm, bs.end_y_mm - bs.start_y_mm);
+        const double ux = (bs.end_x_mm - bs.start_x_mm) / len;
+        const double uy = -(bs.end_y_mm - bs.start_y_mm) / len;
+        const double cx = ja["radial"]["crossing_mm"][0].get<double>();
+        const double cy = ja["radial"]["crossing_mm"][1].get<double>();
+        const double along = (pts[i]["x_mm"].get<double>() - cx) * ux +
+                             (pts[i]["y_mm"].get<double>() - cy) * uy;
+        const double foot_ascan = 0.5 * (scan.meta.size_x - 1);
+        csv << foot_ascan + along / ds << ',' << b << ','
+            << -pts[i]["z_mm"].get<double>() / scan.meta.scale_z_mm << '\n';
+    }
+    spit(dir / "bmo.csv", csv.str());
+    const auto f = test::run_octshape("onh " + sample.string() + " --ilm device --bmo " +
+                                      (dir / "bmo.csv").string() + " -o " +
+                                      (dir / "f.json").string());
+    ASSERT_EQ(f.exit_code, 0) << f.err;
+    const json jf = json::parse(slurp(dir / "f.json"));
+    EXPECT_EQ(jf["options"]["bmo_source"], "file");
+    EXPECT_NEAR(jf["parameters"]["bmo_area_mm2"].get<double>(),
+                ja["parameters"]["bmo_area_mm2"].get<double>(), 1e-6);
+    EXPECT_NEAR(jf["parameters"]["mrw_inplane_mean_mm"].get<double>(),
+                ja["parameters"]["mrw_inplane_mean_mm"].get<double>(), 1e-6);
+    EXPECT_EQ(jf["radial"]["mrw_inplane_points"].size(), pts.size());
+    spit(dir / "mm.csv", "x_mm,y_mm,z_mm\n1,1,-1\n1,2,-1\n2,1,-1\n2,2,-1\n1.5,1,-1\n1,1.5,-1\n");
+    const auto mm = test::run_octshape("onh " + sample.string() + " --ilm device --bmo " +
+                                       (dir / "mm.csv").string() + " -o " +
+                                       (dir / "m.json").string());
+    EXPECT_EQ(mm.exit_code, 65) << mm.err;
+    EXPECT_NE(mm.err.find("ascan,bscan,depth_px"), std::string::npos) << mm.err;
+    EXPECT_FALSE(std::filesystem::exists(dir / "m.json"));
+}
+
+TEST(OnhCli, RadialRefusalsHaveTheirExitCodesAndWriteNothing) {
+    const test::TempDir dir;
+    const auto sample = test::source_dir() / "sample_scans" / "onh_radial_cupped_os.vol";
+    const auto out = (dir / "x.json").string();
+    // What the radial path does not do: usage errors (64), before any output.
+    for (const std::string& opts : std::vector<std::string>{
+             "", "--ilm levelset", "--ilm device --qc " + (dir / "qc").string()}) {
+        const auto r = test::run_octshape("onh " + sample.string() + " " + opts + " -o " + out);
+        EXPECT_EQ(r.exit_code, 64) << opts << ": " << r.err;
+        EXPECT_NE(r.err.find("radial"), std::string::npos) << r.err;
+        EXPECT_FALSE(std::filesystem::exists(out));
+        EXPECT_FALSE(std::filesystem::exists(dir / "qc"));
+    }
+    // Impossible geometry: one line with Start = End on the SLO (69, one line naming the file).
+    io::ReadOptions with_pixels;
+    with_pixels.pixels = true;
+    io::Scan scan = io::read_scan(sample.string(), with_pixels);
+    scan.bscans[3].end_x_mm = scan.bscans[3].start_x_mm;
+    scan.bscans[3].end_y_mm = scan.bscans[3].start_y_mm;
+    const auto broken = dir / "broken.vol";
+    io::write_vol_file(scan, broken.string());
+    const auto r = test::run_octshape("onh " + broken.string() + " --ilm device -o " + out +
+                                      " --csv " + (dir / "x.csv").string());
+    EXPECT_EQ(r.exit_code, 69) << r.err;
+    EXPECT_NE(r.err.find("broken.vol"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("Start = End"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(out));
+    EXPECT_FALSE(std::filesystem::exists(dir / "x.csv"));
 }
 
 }  // namespace

@@ -136,7 +136,8 @@ BmoDetection detect_bmo_points(const GridSurface& bm, const BmoDetectionParams& 
 
 std::vector<BmoPoint> read_bmo_csv(const std::string& path,
                                    const io::ScanMeta& meta,
-                                   int num_bscans) {
+                                   int num_bscans,
+                                   bool* pixel_header) {
     std::ifstream in(path);
     if (!in) throw InputError::missing(path);
     std::string line;
@@ -192,6 +193,7 @@ std::vector<BmoPoint> read_bmo_csv(const std::string& path,
         pts.push_back(p);
     }
     if (!header) throw InputError::corrupt(path, "no header line");
+    if (pixel_header != nullptr) *pixel_header = pixels;
     if (pts.size() < 6) {
         throw InputError::corrupt(path, "only " + std::to_string(pts.size()) +
                                             " BMO points (an ellipse needs at least 6)");

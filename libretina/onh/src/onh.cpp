@@ -17,6 +17,7 @@
 #include "octshape/mesh/metrics.h"
 #include "octshape/retina/levelset.h"
 #include "onh_stages.h"
+#include "octshape/retina/radial_geometry.h"
 #include "octshape/retina/scan_geometry.h"
 
 namespace octshape::retina {
@@ -69,6 +70,15 @@ IlmSource ilm_source_from_string(const std::string& name) {
 
 namespace {
 
+// The level set runs on a volume's 3-D grid; radial scans have none yet.
+void refuse_radial_levelset(const io::Scan& scan) {
+    if (is_radial_scan(scan)) {
+        throw UsageError(
+            "--ilm levelset is not available on radial scans (the level set needs a volume's "
+            "3-D grid; docs/algorithms/onh.md \"Radial scans\"): use --ilm device");
+    }
+}
+
 IlmSurface surface_from_levelset(const LevelSetResult& ls) {
     IlmSurface out;
     out.V = ls.V;
@@ -96,11 +106,13 @@ IlmSurface surface_from_levelset(const LevelSetResult& ls) {
 }  // namespace
 
 IlmSurface levelset_ilm_surface(const io::Scan& scan) {
+    refuse_radial_levelset(scan);
     require_onh_volume(scan);
     return surface_from_levelset(levelset_ilm(scan));
 }
 
 IlmSurface device_ilm_surface(const io::Scan& scan) {
+    if (is_radial_scan(scan)) return onh_detail::radial_device_ilm_surface(scan);
     require_onh_volume(scan);
     GridSurface s = line_height_field(scan, io::Layer::kILM);
     IlmSurface out;
@@ -133,6 +145,7 @@ IlmSurface build_ilm_surface(const io::Scan& scan, IlmSource source) {
 
 IlmSurface build_ilm_surface_releasing_pixels(io::Scan& scan, IlmSource source) {
     if (source != IlmSource::kLevelSet) return build_ilm_surface(scan, source);
+    refuse_radial_levelset(scan);
     require_onh_volume(scan);
     return surface_from_levelset(levelset_ilm_releasing_pixels(scan));
 }
@@ -155,6 +168,14 @@ void OnhParams::validate() const {
         throw UsageError("disc_radius_mm must be a positive number");
     }
     detection.validate();
+}
+
+void require_onh_scan(const io::Scan& scan) {
+    if (is_radial_scan(scan)) {
+        (void)onh_detail::radial_onh_grid(scan);
+    } else {
+        require_onh_volume(scan);
+    }
 }
 
 void require_onh_volume(const io::Scan& scan) {
@@ -228,6 +249,7 @@ OnhResult analyse_onh(const io::Scan& scan,
                       const OnhParams& params,
                       const std::optional<std::vector<BmoPoint>>& bmo_file_points) {
     using namespace onh_detail;
+    if (is_radial_scan(scan)) return analyse_onh_radial(scan, ilm, params, bmo_file_points);
     const auto t0 = std::chrono::steady_clock::now();
     params.validate();
     require_onh_volume(scan);
@@ -236,18 +258,26 @@ OnhResult analyse_onh(const io::Scan& scan,
     const ScanGeometry geo(scan);
     check_onh_inputs(scan, geo, ilm, r);
     GridSurface bm = bmo_points(scan, params, bmo_file_points, r);
-    bmo_ellipse(geo, params, r);
+    bmo_ellipse(params, r);
     rpe_surface(std::move(bm), r);
     const mesh::FaceGeometry g = orient_ilm(ilm, r);
     ilm_regions(ilm, params, r);
     centre_and_shape(g, params, r);
-    minimum_rim_width(geo, r);
+    minimum_rim_width(geo.scale_x_mm(), geo.distance_mm(), r);
     check_onh_result(r, scan);
     r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return r;
 }
 
 namespace onh_detail {
+
+double anatomical_deg(const OnhResult& r, double dx, double dy) {
+    const Eigen::Vector2d a = r.grid_to_anatomical * Eigen::Vector2d(dx, dy);
+    double deg = std::atan2(a.y(), a.x()) * 180.0 / kPi;
+    if (deg < 0.0) deg += 360.0;
+    if (deg >= 360.0) deg -= 360.0;
+    return deg;
+}
 
 // Height of the topmost crossing of the vertical line through (x, y) with the mesh: what the
 // line meets first coming from the vitreous (SPEC §5.6 CONHT). NaN if it misses the mesh.
@@ -274,9 +304,12 @@ double top_crossing(const mesh::Vertices& V, const mesh::Faces& F, double x, dou
 }
 
 void check_onh_result(const OnhResult& r, const io::Scan& scan) {
-    const double width = (scan.meta.size_x - 1) * scan.meta.scale_x_mm;
-    const double height = (scan.num_bscans() - 1) * scan.meta.distance_mm;
-    const double depth = scan.meta.size_z * scan.meta.scale_z_mm;
+    check_onh_result(r, (scan.meta.size_x - 1) * scan.meta.scale_x_mm,
+                     (scan.num_bscans() - 1) * scan.meta.distance_mm,
+                     scan.meta.size_z * scan.meta.scale_z_mm);
+}
+
+void check_onh_result(const OnhResult& r, double width, double height, double depth) {
     const double field = width * height;
     auto fmt = [](double v) {
         std::ostringstream o;
@@ -329,7 +362,10 @@ void check_onh_result(const OnhResult& r, const io::Scan& scan) {
           {"RPE height at the BMO centre (mm)", std::fabs(r.rpe_centre_height_mm), depth},
           {"mean MRW (mm)", r.mrw_mean_mm, diagonal},
           {"minimum MRW (mm)", r.mrw_min_mm, diagonal},
-          {"maximum MRW (mm)", r.mrw_max_mm, diagonal}}) {
+          {"maximum MRW (mm)", r.mrw_max_mm, diagonal},
+          {"mean in-plane MRW (mm)", r.mrw_inplane_mean_mm, diagonal},
+          {"minimum in-plane MRW (mm)", r.mrw_inplane_min_mm, diagonal},
+          {"maximum in-plane MRW (mm)", r.mrw_inplane_max_mm, diagonal}}) {
         if (std::isinf(v) || (std::isfinite(v) && (v < 0.0 || v > limit))) {
             refuse(name, v, "[0, " + fmt(limit) + "]");
         }
@@ -337,6 +373,11 @@ void check_onh_result(const OnhResult& r, const io::Scan& scan) {
     for (const double v : r.mrw_mm) {
         if (!std::isfinite(v) || v < 0.0 || v > diagonal) {
             refuse("MRW at a BMO point (mm)", v, "[0, " + fmt(diagonal) + "]");
+        }
+    }
+    for (const InplaneMrw& m : r.mrw_inplane) {
+        if (!std::isfinite(m.mrw_mm) || m.mrw_mm < 0.0 || m.mrw_mm > diagonal) {
+            refuse("in-plane MRW at a BMO point (mm)", m.mrw_mm, "[0, " + fmt(diagonal) + "]");
         }
     }
     for (const auto& [name, v] :
@@ -365,6 +406,10 @@ void check_onh_inputs(const io::Scan& scan, const ScanGeometry& geo, const IlmSu
     if (scan.meta.pattern == io::ScanPattern::kUnknown) {
         r.qc_flags.push_back("scan pattern unknown: analysed as a volume");
     }
+    check_ilm_mesh(ilm);
+}
+
+void check_ilm_mesh(const IlmSurface& ilm) {
     if (ilm.F.rows() == 0) throw AnalysisError("the ILM surface has no faces");
     try {
         mesh::validate_mesh(ilm.V, ilm.F);
@@ -405,40 +450,52 @@ GridSurface bmo_points(const io::Scan& scan, const OnhParams& params,
     return bm;
 }
 
-void bmo_ellipse(const ScanGeometry& geo, const OnhParams& params, OnhResult& r) {
+void bmo_ellipse(const OnhParams& params, OnhResult& r) {
     r.ellipse = fit_bmo_ellipse(r.bmo_measured, params.bmo_points);
     const BmoEllipse& E = r.ellipse;
     const double th = E.orientation_deg * kPi / 180.0;
     r.bmo_orientation_anatomical_deg =
-        std::fmod(geo.anatomical_angle_deg(std::cos(th), std::sin(th)), 180.0);
+        std::fmod(anatomical_deg(r, std::cos(th), std::sin(th)), 180.0);
     if (E.rms_residual_mm > 0.05) {
         r.qc_flags.push_back("BMO points lie " + fmt_mm(E.rms_residual_mm * 1000.0, 1) +
                              " um (RMS) from their ellipse");
     }
 }
 
-void rpe_surface(GridSurface bm, OnhResult& r) {
+void rpe_surface(GridSurface bm, OnhResult& r, const std::vector<std::uint8_t>* scanned) {
     r.rpe = std::move(bm);
     const ThinPlateFillResult fill = thin_plate_fill(r.rpe);
-    r.rpe_filled_vertices = fill.filled;
     r.rpe_fill_residual = fill.residual;
     const double cell = r.rpe.dx_mm * r.rpe.dy_mm;
-    r.rpe_fill_area_mm2 = fill.filled * cell;
+    r.rpe_filled_vertices = 0;
     r.rpe_fill_outside_bmo_mm2 = 0.0;
     for (int b = 0; b < r.rpe.rows; ++b) {
         for (int a = 0; a < r.rpe.cols; ++a) {
             const auto i = static_cast<std::size_t>(b) * static_cast<std::size_t>(r.rpe.cols) +
                            static_cast<std::size_t>(a);
-            if (r.rpe.filled[i] && !r.ellipse.inside(a * r.rpe.dx_mm, b * r.rpe.dy_mm)) {
+            if (scanned != nullptr && !(*scanned)[i]) {
+                // Outside the scanned area (radial: the circle the lines cover): no RPE.
+                r.rpe.z[i] = kNaN;
+                r.rpe.filled[i] = 0;
+                continue;
+            }
+            if (!r.rpe.filled[i]) continue;
+            ++r.rpe_filled_vertices;
+            if (!r.ellipse.inside(a * r.rpe.dx_mm, b * r.rpe.dy_mm)) {
                 r.rpe_fill_outside_bmo_mm2 += cell;
             }
         }
     }
-    if (r.rpe_fill_outside_bmo_mm2 > 0.05) {
+    r.rpe_fill_area_mm2 = r.rpe_filled_vertices * cell;
+    if (r.rpe_fill_outside_bmo_mm2 > 0.05 && scanned == nullptr) {
         r.qc_flags.push_back("BM missing outside the BMO ellipse: " +
                              fmt_mm(r.rpe_fill_outside_bmo_mm2, 3) + " mm2 filled");
     }
-    graph_mesh(r.rpe, r.rpe_V, r.rpe_F);
+    if (scanned != nullptr) {
+        graph_mesh_finite(r.rpe, r.rpe_V, r.rpe_F);
+    } else {
+        graph_mesh(r.rpe, r.rpe_V, r.rpe_F);
+    }
 }
 
 mesh::FaceGeometry orient_ilm(const IlmSurface& ilm, OnhResult& r) {
@@ -541,7 +598,7 @@ void centre_and_shape(const mesh::FaceGeometry& g, const OnhParams& params, OnhR
     }
 }
 
-void minimum_rim_width(const ScanGeometry& geo, OnhResult& r) {
+void minimum_rim_width(double dx_mm, double dy_mm, OnhResult& r) {
     // Closest point on the ILM surface (Eq. 8.21-8.22).
     const BmoEllipse& E = r.ellipse;
     const Eigen::Vector2d c = E.centre_mm;
@@ -560,10 +617,9 @@ void minimum_rim_width(const ScanGeometry& geo, OnhResult& r) {
         const mesh::SurfaceHit hit = tree.closest(p);
         r.mrw_points_mm[i] = hit.point;
         r.mrw_mm[i] = hit.distance;
-        const double deg = geo.anatomical_angle_deg(p.x() - c.x(), p.y() - c.y());
+        const double deg = anatomical_deg(r, p.x() - c.x(), p.y() - c.y());
         r.bmo_anatomical_deg[i] = deg;
-        // Sector k holds the angles [30k - 15, 30k + 15).
-        const auto k = static_cast<std::size_t>(static_cast<int>((deg + 15.0) / 30.0) % 12);
+        const std::size_t k = clock_hour(deg);
         sector_sum[k] += hit.distance;
         r.mrw_sector_points[k] += 1;
         sum += hit.distance;
@@ -585,7 +641,7 @@ void minimum_rim_width(const ScanGeometry& geo, OnhResult& r) {
         perimeter += (E.points_mm[(i + 1) % np] - E.points_mm[i]).norm();
     }
     const std::vector<Eigen::Vector3d> q = low_pass_closed_curve(
-        r.mrw_points_mm, mrw_area_harmonics(perimeter, geo.scale_x_mm(), geo.distance_mm()));
+        r.mrw_points_mm, mrw_area_harmonics(perimeter, dx_mm, dy_mm));
     r.mrw_area_mm2 = 0.0;
     for (std::size_t i = 0; i < np; ++i) {
         const std::size_t j = (i + 1) % np;

@@ -16,6 +16,12 @@ std::string sector_name(std::size_t k) {
     return b;
 }
 
+std::string inplane_sector_name(std::size_t k) {
+    char b[40];
+    std::snprintf(b, sizeof b, "mrw_inplane_sector_%03d_mm", static_cast<int>(30 * k));
+    return b;
+}
+
 struct Column {
     const char* name;
     double (*get)(const OnhResult&);
@@ -94,6 +100,13 @@ J onh_json(const OnhResult& r, const OnhParams& p) {
     v["bmo_tensor_eigenvalues"] =
         J::array({json_number(r.bmo_tensor_eigenvalues[0]), json_number(r.bmo_tensor_eigenvalues[1]),
                   json_number(r.bmo_tensor_eigenvalues[2])});
+    // Radial scans (null for volumes): the BMO-MRW in the B-scan planes.
+    v["mrw_inplane_mean_mm"] = json_number(r.mrw_inplane_mean_mm);
+    J inplane = J::object();
+    for (std::size_t k = 0; k < 12; ++k) {
+        inplane[std::to_string(30 * k)] = json_number(r.mrw_inplane_sector_mm[k]);
+    }
+    v["mrw_inplane_sector_mm"] = inplane;
     j["parameters"] = v;
 
     J b;
@@ -130,6 +143,42 @@ J onh_json(const OnhResult& r, const OnhParams& p) {
     }
     j["bmo_points"] = std::move(pts);
 
+    if (r.radial) {
+        J rad;
+        rad["lines"] = r.radial_lines;
+        rad["crossing_mm"] = J::array({r.radial_crossing_mm.x(), r.radial_crossing_mm.y()});
+        rad["scanned_radius_mm"] = r.radial_scanned_radius_mm;
+        rad["grid_step_mm"] = r.radial_grid_step_mm;
+        rad["max_line_miss_mm"] = r.radial_max_miss_mm;
+        rad["max_step_deg"] = r.radial_max_step_deg;
+        rad["interpolation"] =
+            "between the lines linear in angle at constant distance from the crossing";
+        rad["mrw_inplane_mean_mm"] = json_number(r.mrw_inplane_mean_mm);
+        rad["mrw_inplane_min_mm"] = json_number(r.mrw_inplane_min_mm);
+        rad["mrw_inplane_max_mm"] = json_number(r.mrw_inplane_max_mm);
+        J isec = J::object();
+        J ipts_n = J::object();
+        for (std::size_t k = 0; k < 12; ++k) {
+            isec[std::to_string(30 * k)] = json_number(r.mrw_inplane_sector_mm[k]);
+            ipts_n[std::to_string(30 * k)] = r.mrw_inplane_sector_points[k];
+        }
+        rad["mrw_inplane_sector_mm"] = isec;
+        rad["mrw_inplane_sector_points"] = ipts_n;
+        J ip = J::array();
+        for (const InplaneMrw& m : r.mrw_inplane) {
+            J e;
+            e["bscan"] = m.bscan;
+            e["side"] = m.side;
+            e["anatomical_deg"] = m.anatomical_deg;
+            e["point_mm"] = vec3(m.bmo_mm);
+            e["mrw_point_mm"] = vec3(m.ilm_mm);
+            e["mrw_mm"] = m.mrw_mm;
+            ip.push_back(std::move(e));
+        }
+        rad["mrw_inplane_points"] = std::move(ip);
+        j["radial"] = std::move(rad);
+    }
+
     J q;
     q["rpe_filled_vertices"] = r.rpe_filled_vertices;
     q["rpe_fill_area_mm2"] = r.rpe_fill_area_mm2;
@@ -161,6 +210,9 @@ std::vector<std::string> onh_csv_header() {
     for (const auto& c : columns()) h.emplace_back(c.name);
     for (std::size_t k = 0; k < 12; ++k) h.push_back(sector_name(k));
     h.emplace_back("qc_flags");
+    // Appended (radial scans; NA for volumes): the in-plane MRW.
+    h.emplace_back("mrw_inplane_mean_mm");
+    for (std::size_t k = 0; k < 12; ++k) h.push_back(inplane_sector_name(k));
     return h;
 }
 
@@ -171,6 +223,8 @@ std::vector<std::string> onh_csv_values(const OnhResult& r) {
     std::string flags;
     for (const auto& f : r.qc_flags) flags += (flags.empty() ? "" : ";") + f;
     v.push_back(flags);
+    v.push_back(csv_number(r.mrw_inplane_mean_mm));
+    for (std::size_t k = 0; k < 12; ++k) v.push_back(csv_number(r.mrw_inplane_sector_mm[k]));
     return v;
 }
 

@@ -16,12 +16,14 @@
 // Each stage reads the fields of OnhResult that the stages before it wrote and writes the
 // fields named at its declaration. Decisions and measurements: docs/algorithms/onh.md.
 
+#include <cstddef>
 #include <optional>
 #include <vector>
 
 #include "octshape/io/scan.h"
 #include "octshape/mesh/mesh.h"
 #include "octshape/retina/onh.h"
+#include "octshape/retina/radial_geometry.h"
 #include "octshape/retina/scan_geometry.h"
 
 namespace octshape::retina::onh_detail {
@@ -40,11 +42,18 @@ void check_onh_inputs(const io::Scan& scan, const ScanGeometry& geo, const IlmSu
 
 // Writes ellipse (from bmo_measured) and bmo_orientation_anatomical_deg; a QC flag when the
 // points lie more than 50 µm (RMS) from it.
-void bmo_ellipse(const ScanGeometry& geo, const OnhParams& params, OnhResult& r);
+// Angles are anatomical through r.grid_to_anatomical (check_onh_inputs, or the radial check).
+void bmo_ellipse(const OnhParams& params, OnhResult& r);
 
 // Writes rpe (bm filled), rpe_V, rpe_F and the fill's QC: rpe_filled_vertices,
 // rpe_fill_residual, rpe_fill_area_mm2, rpe_fill_outside_bmo_mm2 (needs ellipse).
-void rpe_surface(GridSurface bm, OnhResult& r);
+// `scanned` (radial scans): the nodes the scan covers; the others get no RPE (NaN) after the
+// fill, count in no fill QC, and the mesh has the cells of the covered nodes only. There the
+// fill outside the BMO is reported but not flagged: between two lines whose BMO ends differ the
+// interpolated BM is missing by construction (BM gaps on the lines themselves are counted by
+// radial_bmo_points).
+void rpe_surface(GridSurface bm, OnhResult& r,
+                 const std::vector<std::uint8_t>* scanned = nullptr);
 
 // Writes ilm_V, ilm_F (reversed when the signed projected area is negative: ilm_flipped),
 // ilm_filled_vertices, face_projected_area_mm2, ilm_quality and the ILM's notes and QC flags.
@@ -62,7 +71,8 @@ void centre_and_shape(const mesh::FaceGeometry& g, const OnhParams& params, OnhR
 
 // Writes mrw_points_mm, mrw_mm, bmo_anatomical_deg, the MRW summaries, the 12 sectors (NaN
 // without a point) and mrw_area_mm2.
-void minimum_rim_width(const ScanGeometry& geo, OnhResult& r);
+// dx_mm, dy_mm: the scan's lateral sampling steps (mrw_area_harmonics).
+void minimum_rim_width(double dx_mm, double dy_mm, OnhResult& r);
 
 // Harmonics kept of the closest-point curve for the MRW area (Eq. 8.23): its wavelengths down
 // to 4 sampling steps of the scan's coarser lateral direction (max(ScaleX, Distance)): what the
@@ -83,10 +93,73 @@ void minimum_rim_width(const ScanGeometry& geo, OnhResult& r);
 // refused with AnalysisError naming the value, what was found and what is possible. A success
 // never carries one (docs/algorithms/onh.md "What the analysis refuses").
 void check_onh_result(const OnhResult& r, const io::Scan& scan);
+// The same for a field of width x height mm (grid frame from 0) and `depth` mm.
+void check_onh_result(const OnhResult& r, double width, double height, double depth);
+
+// AnalysisError unless the ILM surface has faces and is a valid mesh.
+void check_ilm_mesh(const IlmSurface& ilm);
 
 // Height of the topmost crossing of the vertical line through (x, y) with the mesh: what the
 // line meets first coming from the vitreous (SPEC §5.6 CONHT). NaN if it misses the mesh.
 [[nodiscard]] double top_crossing(const mesh::Vertices& V, const mesh::Faces& F, double x,
                                   double y);
+
+// Anatomical angle (deg, [0, 360)) of a grid direction under r.grid_to_anatomical.
+[[nodiscard]] double anatomical_deg(const OnhResult& r, double dx, double dy);
+// Clock-hour sector of an anatomical angle: k holds [30 k - 15, 30 k + 15) deg, k in 0..11.
+[[nodiscard]] inline std::size_t clock_hour(double anatomical_deg) {
+    return static_cast<std::size_t>(static_cast<int>((anatomical_deg + 15.0) / 30.0) % 12);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The radial path (onh_radial.cpp, docs/algorithms/onh.md "Radial scans"): analyse_onh_radial
+// runs radial_check -> radial_bmo_points -> the volume's bmo_ellipse, rpe_surface (on the
+// scanned circle), orient_ilm, ilm_regions, centre_and_shape, minimum_rim_width ->
+// inplane_rim_width -> check_onh_result. Between the lines every surface is interpolated
+// linearly in angle at constant distance from the crossing (radial_height_field).
+
+// The square grid a radial scan is analysed on: nodes step_mm apart, the crossing at
+// crossing_mm, x = SLO +x, y = superior (the radial frame shifted); `scanned` marks the nodes
+// within radius_mm of the crossing (the circle every half-line covers).
+struct RadialOnhGrid {
+    RadialGeometry geo;
+    int size_x = 0;  // A-scans per line
+    int n = 0;       // nodes per side
+    double step_mm = 0.0;
+    double radius_mm = 0.0;
+    Eigen::Vector2d crossing_mm = Eigen::Vector2d::Zero();
+    std::vector<std::uint8_t> scanned;  // n * n, row-major (b * n + a)
+    // The 2 x lines half-lines sorted by their angle in the radial frame ([0, 2 pi)).
+    std::vector<double> half_angle;
+    std::vector<int> half_line;
+    std::vector<double> half_sign;  // +1: towards the line's End, -1: towards its Start
+
+    // Grid mm of A-scan `ascan` (fractional) of line `line`.
+    [[nodiscard]] Eigen::Vector2d ascan_grid_mm(int line, double ascan) const {
+        return crossing_mm + geo.ascan_mm(line, ascan, size_x);
+    }
+    // Fractional A-scan index of the point `r` mm from the crossing along half-line h.
+    [[nodiscard]] double half_line_ascan(int h, double r) const;
+};
+
+// AnalysisError (one line) when the radial scan cannot be placed or analysed (radial_geometry;
+// fewer than 3 lines or A-scans; non-positive scales; lines shorter than 0.5 mm each side).
+[[nodiscard]] RadialOnhGrid radial_onh_grid(const io::Scan& scan);
+
+// Segmentation line `layer` interpolated onto the grid: at a node r from the crossing between
+// half-lines j and j+1 (angles a_j <= theta < a_j+1), (1 - w) f_j(r) + w f_j+1(r) with
+// w = (theta - a_j) / (a_j+1 - a_j) and f(r) linear between the line's A-scans. NaN outside
+// the scanned circle and where a value used is missing.
+[[nodiscard]] GridSurface radial_height_field(const io::Scan& scan, const RadialOnhGrid& grid,
+                                              io::Layer layer);
+
+// The device ILM of a radial scan on its grid (missing values thin-plate filled inside the
+// scanned circle), meshed over the scanned circle.
+[[nodiscard]] IlmSurface radial_device_ilm_surface(const io::Scan& scan);
+
+// The radial driver (analyse_onh dispatches to it).
+[[nodiscard]] OnhResult analyse_onh_radial(
+    const io::Scan& scan, const IlmSurface& ilm, const OnhParams& params,
+    const std::optional<std::vector<BmoPoint>>& bmo_file_points);
 
 }  // namespace octshape::retina::onh_detail

@@ -170,28 +170,51 @@ void graph_mesh(const GridSurface& s, mesh::Vertices& V, mesh::Faces& F) {
     if (std::any_of(s.z.begin(), s.z.end(), [](double v) { return std::isnan(v); })) {
         throw AnalysisError("graph mesh: the height field has missing values (fill them first)");
     }
-    V.resize(static_cast<Eigen::Index>(s.z.size()), 3);
-    for (int b = 0; b < s.rows; ++b) {
-        for (int a = 0; a < s.cols; ++a) {
-            const Eigen::Index i = static_cast<Eigen::Index>(b) * s.cols + a;
-            V.row(i) << a * s.dx_mm, b * s.dy_mm, s.at(a, b);
-        }
-    }
+    // Every node is a corner of a finite cell: vertex i is node i.
+    graph_mesh_finite(s, V, F);
+}
+
+void graph_mesh_finite(const GridSurface& s, mesh::Vertices& V, mesh::Faces& F,
+                       std::vector<int>* node_of_vertex) {
+    const auto node = [&s](int a, int b) { return b * s.cols + a; };
+    const auto finite = [&s](int a, int b) { return std::isfinite(s.at(a, b)); };
+    std::vector<std::uint8_t> used(s.z.size(), 0);
     std::vector<std::array<int, 3>> tris;
     tris.reserve(static_cast<std::size_t>(std::max(0, 2 * (s.cols - 1) * (s.rows - 1))));
     for (int b = 0; b + 1 < s.rows; ++b) {
         for (int a = 0; a + 1 < s.cols; ++a) {
-            const int v00 = b * s.cols + a;
+            if (!finite(a, b) || !finite(a + 1, b) || !finite(a, b + 1) || !finite(a + 1, b + 1)) {
+                continue;
+            }
+            const int v00 = node(a, b);
             const int v10 = v00 + 1;
             const int v01 = v00 + s.cols;
             const int v11 = v01 + 1;
             tris.push_back({v00, v10, v11});
             tris.push_back({v00, v11, v01});
+            for (const int v : {v00, v10, v01, v11}) used[static_cast<std::size_t>(v)] = 1;
+        }
+    }
+    std::vector<int> vertex_of(s.z.size(), -1);
+    int nv = 0;
+    for (std::size_t i = 0; i < used.size(); ++i) {
+        if (used[i]) vertex_of[i] = nv++;
+    }
+    V.resize(nv, 3);
+    if (node_of_vertex != nullptr) node_of_vertex->assign(static_cast<std::size_t>(nv), -1);
+    for (int b = 0; b < s.rows; ++b) {
+        for (int a = 0; a < s.cols; ++a) {
+            const int v = vertex_of[static_cast<std::size_t>(node(a, b))];
+            if (v < 0) continue;
+            V.row(v) << a * s.dx_mm, b * s.dy_mm, s.at(a, b);
+            if (node_of_vertex != nullptr) (*node_of_vertex)[static_cast<std::size_t>(v)] = node(a, b);
         }
     }
     F.resize(static_cast<Eigen::Index>(tris.size()), 3);
     for (std::size_t f = 0; f < tris.size(); ++f) {
-        F.row(static_cast<Eigen::Index>(f)) << tris[f][0], tris[f][1], tris[f][2];
+        F.row(static_cast<Eigen::Index>(f)) << vertex_of[static_cast<std::size_t>(tris[f][0])],
+            vertex_of[static_cast<std::size_t>(tris[f][1])],
+            vertex_of[static_cast<std::size_t>(tris[f][2])];
     }
 }
 

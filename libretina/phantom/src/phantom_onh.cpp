@@ -211,6 +211,19 @@ void OnhPhantomParams::validate() const {
     require(std::isfinite(tilt_y) && std::fabs(tilt_y) <= 0.5, "tilt_y", "must be in [-0.5, 0.5]");
     require(speckle_looks >= 1 && speckle_looks <= 64, "speckle_looks", "must be in 1..64");
     profile.validate();
+    if (radial) {
+        // At least 3 lines (6 BMO points) for the ellipse; the 1.5 mm disc around the BMO centre
+        // must lie inside the scanned circle (radius half a line about the crossing).
+        require(radial_lines >= 3 && radial_lines <= 360, "radial_lines", "must be in 3..360");
+        require(std::isfinite(line_length_mm) && line_length_mm >= 2.0 && line_length_mm <= 12.0,
+                "line_length_mm", "must be in [2, 12] mm");
+        require(std::isfinite(crossing_offset_um) && std::fabs(crossing_offset_um) <= 500.0,
+                "crossing_offset_um", "must be within +-500 um");
+        require(0.5 * line_length_mm >= kDiscRadiusMm + 1e-3 * std::fabs(crossing_offset_um),
+                "line_length_mm",
+                "puts the 1.5 mm disc around the BMO centre outside the scanned circle (half "
+                "the line length must be >= 1.5 mm + the crossing offset)");
+    }
     // The 1.5 mm disc around the BMO centre must lie inside the scanned area, so that the total
     // and annular volumes refer to tissue the scan holds.
     const double width = (num_ascans - 1) * field_mm / num_ascans;
@@ -256,6 +269,41 @@ OnhPhantomParams onh_phantom_preset(OnhShape shape) {
     return p;
 }
 
+Eigen::Vector2d onh_radial_crossing(const OnhPhantomParams& p) {
+    const phantom::GridFrame f = phantom::grid_frame(layout_of(p));
+    return f.centre_mm() + Eigen::Vector2d(p.bmo_offset_x_mm + 1e-3 * p.crossing_offset_um,
+                                           p.bmo_offset_y_mm);
+}
+
+Eigen::Vector2d onh_radial_direction(const OnhPhantomParams& p, int k) {
+    const double a = kPi * k / p.radial_lines;
+    return {std::cos(a), std::sin(a)};
+}
+
+std::vector<Eigen::Vector2d> onh_sample_points(const OnhPhantomParams& p) {
+    p.validate();
+    std::vector<Eigen::Vector2d> pts;
+    if (p.radial) {
+        const Eigen::Vector2d c = onh_radial_crossing(p);
+        const double step = p.line_length_mm / (p.num_ascans - 1);
+        pts.reserve(static_cast<std::size_t>(p.radial_lines) *
+                    static_cast<std::size_t>(p.num_ascans));
+        for (int k = 0; k < p.radial_lines; ++k) {
+            const Eigen::Vector2d u = onh_radial_direction(p, k);
+            for (int a = 0; a < p.num_ascans; ++a) {
+                pts.push_back(c + (a * step - 0.5 * p.line_length_mm) * u);
+            }
+        }
+        return pts;
+    }
+    const phantom::VolumeLayout l = layout_of(p);
+    pts.reserve(static_cast<std::size_t>(l.num_bscans) * static_cast<std::size_t>(l.size_x));
+    for (int b = 0; b < l.num_bscans; ++b) {
+        for (int a = 0; a < l.size_x; ++a) pts.emplace_back(a * l.scale_x_mm, b * l.distance_mm);
+    }
+    return pts;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Geometry
 
@@ -287,6 +335,17 @@ OnhPhantomGeometry::OnhPhantomGeometry(const OnhPhantomParams& params)
     // Every column of the grid lies within s_max (rho(s) >= s, so roots have s <= rho).
     for (double x : {0.0, width}) {
         for (double y : {0.0, height}) s_max_ = std::max(s_max_, normalised(x, y).norm());
+    }
+    if (params.radial) {  // the radial lines' ends (the farthest A-scans of each line)
+        const Eigen::Vector2d cross = centre_ + Eigen::Vector2d(1e-3 * params.crossing_offset_um, 0.0);
+        for (int k = 0; k < params.radial_lines; ++k) {
+            const double a = kPi * k / params.radial_lines;
+            const Eigen::Vector2d u(std::cos(a), std::sin(a));
+            for (double sgn : {-1.0, 1.0}) {
+                const Eigen::Vector2d e = cross + sgn * 0.5 * params.line_length_mm * u;
+                s_max_ = std::max(s_max_, normalised(e.x(), e.y()).norm());
+            }
+        }
     }
     s_max_ = std::max(s_max_ + 0.05, profile_.cup_radius + 0.05);
 
@@ -528,6 +587,12 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// Clock-hour sector of an anatomical angle: k holds [30 k - 15, 30 k + 15) deg (the truth's
+// own copy of the convention: the phantom shares no code with the analysis).
+std::size_t clock_hour(double anatomical_deg) {
+    return static_cast<std::size_t>(static_cast<int>((anatomical_deg + 15.0) / 30.0) % 12);
+}
+
 struct TruthPass {
     double cup = 0.0;
     double bmo = 0.0;
@@ -761,7 +826,7 @@ TruthPass truth_pass(const OnhPhantomGeometry& g,
         const double m = (q - p).norm();
         const double speed = (frame * Eigen::Vector2d(-std::sin(tt), std::cos(tt))).norm();
         const double deg = gf.anatomical_angle_deg(d.x(), d.y());
-        const auto sector = static_cast<std::size_t>(static_cast<int>((deg + 15.0) / 30.0) % 12);
+        const std::size_t sector = clock_hour(deg);
         t.bmo_points.push_back(p);
         t.mrw_points.push_back(q);
         t.mrw.push_back(m);
@@ -787,6 +852,107 @@ TruthPass truth_pass(const OnhPhantomGeometry& g,
         t.mrw_area +=
             0.5 *
             (t.mrw_points[b] - t.bmo_points[a]).cross(t.mrw_points[a] - t.bmo_points[b]).norm();
+    }
+    return t;
+}
+
+// In-plane BMO-MRW of a radial phantom (OnhInplaneTruth), the search along s with step
+// `s_step`. Line k: grid points p(t) = C + t u, t in mm from the crossing; normalised
+// v(t) = v0 + t du. The ILM curve in the line's plane is, for each s, the points of the line
+// with |v(t)| = rho(s) (two branches, t-(s) and t+(s)), at height BM + w(s).
+OnhInplaneTruth inplane_truth(const OnhPhantomGeometry& g, const OnhPhantomParams& params,
+                              double s_step) {
+    OnhInplaneTruth t;
+    const phantom::GridFrame gf = phantom::grid_frame(layout_of(params));
+    const Eigen::Vector2d cross = onh_radial_crossing(params);
+    const Eigen::Vector2d centre = g.bmo_centre();
+    const Eigen::Matrix2d frame_inv = g.frame().inverse();
+    t.min_mm = std::numeric_limits<double>::infinity();
+    double sum = 0.0;
+    for (int k = 0; k < params.radial_lines; ++k) {
+        const Eigen::Vector2d u = onh_radial_direction(params, k);
+        const Eigen::Vector2d v0 = frame_inv * (cross - centre);
+        const Eigen::Vector2d du = frame_inv * u;
+        const double A = du.squaredNorm();
+        const double B = v0.dot(du);
+        // The line's parameters t where |v(t)| = r, branch sign -1 / +1 (NaN: no crossing).
+        auto t_at = [&](double r, double sign) {
+            const double disc = B * B - A * (v0.squaredNorm() - r * r);
+            if (disc < 0.0) return std::numeric_limits<double>::quiet_NaN();
+            return (-B + sign * std::sqrt(disc)) / A;
+        };
+        auto point = [&](double tt, double w) {
+            const Eigen::Vector2d xy = cross + tt * u;
+            return Eigen::Vector3d(xy.x(), xy.y(), g.bm_height(xy.x(), xy.y()) + w);
+        };
+        for (const double side : {-1.0, 1.0}) {
+            const double tb = t_at(1.0, side);
+            const Eigen::Vector3d p = point(tb, 0.0);
+            auto dist2 = [&](double s, double sign) {
+                const double tt = t_at(g.rho(s), sign);
+                if (std::isnan(tt)) return std::numeric_limits<double>::infinity();
+                return (point(tt, g.w(s)) - p).squaredNorm();
+            };
+            double best = std::numeric_limits<double>::infinity();
+            double best_s = 0.0;
+            double best_sign = side;
+            const int n = static_cast<int>(std::ceil(g.s_max() / s_step));
+            for (const double sign : {-1.0, 1.0}) {
+                for (int i = 0; i <= n; ++i) {
+                    const double s = std::min(g.s_max(), i * s_step);
+                    const double d = dist2(s, sign);
+                    if (d < best) {
+                        best = d;
+                        best_s = s;
+                        best_sign = sign;
+                    }
+                }
+            }
+            // Golden section on the bracket of the best sample, down to 1e-13 in s.
+            double lo = std::max(0.0, best_s - s_step);
+            double hi = std::min(g.s_max(), best_s + s_step);
+            const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
+            double x1 = hi - gr * (hi - lo);
+            double x2 = lo + gr * (hi - lo);
+            double f1 = dist2(x1, best_sign);
+            double f2 = dist2(x2, best_sign);
+            for (int it = 0; it < 200 && hi - lo > 1e-13; ++it) {
+                if (f1 < f2) {
+                    hi = x2;
+                    x2 = x1;
+                    f2 = f1;
+                    x1 = hi - gr * (hi - lo);
+                    f1 = dist2(x1, best_sign);
+                } else {
+                    lo = x1;
+                    x1 = x2;
+                    f1 = f2;
+                    x2 = lo + gr * (hi - lo);
+                    f2 = dist2(x2, best_sign);
+                }
+            }
+            double s_opt = 0.5 * (lo + hi);
+            if (!(dist2(s_opt, best_sign) <= best)) s_opt = best_s;
+            const Eigen::Vector3d q = point(t_at(g.rho(s_opt), best_sign), g.w(s_opt));
+            const double m = (q - p).norm();
+            const double deg =
+                gf.anatomical_angle_deg(p.x() - centre.x(), p.y() - centre.y());
+            const std::size_t sector = clock_hour(deg);
+            t.bmo_points_mm.push_back(p);
+            t.mrw_points_mm.push_back(q);
+            t.mrw_mm.push_back(m);
+            t.anatomical_deg.push_back(deg);
+            t.line.push_back(k);
+            t.sector_mm[sector] += m;
+            t.sector_points[sector] += 1;
+            sum += m;
+            t.min_mm = std::min(t.min_mm, m);
+            t.max_mm = std::max(t.max_mm, m);
+        }
+    }
+    t.mean_mm = sum / static_cast<double>(t.mrw_mm.size());
+    for (std::size_t k = 0; k < 12; ++k) {
+        if (t.sector_points[k] > 0) t.sector_mm[k] /= t.sector_points[k];
     }
     return t;
 }
@@ -898,6 +1064,24 @@ OnhTruth compute_onh_truth(const OnhPhantomParams& params, const OnhTruthOptions
                                   t.conht_mm, t.conht_mm));
     t.accuracy.push_back(
         accuracy("bmo_area_mm2", "closed form pi a b (Eq. 8.24)", t.bmo_area_mm2, t.bmo_area_mm2));
+    if (params.radial) {
+        // Search step 1e-4 in s (0.1 um of normalised radius ~ 0.08 um); the change with the
+        // step doubled bounds the search error.
+        t.has_inplane = true;
+        t.inplane = inplane_truth(g, params, 1e-4);
+        const OnhInplaneTruth coarse_in = inplane_truth(g, params, 2e-4);
+        for (std::size_t i = 0; i < t.inplane.mrw_mm.size(); ++i) {
+            t.inplane.abs_change_mm = std::max(
+                t.inplane.abs_change_mm, std::fabs(t.inplane.mrw_mm[i] - coarse_in.mrw_mm[i]));
+        }
+        TruthAccuracy a = accuracy(
+            "mrw_inplane_mean_mm",
+            "in each radial line's vertical plane: where the line crosses the true BMO ellipse "
+            "(two points) to the closest point of the true ILM curve in that plane; dense search "
+            "in s on both branches of the curve, golden-section refinement",
+            t.inplane.mean_mm, coarse_in.mean_mm);
+        t.accuracy.push_back(a);
+    }
     t.seconds = std::chrono::duration<double>(Clock::now() - start).count();
     return t;
 }
@@ -1076,24 +1260,58 @@ double slo_brightness(const OnhPhantomGeometry& g,
     return v * (1.0 - 0.45 * darkest);
 }
 
+// The frame of a radial phantom: the volume's SLO (so the fundus picture and the anatomical
+// frame are the volume's), radial_lines B-scans of num_ascans A-scans, each placed on the SLO
+// from the crossing along its direction; no B-scan Distance.
+io::Scan radial_scan_frame(const OnhPhantomParams& p, const phantom::VolumeLayout& volume) {
+    phantom::VolumeLayout l = volume;
+    l.pattern = io::ScanPattern::kRadial;
+    l.num_bscans = p.radial_lines;
+    l.scale_x_mm = p.line_length_mm / (p.num_ascans - 1);
+    io::Scan s = phantom::make_scan_frame(l);
+    const phantom::GridFrame gf = phantom::grid_frame(volume);
+    s.meta.scale_x_slo_mm = gf.slo_scale_mm;
+    s.meta.scale_y_slo_mm = gf.slo_scale_mm;
+    s.meta.distance_mm = 0.0;
+    const Eigen::Vector2d c = onh_radial_crossing(p);
+    for (int k = 0; k < p.radial_lines; ++k) {
+        const Eigen::Vector2d u = onh_radial_direction(p, k);
+        const Eigen::Vector2d start = gf.to_slo(c - 0.5 * p.line_length_mm * u);
+        const Eigen::Vector2d end = gf.to_slo(c + 0.5 * p.line_length_mm * u);
+        io::BScan& b = s.bscans[static_cast<std::size_t>(k)];
+        b.start_x_mm = start.x();
+        b.start_y_mm = start.y();
+        b.end_x_mm = end.x();
+        b.end_y_mm = end.y();
+    }
+    return s;
+}
+
 }  // namespace
 
 io::Scan render_onh_scan(const OnhPhantomParams& params) {
     const OnhPhantomGeometry g(params);
     const phantom::VolumeLayout layout = layout_of(params);
-    io::Scan scan = phantom::make_scan_frame(layout);
+    io::Scan scan =
+        params.radial ? radial_scan_frame(params, layout) : phantom::make_scan_frame(layout);
+    const int nb = scan.num_bscans();
+    // Every A-scan's grid position: the same continuous eye for volumes and radial scans.
+    const std::vector<Eigen::Vector2d> points = onh_sample_points(params);
     scan.meta.prog_id = std::string("octshape ") + kVersion + " phantom onh";
     scan.notes.push_back("synthetic ONH phantom (" + to_string(params.shape) + ")");
     const double sz = g.scale_z_mm();
     const int nx = params.num_ascans;
 
     // Every column first: the geometry must fit the image before any pixel is drawn.
-    std::vector<std::vector<Column>> columns(static_cast<std::size_t>(params.num_bscans));
-    for (int b = 0; b < params.num_bscans; ++b) {
+    std::vector<std::vector<Column>> columns(static_cast<std::size_t>(nb));
+    for (int b = 0; b < nb; ++b) {
         auto& row = columns[static_cast<std::size_t>(b)];
         row.reserve(static_cast<std::size_t>(nx));
         for (int a = 0; a < nx; ++a) {
-            Column c = column_at(g, a * g.scale_x_mm(), b * g.distance_mm());
+            const Eigen::Vector2d& pt = points[static_cast<std::size_t>(b) *
+                                                   static_cast<std::size_t>(nx) +
+                                               static_cast<std::size_t>(a)];
+            Column c = column_at(g, pt.x(), pt.y());
             const double top_px = -c.ilm_z.front() / sz;
             const double deepest_px = -std::min(c.ilm_z.back(), c.bm_z) / sz;
             require(top_px >= 1.0, "depth",
@@ -1111,7 +1329,7 @@ io::Scan render_onh_scan(const OnhPhantomParams& params) {
     const auto nan = std::numeric_limits<float>::quiet_NaN();
     phantom::SpeckleParams speckle;
     speckle.looks = params.speckle_looks;
-    for (int b = 0; b < params.num_bscans; ++b) {
+    for (int b = 0; b < nb; ++b) {
         const auto& row = columns[static_cast<std::size_t>(b)];
         io::BScan& bs = scan.bscans[static_cast<std::size_t>(b)];
         for (int a = 0; a < nx; ++a) {
@@ -1223,6 +1441,17 @@ nlohmann::json onh_truth_to_json(const OnhPhantomParams& params,
                       {"undercut", pr.undercut},
                       {"undercut_height_mm", pr.undercut_height_mm},
                       {"undercut_halfwidth_mm", pr.undercut_halfwidth_mm}}}};
+    if (params.radial) {  // only then (a volume's truth file stays bit for bit as before)
+        j["options"]["pattern"] = "radial";
+        const Eigen::Vector2d c = onh_radial_crossing(params);
+        j["options"]["radial_lines"] = params.radial_lines;
+        j["options"]["line_length_mm"] = params.line_length_mm;
+        j["options"]["crossing_offset_um"] = params.crossing_offset_um;
+        // The truth's grid frame is the volume's of the same parameters; the radial scan
+        // itself has no grid: the lines' crossing places it.
+        j["options"]["crossing_mm"] = {c.x(), c.y()};
+        j["options"]["line_ascan_spacing_mm"] = params.line_length_mm / (params.num_ascans - 1);
+    }
     j["truth_options"] = {{"s_step", options.s_step},
                           {"phi_steps", options.phi_steps},
                           {"mrw_points", options.mrw_points},
@@ -1269,6 +1498,34 @@ nlohmann::json onh_truth_to_json(const OnhPhantomParams& params,
                           {"anatomical_deg", truth.bmo_anatomical_deg[i]}});
     }
     j["bmo_points"] = points;
+    if (truth.has_inplane) {
+        const OnhInplaneTruth& in = truth.inplane;
+        json isec = json::object();
+        json ipts = json::array();
+        for (std::size_t k = 0; k < 12; ++k) {
+            isec[std::to_string(30 * k)] =
+                in.sector_points[k] > 0 ? json(in.sector_mm[k]) : json(nullptr);
+        }
+        for (std::size_t i = 0; i < in.mrw_mm.size(); ++i) {
+            const auto& p = in.bmo_points_mm[i];
+            const auto& q = in.mrw_points_mm[i];
+            ipts.push_back({{"bscan", in.line[i]},
+                            {"bmo_mm", {p.x(), p.y(), p.z()}},
+                            {"mrw_point_mm", {q.x(), q.y(), q.z()}},
+                            {"mrw_mm", in.mrw_mm[i]},
+                            {"anatomical_deg", in.anatomical_deg[i]}});
+        }
+        j["truth"]["mrw_inplane_mean_mm"] = in.mean_mm;
+        j["truth"]["mrw_inplane_min_mm"] = in.min_mm;
+        j["truth"]["mrw_inplane_max_mm"] = in.max_mm;
+        j["truth"]["mrw_inplane_sector_mm"] = isec;
+        j["conventions"]["mrw_inplane"] =
+            "radial scans: in each B-scan's vertical plane, from the two points where its line "
+            "crosses the BMO ellipse (z = BM height) to the closest point of the true ILM curve "
+            "in that plane; sectors as mrw_sectors, by the BMO point's angle about the BMO centre";
+        j["inplane_bmo_points"] = ipts;
+        j["accuracy"]["mrw_inplane_mean_mm"]["largest_per_point_change"] = in.abs_change_mm;
+    }
     return j;  // no timings: the same options give the same file
 }
 

@@ -52,9 +52,11 @@ struct BmoDetection {
 // ScaleX, Distance and ScaleZ: x = ascan ScaleX, y = bscan Distance, z = -depth_px ScaleZ);
 // then one point per line. Throws InputError (path, line) on a bad file, fewer than 6 points
 // or a point outside the scan grid.
+// `pixel_header` (optional) receives whether the header was `ascan,bscan,depth_px`.
 [[nodiscard]] std::vector<BmoPoint> read_bmo_csv(const std::string& path,
                                                  const io::ScanMeta& meta,
-                                                 int num_bscans);
+                                                 int num_bscans,
+                                                 bool* pixel_header = nullptr);
 
 struct BmoEllipse {
     Eigen::Vector2d centre_mm = Eigen::Vector2d::Zero();  // grid mm

@@ -88,6 +88,17 @@ struct MeshQuality {
     double quality = 0.0;                      // mean circumradius / shortest edge (1/sqrt 3 ideal)
 };
 
+// BMO-MRW in one B-scan's plane (radial scans, the device's definition): from a measured BMO
+// point to the closest point of that B-scan's ILM curve.
+struct InplaneMrw {
+    int bscan = -1;
+    int side = 0;  // -1: the gap's start (lower A-scan index), +1: its end
+    Eigen::Vector3d bmo_mm = Eigen::Vector3d::Zero();  // grid mm
+    Eigen::Vector3d ilm_mm = Eigen::Vector3d::Zero();  // the closest ILM point, grid mm
+    double mrw_mm = 0.0;
+    double anatomical_deg = 0.0;  // of the BMO point about the BMO ellipse centre
+};
+
 struct OnhResult {
     // A value the analysis could not measure (as CubeResult's kMissing): JSON null, CSV NA.
     static constexpr double kMissing = std::numeric_limits<double>::quiet_NaN();
@@ -147,6 +158,25 @@ struct OnhResult {
     std::array<int, 12> mrw_sector_points{};
     double mrw_area_mm2 = kMissing;  // Eq. 8.23
 
+    // Radial scans (ScanPattern 5; docs/algorithms/onh.md "Radial scans"). The grid frame is
+    // then a square grid about the lines' crossing (radial_crossing_mm), x = SLO +x, y =
+    // superior, on which the BM and the ILM are interpolated between the lines.
+    bool radial = false;
+    int radial_lines = 0;
+    Eigen::Vector2d radial_crossing_mm = Eigen::Vector2d::Zero();
+    double radial_scanned_radius_mm = kMissing;  // the circle every half-line covers
+    double radial_grid_step_mm = kMissing;
+    double radial_max_miss_mm = kMissing;  // largest distance of a line from the crossing
+    double radial_max_step_deg = kMissing;  // largest angle between neighbouring lines
+    std::vector<InplaneMrw> mrw_inplane;  // per measured BMO point
+    double mrw_inplane_mean_mm = kMissing;
+    double mrw_inplane_min_mm = kMissing;
+    double mrw_inplane_max_mm = kMissing;
+    std::array<double, 12> mrw_inplane_sector_mm{kMissing, kMissing, kMissing, kMissing,
+                                                 kMissing, kMissing, kMissing, kMissing,
+                                                 kMissing, kMissing, kMissing, kMissing};
+    std::array<int, 12> mrw_inplane_sector_points{};
+
     // QC.
     int rpe_filled_vertices = 0;
     double rpe_fill_area_mm2 = 0.0;         // filled nodes * dx dy
@@ -182,7 +212,9 @@ struct OnhRegions {
 
 // Runs the analysis of `scan` with the ILM surface `ilm`. `bmo_file_points`: measured BMO
 // points from a file instead of the automatic detection. Throws AnalysisError when the scan is
-// not a volume, has no BM line, or no BMO can be found.
+// neither a volume nor a radial scan, has no BM line, or no BMO can be found. A radial scan
+// (is_radial_scan) takes the radial path (onh_radial.cpp): its ILM must come from
+// build_ilm_surface of the same scan, its file points from read_radial_bmo_csv.
 [[nodiscard]] OnhResult analyse_onh(
     const io::Scan& scan,
     const IlmSurface& ilm,
@@ -192,5 +224,17 @@ struct OnhRegions {
 // Throws AnalysisError with a one-line reason unless `scan` is a volume scan with a B-scan
 // distance (the ONH analysis needs the 3-D grid).
 void require_onh_volume(const io::Scan& scan);
+
+// BMO points of a radial scan from a CSV file (read_bmo_csv's format): only the header
+// `ascan,bscan,depth_px` (each point on its B-scan, A-scan index along the line, as a radial
+// export gives them); the points come back in the radial analysis's grid mm with their B-scan.
+// InputError (path, reason) for an `x_mm,y_mm,z_mm` file, a point off the scan or fewer than 6.
+[[nodiscard]] std::vector<BmoPoint> read_radial_bmo_csv(const std::string& path,
+                                                        const io::Scan& scan);
+
+// A volume (require_onh_volume) or a radial scan whose lines can be placed (radial_geometry:
+// AnalysisError for lines that do not cross, a zero-length or non-finite line) with at least
+// 3 lines and 3 A-scans per line and positive scales.
+void require_onh_scan(const io::Scan& scan);
 
 }  // namespace octshape::retina

@@ -57,4 +57,10 @@ ThinPlateFillResult thin_plate_fill(GridSurface& s);
 // must be complete (fill it first): throws AnalysisError on a NaN.
 void graph_mesh(const GridSurface& s, mesh::Vertices& V, mesh::Faces& F);
 
+// The same over the cells whose four corners are finite (a field with NaN where nothing was
+// scanned, e.g. outside the circle of a radial scan): only vertices of such cells, numbered in
+// node order. `node_of_vertex` (optional) receives each vertex's node index b * cols + a.
+void graph_mesh_finite(const GridSurface& s, mesh::Vertices& V, mesh::Faces& F,
+                       std::vector<int>* node_of_vertex = nullptr);
+
 }  // namespace octshape::retina

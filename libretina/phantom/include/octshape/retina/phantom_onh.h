@@ -82,6 +82,16 @@ struct OnhPhantomParams {
     OnhProfileParams profile;     // ILM meridian profile (see onh_profile_preset)
     // Pixels.
     int speckle_looks = 4;  // multiplicative speckle ~ Gamma(L, 1/L) (mean 1)
+    // Radial scan (ScanPattern 5) of the SAME eye: radial_lines B-scans of line_length_mm and
+    // num_ascans A-scans each, line k at k * 180 / radial_lines deg from grid +x towards +y
+    // (superior), all through the crossing = BMO centre + (crossing_offset_um, 0) um in the
+    // grid frame. The eye and the truth's grid frame are those of the volume these parameters
+    // make (num_bscans, field_mm), so a volume and a radial phantom of the same parameters
+    // sample one continuous eye (onh_sample_points).
+    bool radial = false;
+    int radial_lines = 24;
+    double line_length_mm = 4.35;
+    double crossing_offset_um = 0.0;
 
     // Throws UsageError naming the bad field (geometry that does not fit the image is
     // reported by make_onh_phantom, which knows every column).
@@ -94,6 +104,15 @@ struct OnhPhantomParams {
 [[nodiscard]] OnhProfileParams onh_profile_preset(OnhShape shape);
 // Default parameters with the profile of `shape`.
 [[nodiscard]] OnhPhantomParams onh_phantom_preset(OnhShape shape);
+
+// Grid position (mm, the truth's grid frame) of every A-scan, B-scan-major: the volume's grid
+// nodes, or the radial lines' A-scans. The one place the volume and radial phantoms differ in
+// where they sample the eye.
+[[nodiscard]] std::vector<Eigen::Vector2d> onh_sample_points(const OnhPhantomParams& params);
+// Radial phantoms: the lines' crossing (grid mm) and the unit grid direction Start -> End of
+// line k.
+[[nodiscard]] Eigen::Vector2d onh_radial_crossing(const OnhPhantomParams& params);
+[[nodiscard]] Eigen::Vector2d onh_radial_direction(const OnhPhantomParams& params, int k);
 
 // The generating geometry, evaluated exactly (no sampling). Everything the truth, the pixels
 // and the device lines use comes from here.
@@ -177,6 +196,26 @@ struct TruthAccuracy {
     double abs_change = 0.0;    // |value - value_coarse|: bounds the quadrature error
 };
 
+// BMO-MRW in the B-scan planes of a radial phantom (the device's definition): where line k
+// crosses the true BMO ellipse (two points per line, z = BM height) and the closest point of
+// the true ILM curve in line k's vertical plane, found by a dense search along the meridian
+// parameter s of both branches of the curve (the line meets the circle rho(s) of the
+// normalised frame twice) and refined by golden section. Index 2 k + side (side 0 towards the
+// line's Start, 1 towards its End).
+struct OnhInplaneTruth {
+    std::vector<Eigen::Vector3d> bmo_points_mm;
+    std::vector<Eigen::Vector3d> mrw_points_mm;
+    std::vector<double> mrw_mm;
+    std::vector<double> anatomical_deg;  // of the BMO point about the BMO centre
+    std::vector<int> line;
+    double mean_mm = 0.0;
+    double min_mm = 0.0;
+    double max_mm = 0.0;
+    std::array<double, 12> sector_mm{};  // the clock-hour convention of OnhTruth
+    std::array<int, 12> sector_points{};
+    double abs_change_mm = 0.0;  // largest per-point change with the search step doubled
+};
+
 struct OnhTruth {
     bool has_cup = false;
     double cup_volume_mm3 = 0.0;      // positive
@@ -205,6 +244,8 @@ struct OnhTruth {
     std::vector<double> mrw_mm;                  // per point
     std::vector<double> bmo_anatomical_deg;      // per point
     std::vector<TruthAccuracy> accuracy;
+    bool has_inplane = false;  // radial phantoms
+    OnhInplaneTruth inplane;
     double seconds = 0.0;  // time taken
 };
 

@@ -1,0 +1,278 @@
+// The ONH analysis on radial scans (onh_radial.cpp) against the radial ONH phantoms' truth:
+// the same continuous eyes as the volume phantoms, the in-plane MRW truth from a dense search
+// in each line's plane (phantom_onh.h), never from sampled lines or pixels.
+//
+// Sampling of the default radial phantom: 24 lines of 4.35 mm, 384 A-scans (ds = 11.4 um), 7.5
+// deg apart (0.11 mm at the BMO). The error sources and their sizes (docs/algorithms/onh.md,
+// "Radial scans"):
+//  * BMO points: each gap end half-way between the last present and the first missing A-scan:
+//    uniform within +-ds/2 along its line (sigma 3.3 um), zero mean; 48 points: the area's
+//    relative SD ~ 2 x 3.3 um / 0.84 mm / sqrt(24) = 0.16 %. The 1 % is > 6 sigma.
+//  * Surfaces between the lines: linear in angle at constant distance from the crossing. On
+//    the phantoms' (elliptical, tilted, curved) eyes with the crossing up to 500 um from the
+//    BMO centre it costs < 0.8 % of any volume (measured: docs "Radial scans"); the 2 %
+//    holds with a margin of > 2.5x.
+//  * CONHT: the ILM at the BMO centre interpolated between two lines ~r x 7.5 deg apart and
+//    the thin-plate RPE from exact BM: measured < 1 um; the 5 um.
+//  * MRW (3-D and in-plane): the BMO ends' +-ds/2 moves a point along its line, the MRW by
+//    <= ds/2 x |cos| of the wall angle (< 5.7 um per point, zero mean over 48 points: ~1 um);
+//    the 3-D MRW's ellipse points take z from the nearest measured end (7.5 deg away: |grad
+//    z_BM| ~ 0.1 x 55 um = 5.5 um per point, of either sign). The 5 um.
+// The overhang's device ILM is the envelope of the cavity, as for a volume (onh_test.cpp): its
+// V_bmo, V_cup, V_tv and both MRWs miss the truth by what the envelope holds, asserted as such.
+
+#include "octshape/retina/onh.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "octshape/error.h"
+#include "octshape/retina/phantom_onh.h"
+#include "octshape/retina/radial_geometry.h"
+#include "slow_test.h"
+
+namespace octshape::retina {
+namespace {
+
+OnhPhantomParams radial_params(OnhShape shape, io::Laterality eye = io::Laterality::kOD,
+                               double offset_um = 0.0, int lines = 24) {
+    OnhPhantomParams p = onh_phantom_preset(shape);
+    p.eye = eye;
+    p.radial = true;
+    p.radial_lines = lines;
+    p.crossing_offset_um = offset_um;
+    return p;
+}
+
+TEST(OnhRadialPhantom, LinesCrossWhereTheTruthSaysAndSampleTheVolumesEye) {
+    const OnhPhantomParams p = radial_params(OnhShape::kCupped, io::Laterality::kOS, 120.0, 12);
+    const io::Scan scan = render_onh_scan(p);
+    EXPECT_EQ(scan.meta.pattern, io::ScanPattern::kRadial);
+    EXPECT_EQ(scan.num_bscans(), 12);
+    EXPECT_EQ(scan.meta.distance_mm, 0.0);
+    const RadialGeometry g = radial_geometry(scan);
+    EXPECT_TRUE(g.regular);
+    EXPECT_LT(g.max_miss_mm, 1e-9);
+    EXPECT_NEAR(g.mean_length_mm, p.line_length_mm, 1e-9);
+    // Every line's middle A-scan position is the crossing (the sample points, grid frame).
+    const std::vector<Eigen::Vector2d> pts = onh_sample_points(p);
+    ASSERT_EQ(pts.size(), static_cast<std::size_t>(12 * p.num_ascans));
+    const Eigen::Vector2d c = onh_radial_crossing(p);
+    OnhPhantomParams vol = p;
+    vol.radial = false;
+    const OnhPhantomGeometry gv(vol);
+    EXPECT_NEAR((c - gv.bmo_centre()).x(), 0.120, 1e-12);  // the same eye: BMO centre + offset
+    for (int k = 0; k < 12; ++k) {
+        const Eigen::Vector2d a = pts[static_cast<std::size_t>(k * p.num_ascans)];
+        const Eigen::Vector2d b = pts[static_cast<std::size_t>((k + 1) * p.num_ascans - 1)];
+        EXPECT_NEAR((0.5 * (a + b) - c).norm(), 0.0, 1e-12);
+        EXPECT_NEAR((b - a).norm(), p.line_length_mm, 1e-12);
+    }
+}
+
+TEST(OnhRadialPhantom, InplaneTruthIsNeverShorterThanTheSurfaceDistance) {
+    // The closest point of the ILM curve in a plane is a point of the ILM surface: the in-plane
+    // MRW is >= the 3-D distance from the same BMO point. With the crossing at the BMO centre
+    // and a rotationally symmetric disc (a = b) the closest point lies in the radial plane: both
+    // are equal.
+    OnhPhantomParams p = radial_params(OnhShape::kCupped);
+    p.bmo_semi_major_mm = p.bmo_semi_minor_mm = 0.85;
+    p.bmo_rotation_deg = 0.0;
+    p.tilt_x = p.tilt_y = 0.0;
+    p.radial_lines = 6;
+    OnhTruthOptions o;
+    o.mrw_points = 12;  // parameter angles k 30 deg: the lines' BMO points (6 lines, 30 deg)
+    const OnhTruth t = compute_onh_truth(p, o);
+    ASSERT_TRUE(t.has_inplane);
+    ASSERT_EQ(t.inplane.mrw_mm.size(), 12U);
+    for (std::size_t i = 0; i < 12; ++i) {
+        EXPECT_GT(t.inplane.mrw_mm[i], 0.1);
+        EXPECT_LT(t.inplane.abs_change_mm, 1e-9);
+    }
+    EXPECT_NEAR(t.inplane.mean_mm, t.mrw_mean_mm, 1e-7);
+    // An elliptical BMO: each in-plane value >= the surface distance from that point, which is
+    // at least the 3-D minimum.
+    const OnhTruth e = compute_onh_truth(radial_params(OnhShape::kCupped));
+    EXPECT_GE(e.inplane.min_mm, e.mrw_min_mm - 1e-9);
+    EXPECT_GE(e.inplane.max_mm, e.mrw_max_mm - 2e-6);  // the max over 48 vs 360 points
+}
+
+TEST(OnhRadial, RefusesWhatItCannotDoAndImpossibleGeometry) {
+    OnhPhantomParams p = radial_params(OnhShape::kCupped, io::Laterality::kOD, 0.0, 6);
+    p.num_ascans = 128;
+    const io::Scan scan = render_onh_scan(p);
+    EXPECT_NO_THROW(require_onh_scan(scan));
+    EXPECT_THROW((void)build_ilm_surface(scan, IlmSource::kLevelSet), UsageError);
+    const IlmSurface ilm = device_ilm_surface(scan);
+    std::vector<BmoPoint> file(6);  // points without their B-scans (not read_radial_bmo_csv's)
+    EXPECT_THROW((void)analyse_onh(scan, ilm, {}, file), UsageError);
+    // All lines parallel: no crossing.
+    io::Scan parallel = scan;
+    for (std::size_t k = 0; k < parallel.bscans.size(); ++k) {
+        parallel.bscans[k] = scan.bscans[0];
+        parallel.bscans[k].start_y_mm += 0.1 * static_cast<double>(k);
+        parallel.bscans[k].end_y_mm += 0.1 * static_cast<double>(k);
+    }
+    EXPECT_THROW(require_onh_scan(parallel), AnalysisError);
+    // A line with Start = End.
+    io::Scan degenerate = scan;
+    degenerate.bscans[2].end_x_mm = degenerate.bscans[2].start_x_mm;
+    degenerate.bscans[2].end_y_mm = degenerate.bscans[2].start_y_mm;
+    EXPECT_THROW(require_onh_scan(degenerate), AnalysisError);
+    // Lines that end next to their crossing (all starting at it).
+    io::Scan half = scan;
+    for (auto& b : half.bscans) {
+        b.start_x_mm = 0.5 * (b.start_x_mm + b.end_x_mm);
+        b.start_y_mm = 0.5 * (b.start_y_mm + b.end_y_mm);
+    }
+    EXPECT_THROW(require_onh_scan(half), AnalysisError);
+    // Only 2 lines.
+    io::Scan two = scan;
+    two.bscans.resize(2);
+    EXPECT_THROW(require_onh_scan(two), AnalysisError);
+}
+
+// ---- Default radial phantoms against their truth (label "slow") ---------------------------
+
+struct RadialCase {
+    OnhPhantom ph;
+    OnhResult r;
+};
+
+RadialCase run_radial(const OnhPhantomParams& p) {
+    RadialCase c{make_onh_phantom(p), {}};
+    c.r = analyse_onh(c.ph.scan, build_ilm_surface(c.ph.scan, IlmSource::kDevice));
+    return c;
+}
+
+void print_row(const std::string& name, const RadialCase& c) {
+    const OnhTruth& t = c.ph.truth;
+    const OnhResult& r = c.r;
+    auto pct = [](double a, double b) { return b != 0.0 ? 100.0 * (a / b - 1.0) : 0.0; };
+    std::printf(
+        "%-22s BMO area %+.2f %%  V_cup %+.2f %%  V_bmo %+.2f %%  V_tv %+.2f %%  V_av %+.2f %%  "
+        "CONHT %+.2f um  MRW %+.2f um  MRW in-plane %+.2f um  MRW area %+.2f %%  E_b %+.4f  "
+        "(%.2f s)\n",
+        name.c_str(), pct(r.ellipse.area_mm2, t.bmo_area_mm2),
+        pct(r.cup_volume_mm3, t.cup_volume_mm3), pct(r.bmo_volume_mm3, t.bmo_volume_mm3),
+        pct(r.total_volume_mm3, t.total_volume_mm3),
+        pct(r.annular_volume_mm3, t.annular_volume_mm3), 1e3 * (r.conht_mm - t.conht_mm),
+        1e3 * (r.mrw_mean_mm - t.mrw_mean_mm), 1e3 * (r.mrw_inplane_mean_mm - t.inplane.mean_mm),
+        pct(r.mrw_area_mm2, t.mrw_area_mm2), r.bending_energy - t.bending_energy, r.seconds);
+}
+
+// What every shape meets with the device ILM: the BMO, the annulus (one crossing per vertical
+// line outside the BMO) and CONHT (the centre line meets the ILM once).
+void expect_common(const RadialCase& c, const std::string& name) {
+    const OnhTruth& t = c.ph.truth;
+    const OnhResult& r = c.r;
+    EXPECT_TRUE(r.radial) << name;
+    EXPECT_EQ(r.bmo_measured.size(), 2U * static_cast<std::size_t>(c.ph.scan.num_bscans())) << name;
+    EXPECT_NEAR(r.ellipse.area_mm2, t.bmo_area_mm2, 0.01 * t.bmo_area_mm2) << name;
+    // The orientation in anatomical degrees (OD and OS alike: the truth's convention).
+    EXPECT_NEAR(r.bmo_orientation_anatomical_deg, t.bmo_orientation_anatomical_deg, 1.0) << name;
+    EXPECT_NEAR(r.annular_volume_mm3, t.annular_volume_mm3, 0.02 * t.annular_volume_mm3) << name;
+    EXPECT_NEAR(r.conht_mm, t.conht_mm, 0.005) << name;
+    EXPECT_TRUE(r.qc_flags.empty()) << name;
+    ASSERT_EQ(r.mrw_inplane.size(), r.bmo_measured.size()) << name;
+}
+
+void expect_accurate(const RadialCase& c, const std::string& name) {
+    expect_common(c, name);
+    const OnhTruth& t = c.ph.truth;
+    const OnhResult& r = c.r;
+    if (t.has_cup) {
+        EXPECT_NEAR(r.cup_volume_mm3, t.cup_volume_mm3, 0.02 * t.cup_volume_mm3) << name;
+    } else {
+        EXPECT_EQ(r.cup_volume_mm3, 0.0) << name;
+    }
+    EXPECT_NEAR(r.bmo_volume_mm3, t.bmo_volume_mm3, 0.02 * t.bmo_volume_mm3) << name;
+    EXPECT_NEAR(r.total_volume_mm3, t.total_volume_mm3, 0.02 * t.total_volume_mm3) << name;
+    EXPECT_NEAR(r.mrw_mean_mm, t.mrw_mean_mm, 0.005) << name;
+    EXPECT_NEAR(r.mrw_inplane_mean_mm, t.inplane.mean_mm, 0.005) << name;
+    // Per BMO point (matched by line and side): the distance to a curve is 1-Lipschitz in the
+    // point, so the end's +-ds/2 along its line moves the in-plane MRW by <= ds/2 (5.7 um);
+    // + 1 um for the PL ILM line and the extrapolated z.
+    const double ds = c.ph.scan.meta.scale_x_mm;  // the lines' A-scan spacing
+    for (const InplaneMrw& m : r.mrw_inplane) {
+        const std::size_t i = 2 * static_cast<std::size_t>(m.bscan) + (m.side < 0 ? 0 : 1);
+        ASSERT_LT(i, t.inplane.mrw_mm.size()) << name;
+        EXPECT_NEAR(m.mrw_mm, t.inplane.mrw_mm[i], 0.5 * ds + 0.001)
+            << name << " B-scan " << m.bscan << " side " << m.side;
+        const double da = std::fmod(std::fabs(m.anatomical_deg - t.inplane.anatomical_deg[i]), 360.0);
+        EXPECT_LT(std::min(da, 360.0 - da), 0.5) << name;
+    }
+    // Per clock hour (~4 points each), the anatomical convention of the truth (OS mirrored):
+    // only where no truth point lies within 0.5 deg of the sector's edges. With the crossing at
+    // the BMO centre 24 lines put a BMO point exactly on every edge (15 + 30 k deg are
+    // multiples of 7.5), and the measured angle (+-0.2 deg about the fitted centre) decides its
+    // sector: a swap moves a 4-point mean by ~6-8 um (measured), a property of clock hours on
+    // radial lines, not an error of either MRW (docs/algorithms/onh.md "Radial scans").
+    for (std::size_t k = 0; k < 12; ++k) {
+        if (t.inplane.sector_points[k] == 0) continue;
+        bool on_edge = false;
+        for (const double deg : t.inplane.anatomical_deg) {
+            for (const double edge : {30.0 * k - 15.0, 30.0 * k + 15.0}) {
+                const double d = std::fmod(std::fabs(deg - edge) + 360.0, 360.0);
+                on_edge = on_edge || std::min(d, 360.0 - d) < 0.5;
+            }
+        }
+        if (on_edge) continue;
+        EXPECT_NEAR(r.mrw_inplane_sector_mm[k], t.inplane.sector_mm[k], 0.005)
+            << name << " sector " << 30 * k;
+    }
+    // The MRW area within 2 % (Eq. 8.23 on the low-passed closest-point curve).
+    EXPECT_NEAR(r.mrw_area_mm2, t.mrw_area_mm2, 0.02 * t.mrw_area_mm2) << name;
+}
+
+// Slow: four radial phantoms and their truths (~1.5 s each).
+SLOW_TEST(OnhRadialTruth, CuppedAndSwollenBothEyes) {
+    for (const OnhShape shape : {OnhShape::kCupped, OnhShape::kSwollen}) {
+        for (const io::Laterality eye : {io::Laterality::kOD, io::Laterality::kOS}) {
+            const std::string name =
+                to_string(shape) + (eye == io::Laterality::kOD ? " OD" : " OS");
+            const RadialCase c = run_radial(radial_params(shape, eye));
+            print_row(name, c);
+            expect_accurate(c, name);
+        }
+    }
+}
+
+// Slow: the crossing 300 um from the BMO centre (the interpolation between lines then spans
+// the BMO asymmetrically), 12 and 48 lines.
+SLOW_TEST(OnhRadialTruth, CrossingOffsetAndLineCount) {
+    for (const auto& [offset, lines] : {std::pair<double, int>{300.0, 24}, {0.0, 12}, {0.0, 48}}) {
+        const std::string name = "cupped " + std::to_string(lines) + " lines " +
+                                 std::to_string(static_cast<int>(offset)) + " um";
+        const RadialCase c =
+            run_radial(radial_params(OnhShape::kCupped, io::Laterality::kOD, offset, lines));
+        print_row(name, c);
+        expect_accurate(c, name);
+    }
+}
+
+// Slow: the overhanging disc, both eyes. The device line is the top crossing: over the cavity
+// it reports the lip, as in a volume (onh_test.cpp "OverhangWithDeviceIlmIsBlindToTheCavity"):
+// the BMO, the annulus and CONHT are right, the cavity's volumes and both MRWs are not (their
+// true closest points lie in the cavity). Not a target met: measured and asserted as the
+// envelope's known error; only a level-set ILM could meet it, which radial scans lack.
+SLOW_TEST(OnhRadialTruth, OverhangWithDeviceIlmIsBlindToTheCavity) {
+    for (const io::Laterality eye : {io::Laterality::kOD, io::Laterality::kOS}) {
+        const std::string name = std::string("overhang ") + (eye == io::Laterality::kOD ? "OD" : "OS");
+        const RadialCase c = run_radial(radial_params(OnhShape::kOverhang, eye));
+        print_row(name, c);
+        expect_common(c, name);
+        const OnhTruth& t = c.ph.truth;
+        const OnhResult& r = c.r;
+        EXPECT_GT(r.bmo_volume_mm3, 1.05 * t.bmo_volume_mm3) << name;
+        EXPECT_LT(r.cup_volume_mm3, t.cup_volume_mm3) << name;
+        EXPECT_GT(r.mrw_mean_mm, t.mrw_mean_mm + 0.05) << name;
+        EXPECT_GT(r.mrw_inplane_mean_mm, t.inplane.mean_mm + 0.05) << name;
+    }
+}
+
+}  // namespace
+}  // namespace octshape::retina
