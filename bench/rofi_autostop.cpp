@@ -17,7 +17,8 @@
 // parameters and the same p without it (CPU s, one thread, min of 5, interleaved).
 // --curves FILE writes every run's (k, δ_k / l_e, MSAE_k, created_k) as TSV, for the analysis.
 // --trace FILE: the automatic rule's parameters alone, run to kMaxIterations without a stop,
-// every iteration's RofiProgress, MSAE and created flips as TSV (the curves of "Stopping").
+// every iteration's RofiProgress, MSAE and created flips as TSV (the curves of "Stopping");
+// --trace-sigma A,B,...: the same with these σ_s instead of the rule's.
 // --cost: the cost table alone, --reps N interleaved pairs (default 9), medians.
 // --only NAME,...: the cases whose name starts with one of these.
 // --one MODE: one call on the first case, for `valgrind --tool=callgrind` instruction counts
@@ -208,6 +209,7 @@ int main(int argc, char** argv) {
     bool cost_only = false;   // --cost: the cost table alone
     int reps = 9;
     std::string curves_path, trace_path, only, one;
+    std::vector<double> trace_sigmas;  // --trace-sigma: σ_s values traced instead of the rule's
     std::filesystem::path bunny_obj = "build/mesh_family/bunny.obj";
     std::filesystem::path meshes = OCTSHAPE_SHARED_MESHES;
     for (int i = 1; i < argc; ++i) {
@@ -226,6 +228,13 @@ int main(int argc, char** argv) {
             curves_path = argv[++i];
         } else if (a == "--trace" && i + 1 < argc) {
             trace_path = argv[++i];
+        } else if (a == "--trace-sigma" && i + 1 < argc) {
+            const std::string list = argv[++i];
+            for (std::size_t b = 0; b < list.size();) {
+                const std::size_t e = std::min(list.find(',', b), list.size());
+                trace_sigmas.push_back(std::atof(list.substr(b, e - b).c_str()));
+                b = e + 1;
+            }
         } else if (a == "--only" && i + 1 < argc) {
             only = argv[++i];
         } else if (a == "--one" && i + 1 < argc) {
@@ -237,7 +246,7 @@ int main(int argc, char** argv) {
         } else {
             std::fprintf(stderr,
                          "usage: rofi_autostop [--full] [--no-oracle] [--noise] [--curves FILE] "
-                         "[--trace FILE] [--cost] [--reps N] [--only NAME,...] "
+                         "[--trace FILE] [--trace-sigma A,B,...] [--cost] [--reps N] [--only NAME,...] "
                          "[--one stop|plain|none|hash] [--bunny OBJ] [--meshes DIR]\n");
             return 2;
         }
@@ -334,7 +343,8 @@ int main(int argc, char** argv) {
     }
     if (!trace_path.empty()) {
         trace.open(trace_path);
-        trace << "mesh\tsigma_s\tk\tdelta_le\twhiteness\tthreshold\ttested\tmsae\tcreated\n";
+        trace << "mesh\tsigma_s\tk\tdelta_le\twhiteness\tthreshold\ttested\tmsae\tcreated\t"
+                 "features\tfeature_rms_le\tflat_rms_le\n";
     }
     if (!cost_only) {
         std::printf("%-26s %7s %6s %6s | %4s %7s %4s | %7s %4s %-22s | %7s %4s | %7s %4s %7s "
@@ -366,18 +376,25 @@ int main(int argc, char** argv) {
         };
         const mesh::RofiParams ap = mesh::auto_rofi_params(noise);
         if (trace.is_open()) {
-            mesh::RofiParams tp = ap;
-            tp.stop = mesh::RofiStop::kNone;
-            tp.iterations = kMaxIterations;
-            tp.observer = [&](int k, const mesh::Vertices& V, const mesh::RofiProgress& q) {
-                mesh::Vertices W = V;
-                (void)mesh::repair_folds(W, c.F, fixed);
-                const auto [m, cr] = score(W);
-                trace << c.name << '\t' << ap.sigma_s << '\t' << k << '\t'
-                      << q.displacement / le << '\t' << q.whiteness << '\t' << q.threshold
-                      << '\t' << q.tested_vertices << '\t' << m << '\t' << cr << '\n';
-            };
-            (void)mesh::rofi_denoise(c.noisy, c.F, tp);
+            std::vector<double> sigmas = trace_sigmas;
+            if (sigmas.empty()) sigmas.push_back(ap.sigma_s);
+            for (const double sigma : sigmas) {
+                mesh::RofiParams tp = ap;
+                tp.sigma_s = sigma;
+                tp.stop = mesh::RofiStop::kNone;
+                tp.iterations = kMaxIterations;
+                tp.observer = [&](int k, const mesh::Vertices& V, const mesh::RofiProgress& q) {
+                    mesh::Vertices W = V;
+                    (void)mesh::repair_folds(W, c.F, fixed);
+                    const auto [m, cr] = score(W);
+                    trace << c.name << '\t' << sigma << '\t' << k << '\t'
+                          << q.displacement / le << '\t' << q.whiteness << '\t' << q.threshold
+                          << '\t' << q.tested_vertices << '\t' << m << '\t' << cr << '\t'
+                          << q.feature_vertices << '\t' << q.feature_rms / le << '\t'
+                          << q.flat_rms / le << '\n';
+                };
+                (void)mesh::rofi_denoise(c.noisy, c.F, tp);
+            }
             trace.flush();
             if (cost_only || no_oracle) continue;
         }

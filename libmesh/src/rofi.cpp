@@ -595,13 +595,17 @@ RofiProgress residual_progress(const Vertices& V, const Vertices& V0,
             term[i] = l * l / (1.0 + 1.0 / k);
         }
     });
-    double sum = 0.0, num = 0.0, den = 0.0;
-    int count = 0, tested = 0;
+    double sum = 0.0, num = 0.0, den = 0.0, on_features = 0.0;
+    int count = 0, tested = 0, features = 0;
     for (int i = 0; i < n; ++i) {
         if (kind[i] == 0) continue;
         const double r2 = r[i] * r[i];
         sum += r2;
         ++count;
+        if (kind[i] == 2) {
+            on_features += r2;
+            ++features;
+        }
         if (kind[i] != 3) continue;
         num += term[i];
         den += r2;
@@ -612,6 +616,9 @@ RofiProgress residual_progress(const Vertices& V, const Vertices& V0,
     out.whiteness = den > 0.0 ? num / den : 0.0;
     out.tested_vertices = tested;
     out.threshold = tested > 0 ? 1.0 - 1.5 / std::sqrt(static_cast<double>(tested)) : 0.0;
+    out.feature_vertices = features;
+    out.feature_rms = features > 0 ? std::sqrt(on_features / features) : 0.0;
+    out.flat_rms = tested > 0 ? std::sqrt(den / tested) : 0.0;
     return out;
 }
 
