@@ -483,6 +483,48 @@ void require(bool ok, const std::string& field, const std::string& rule, double 
     }
 }
 
+// Work arrays of residual_progress, kept across iterations (no allocation after the first).
+struct ResidualWork {
+    std::vector<double> r;          // r_i
+    std::vector<double> term;       // (r_i − ring mean)² / (1 + 1/k_i), where kind == 3
+    std::vector<std::uint8_t> kind; // 0 fixed/none, 1 candidate, 2 on a feature, 3 in W
+};
+
+// True when two of the normals of faces[0..count) (records in `current`) are further apart
+// than σ_s (dot < feature_dot) — the same dot products, in the same order, as testing every
+// pair. First every face against faces[0]: a pair found there decides; if every normal is
+// within h = 0.49 σ_s of n_0 (dot ≥ near_dot), any two are within 2h < σ_s of each other
+// (triangle inequality), so none is a feature pair — the margin 0.02 σ_s, ~1e-2 σ_s² in the dot,
+// far above its rounding (~1e-15) for σ_s ≥ 1e-4 (a zero normal, from a degenerate face,
+// passes near_dot only for σ_s > 2.8, where no pair is a feature). Only a vertex in neither
+// case tests the remaining pairs: O(valence) per vertex instead of O(valence²) (rofi.md,
+// "Stopping", cost).
+[[gnu::always_inline]] inline bool on_feature(const detail::FaceState* current,
+                                              const int* faces, int count, double feature_dot,
+                                              double near_dot) {
+    const detail::FaceState& f0 = current[faces[0]];
+    bool feature = false;
+    bool near = true;
+    for (int p = 1; p < count; ++p) {
+        const detail::FaceState& f = current[faces[p]];
+        const double dot = f.normal[0] * f0.normal[0] + f.normal[1] * f0.normal[1] +
+                           f.normal[2] * f0.normal[2];
+        feature = feature || dot < feature_dot;
+        near = near && dot >= near_dot;
+    }
+    if (feature || near) return feature;
+    for (int p = 2; p < count; ++p) {
+        const detail::FaceState& f = current[faces[p]];
+        for (int q = 1; q < p; ++q) {
+            const detail::FaceState& g = current[faces[q]];
+            const double dot = f.normal[0] * g.normal[0] + f.normal[1] * g.normal[1] +
+                               f.normal[2] * g.normal[2];
+            if (dot < feature_dot) return true;
+        }
+    }
+    return false;
+}
+
 // The residual r_i = n̂_i · (v⁰_i − v_i) of V against the input V0, n̂_i = normalised
 // Σ_{f ∋ i} a_f n_f from `current` (the geometry of V); r_i = 0 for fixed vertices. Returns
 // δ = RMS of r over the free vertices and W = Σ (r_i − mean_{j ∈ ring(i)} r_j)² / (1 + 1/k_i)
@@ -493,64 +535,80 @@ void require(bool ok, const std::string& field, const std::string& rule, double 
 RofiProgress residual_progress(const Vertices& V, const Vertices& V0,
                                const detail::FaceState* current, const Adjacency& adjacency,
                                const std::vector<std::uint8_t>& fixed, double sigma_s,
-                               int threads, std::vector<double>& r, std::vector<double>& terms) {
+                               int threads, ResidualWork& work) {
     // |n_a − n_b| > σ_s ⇔ n_a · n_b < 1 − σ_s²/2 (unit normals).
     const double feature_dot = 1.0 - 0.5 * sigma_s * sigma_s;
+    // The shortcut of on_feature (h = 0.49 σ_s), off below σ_s = 1e-4 (near_dot > 1: never).
+    const double h = 0.49 * sigma_s;
+    const double near_dot = sigma_s >= 1e-4 ? 1.0 - 0.5 * h * h : 2.0;
     const auto n = static_cast<int>(V.rows());
-    r.assign(static_cast<std::size_t>(n), 0.0);
-    terms.assign(3 * static_cast<std::size_t>(n), 0.0);
+    const auto sn = static_cast<std::size_t>(n);
+    work.r.resize(sn);
+    work.term.resize(sn);
+    work.kind.resize(sn);
+    double* const r = work.r.data();
+    double* const term = work.term.data();
+    std::uint8_t* const kind = work.kind.data();
+    const int* const vf_offsets = adjacency.vertex_faces.offsets.data();
+    const int* const vf_items = adjacency.vertex_faces.items.data();
+    const int* const vv_offsets = adjacency.vertex_vertices.offsets.data();
+    const int* const vv_items = adjacency.vertex_vertices.items.data();
+    const std::uint8_t* const is_fixed = fixed.data();
+    const double* const v = V.data();
+    const double* const v0 = V0.data();
     detail::parallel_for(n, threads, [&](int begin, int end) {
         for (int i = begin; i < end; ++i) {
-            const int fb = adjacency.vertex_faces.begin(i);
-            const int fe = adjacency.vertex_faces.end(i);
-            if (fixed[static_cast<std::size_t>(i)] != 0 || fb == fe) continue;
-            double s[3] = {0.0, 0.0, 0.0};
-            bool feature = false;
+            const int fb = vf_offsets[i];
+            const int fe = vf_offsets[i + 1];
+            r[i] = 0.0;
+            kind[i] = 0;
+            if (is_fixed[i] != 0 || fb == fe) continue;
+            double s0 = 0.0, s1 = 0.0, s2 = 0.0;
             for (int p = fb; p < fe; ++p) {
-                const detail::FaceState& f = current[adjacency.vertex_faces.item(p)];
-                for (int c = 0; c < 3; ++c) s[c] += f.area * f.normal[c];
-                for (int q = fb; q < p; ++q) {
-                    const detail::FaceState& g = current[adjacency.vertex_faces.item(q)];
-                    const double dot = f.normal[0] * g.normal[0] + f.normal[1] * g.normal[1] +
-                                       f.normal[2] * g.normal[2];
-                    feature = feature || dot < feature_dot;
-                }
+                const detail::FaceState& f = current[vf_items[p]];
+                s0 += f.area * f.normal[0];
+                s1 += f.area * f.normal[1];
+                s2 += f.area * f.normal[2];
             }
-            const double norm = std::sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+            const double norm = std::sqrt(s0 * s0 + s1 * s1 + s2 * s2);
             if (!(norm > 0.0)) continue;
+            const std::ptrdiff_t o = 3 * static_cast<std::ptrdiff_t>(i);
             double d = 0.0;
-            for (int c = 0; c < 3; ++c) d += s[c] * (V0(i, c) - V(i, c));
-            r[static_cast<std::size_t>(i)] = d / norm;
+            d += s0 * (v0[o] - v[o]);
+            d += s1 * (v0[o + 1] - v[o + 1]);
+            d += s2 * (v0[o + 2] - v[o + 2]);
+            r[i] = d / norm;
             // Counted in δ; 1 = a candidate for W's sums, 2 = on a feature (not in W).
-            terms[3 * static_cast<std::size_t>(i)] = feature ? 2.0 : 1.0;
+            kind[i] = on_feature(current, vf_items + fb, fe - fb, feature_dot, near_dot) ? 2 : 1;
         }
     });
     detail::parallel_for(n, threads, [&](int begin, int end) {
         for (int i = begin; i < end; ++i) {
-            const auto si = static_cast<std::size_t>(i);
-            if (terms[3 * si] != 1.0) continue;  // fixed or on a feature
-            const int k = adjacency.vertex_vertices.size(i);
+            if (kind[i] != 1) continue;  // fixed or on a feature
+            const int b = vv_offsets[i];
+            const int k = vv_offsets[i + 1] - b;
             if (k < 3) continue;
             double mean = 0.0;
-            for (int p = adjacency.vertex_vertices.begin(i); p < adjacency.vertex_vertices.end(i);
-                 ++p) {
-                mean += r[static_cast<std::size_t>(adjacency.vertex_vertices.item(p))];
-            }
-            const double l = r[si] - mean / k;
-            terms[3 * si] = 3.0;  // in W's sums
-            terms[3 * si + 1] = l * l / (1.0 + 1.0 / k);
-            terms[3 * si + 2] = r[si] * r[si];
+            for (int p = b; p < b + k; ++p) mean += r[vv_items[p]];
+            const double l = r[i] - mean / k;
+            kind[i] = 3;  // in W's sums
+            term[i] = l * l / (1.0 + 1.0 / k);
         }
     });
-    double sum = 0.0, num = 0.0, den = 0.0;
-    int count = 0, tested = 0;
-    for (std::size_t i = 0; i < r.size(); ++i) {
-        if (terms[3 * i] == 0.0) continue;
-        sum += r[i] * r[i];
+    double sum = 0.0, num = 0.0, den = 0.0, on_features = 0.0;
+    int count = 0, tested = 0, features = 0;
+    for (int i = 0; i < n; ++i) {
+        if (kind[i] == 0) continue;
+        const double r2 = r[i] * r[i];
+        sum += r2;
         ++count;
-        if (terms[3 * i] != 3.0) continue;
-        num += terms[3 * i + 1];
-        den += terms[3 * i + 2];
+        if (kind[i] == 2) {
+            on_features += r2;
+            ++features;
+        }
+        if (kind[i] != 3) continue;
+        num += term[i];
+        den += r2;
         ++tested;
     }
     RofiProgress out;
@@ -558,6 +616,9 @@ RofiProgress residual_progress(const Vertices& V, const Vertices& V0,
     out.whiteness = den > 0.0 ? num / den : 0.0;
     out.tested_vertices = tested;
     out.threshold = tested > 0 ? 1.0 - 1.5 / std::sqrt(static_cast<double>(tested)) : 0.0;
+    out.feature_vertices = features;
+    out.feature_rms = features > 0 ? std::sqrt(on_features / features) : 0.0;
+    out.flat_rms = tested > 0 ? std::sqrt(den / tested) : 0.0;
     return out;
 }
 
@@ -651,22 +712,65 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
     double lambda = params.lambda_i;
     const bool stop = params.stop == RofiStop::kWhiteResidual;
     const bool measure = stop || static_cast<bool>(params.observer);
-    std::vector<double> residual, terms;
+    ResidualWork residual;
+    // The stop's test runs after every even iteration and after the last (`tested`), and after
+    // every iteration once the fall of W between its last two tests, extrapolated one
+    // iteration, would reach the threshold (`dense`: the untested iteration could be the one).
+    // When it fires after an even k with k − 1 untested, the state after k − 1 (still in
+    // `next`, the vertex step's other buffer) is tested too and taken if it fires there. This
+    // equals testing after every iteration when W crosses its threshold at most once in a
+    // run, as on every mesh measured (rofi.md, "Stopping", cost), at about half the tests.
+    // The observer sees every iteration either way; the stop decides from the same tests with
+    // or without it.
+    bool dense = false;
+    const auto tested = [&](int k) { return dense || k % 2 == 0 || k == params.iterations; };
+    RofiProgress previous;     // after it − 1, when the observer had it measured
+    int last_test = 0;         // the iteration of the last test, 0 = none yet
+    double last_whiteness = 0;  // its W
     for (int it = 0; it <= params.iterations; ++it) {
         if (it == params.iterations && !measure) break;
         detail::parallel_for(m, params.threads, [&](int begin, int end) {
             detail::update_faces(result.V, F, begin, end, current.data(), avx2);
         });
-        if (measure && it > 0) {
+        if (measure && it > 0 && (params.observer || tested(it))) {
             // The residual of the mesh after `it` iterations: the observer sees it, the stop
             // tests it (rofi.md, "Stopping": white while it is noise, smoother once signal).
             const RofiProgress progress =
                 residual_progress(result.V, V, current.data(), setup.adjacency, setup.fixed,
-                                  params.sigma_s, params.threads, residual, terms);
+                                  params.sigma_s, params.threads, residual);
             result.displacement = progress.displacement;
             result.residual_whiteness = progress.whiteness;
             if (params.observer) params.observer(it, result.V, progress);
-            if (stop && progress.whiteness <= progress.threshold) break;
+            if (stop && tested(it) && progress.whiteness <= progress.threshold) {
+                if (it > 1 && !tested(it - 1)) {
+                    RofiProgress before = previous;
+                    if (!params.observer) {
+                        // `faces` is free until the next normal pass: V_{it−1}'s records.
+                        detail::parallel_for(m, params.threads, [&](int begin, int end) {
+                            detail::update_faces(next, F, begin, end, faces.data(), avx2);
+                        });
+                        before = residual_progress(next, V, faces.data(), setup.adjacency,
+                                                   setup.fixed, params.sigma_s, params.threads,
+                                                   residual);
+                    }
+                    if (before.whiteness <= before.threshold) {
+                        result.V.swap(next);
+                        --result.iterations;
+                        result.displacement = before.displacement;
+                        result.residual_whiteness = before.whiteness;
+                    }
+                }
+                break;
+            }
+            if (stop && tested(it)) {
+                if (last_test > 0) {
+                    const double fall = (last_whiteness - progress.whiteness) / (it - last_test);
+                    dense = dense || progress.whiteness - fall <= progress.threshold;
+                }
+                last_test = it;
+                last_whiteness = progress.whiteness;
+            }
+            previous = progress;
         }
         if (it == params.iterations) break;
         const auto rows = [&](int kind) {

@@ -46,6 +46,12 @@ struct RofiProgress {
     // RofiStop::kWhiteResidual stops when W ≤ 1 − 1.5/√N: W below 1 by two of its standard
     // errors for white Gaussian residuals, ≈ 0.75/√N (rofi.md, "Stopping").
     double threshold = 0;
+    // The same residual split by W's feature test: its RMS over the free vertices on a feature
+    // (left out of W) and over W's vertices, and their count (rofi.md, "Stopping": the crease
+    // term measured and not kept).
+    int feature_vertices = 0;
+    double feature_rms = 0;
+    double flat_rms = 0;
 };
 
 enum class RofiStop {
