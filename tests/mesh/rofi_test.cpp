@@ -507,6 +507,88 @@ TEST(RofiStop, StopsAtTheFirstIterationWhoseResidualIsNotRougherThanWhiteNoise) 
     EXPECT_GE(stopped, 1);  // the relief sphere at least: the stop was exercised
 }
 
+// The stop's schedule (rofi.cpp): W is tested after every even iteration and after the last;
+// after every iteration once the fall of W between its last two tests, extrapolated one
+// iteration, reaches the threshold ("dense"); a test that fires at an even k with k − 1
+// untested tests the state after k − 1 back and takes it if it fires there. Replayed here from
+// the W an observer sees at every iteration (thr: its threshold). `back`: the k − 1 test ran.
+int replay_stop_schedule(const std::vector<double>& w, const std::vector<double>& thr, int n,
+                         bool& back) {
+    back = false;
+    bool dense = false;
+    int last = 0;
+    double last_w = 0.0;
+    const auto tested = [&](int k) { return dense || k % 2 == 0 || k == n; };
+    for (int k = 1; k <= n; ++k) {
+        if (!tested(k)) continue;
+        const auto i = static_cast<std::size_t>(k - 1);
+        if (w[i] <= thr[i]) {
+            if (k > 1 && !tested(k - 1)) {
+                back = true;
+                if (w[i - 1] <= thr[i - 1]) return k - 1;
+            }
+            return k;
+        }
+        if (last > 0) dense = dense || w[i] - (last_w - w[i]) / (k - last) <= thr[i];
+        last = k;
+        last_w = w[i];
+    }
+    return n;
+}
+
+// The states the schedule skips: on low-noise relief spheres W crosses its threshold within
+// the first few iterations, before two tests have given a fall to extrapolate, so the stop
+// fires at an even k with k − 1 untested. The run without an observer (which tests k − 1 back
+// from the vertex step's spare buffer) must give the k the every-iteration rule gives and the
+// bits of a plain run of that many iterations — on at least one mesh where the state tested
+// back is the one taken (an odd stop), and on one where it is not.
+TEST(RofiStop, TheStateBeforeAnUntestedStopIsTestedBack) {
+    int taken_back = 0;
+    int tested_back_not_taken = 0;
+    for (std::uint32_t seed = 1; seed <= 6; ++seed) {
+        for (const double level : {0.04, 0.07, 0.1}) {
+            const auto c = relief_sphere(4, 0.04, seed);
+            const auto m = with_normal_noise(c, level * mesh::mean_edge_length(c.V, c.F), seed);
+            constexpr int kMax = 16;
+            auto p = params(kMax);
+            std::vector<double> w;
+            std::vector<double> thr;
+            p.observer = [&](int, const mesh::Vertices&, const mesh::RofiProgress& q) {
+                w.push_back(q.whiteness);
+                thr.push_back(q.threshold);
+            };
+            (void)mesh::rofi_denoise(m.V, m.F, p);
+            ASSERT_EQ(w.size(), static_cast<std::size_t>(kMax));
+            int first = kMax;  // the every-iteration rule
+            int crossings = 0;
+            for (int k = kMax; k >= 1; --k) {
+                const auto i = static_cast<std::size_t>(k - 1);
+                if (w[i] <= thr[i] && k < kMax) first = k;
+                if (k < kMax && (w[i] <= thr[i]) != (w[i + 1] <= thr[i + 1])) ++crossings;
+            }
+            bool back = false;
+            const int scheduled = replay_stop_schedule(w, thr, kMax, back);
+            auto s = params(kMax);
+            s.stop = mesh::RofiStop::kWhiteResidual;
+            const auto r = mesh::rofi_denoise(m.V, m.F, s);
+            const std::string name = "seed " + std::to_string(seed) + " noise " +
+                                     std::to_string(level);
+            EXPECT_EQ(r.iterations, scheduled) << name;
+            // W crossing its threshold at most once: the schedule finds the first k.
+            if (crossings <= 1) {
+                EXPECT_EQ(r.iterations, first) << name;
+            }
+            EXPECT_EQ(r.V, mesh::rofi_denoise(m.V, m.F, params(r.iterations)).V) << name;
+            EXPECT_EQ(r.residual_whiteness, w[static_cast<std::size_t>(r.iterations) - 1])
+                << name;
+            if (back && r.iterations % 2 == 1) ++taken_back;
+            if (back && r.iterations % 2 == 0) ++tested_back_not_taken;
+        }
+    }
+    EXPECT_GE(taken_back, 1);
+    EXPECT_GE(tested_back_not_taken, 1);
+}
+
 // The automatic rule on a detail-rich surface (relief_sphere: known clean geometry, fine
 // relief of ~6 edges' wavelength) with Gaussian noise along the normals.
 struct ReliefRun {

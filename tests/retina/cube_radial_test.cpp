@@ -101,6 +101,34 @@ TEST(RadialGeometry, MissesAndIrregularStepsAreMeasured) {
     EXPECT_THROW((void)radial_geometry(par), AnalysisError);
     io::Scan one = star(1, 6.0, V2(4, 4), io::Laterality::kOD);
     EXPECT_THROW((void)radial_geometry(one), AnalysisError);
+
+    // The lines' QC (the same for the macula and the ONH analyses): a stable flag each, the
+    // numbers in the notes.
+    const auto has = [](const std::vector<std::string>& v, const std::string& text) {
+        return std::any_of(v.begin(), v.end(),
+                           [&](const std::string& x) { return x.find(text) != std::string::npos; });
+    };
+    const RadialGeometryQc ok = radial_geometry_qc(radial_geometry(star(12, 6.0, V2(4, 4),
+                                                                        io::Laterality::kOD)));
+    EXPECT_TRUE(ok.flags.empty());
+    EXPECT_TRUE(ok.notes.empty());
+    const RadialGeometryQc missed = radial_geometry_qc(g);
+    ASSERT_EQ(missed.flags.size(), 1U);
+    EXPECT_EQ(missed.flags[0], "radial lines miss their crossing");
+    std::ostringstream miss;
+    miss.setf(std::ios::fixed);
+    miss.precision(1);
+    miss << 1e3 * g.max_miss_mm << " um";
+    EXPECT_TRUE(has(missed.notes, miss.str())) << miss.str();
+    const RadialGeometryQc uneven = radial_geometry_qc(h);
+    ASSERT_EQ(uneven.flags.size(), 1U);
+    EXPECT_EQ(uneven.flags[0], "radial angular steps irregular");
+    EXPECT_TRUE(has(uneven.notes, "to 30.00 deg (nominal 16.36)"));
+    EXPECT_EQ(uneven.notes.size(), 1U + h.irregular_steps.size());
+    io::Scan with_fields = star(12, 6.0, V2(4, 4), io::Laterality::kOD);
+    with_fields.bscans[2].bmo = io::BmoFields{};
+    EXPECT_TRUE(has(radial_geometry_qc(radial_geometry(with_fields)).notes,
+                    "BMO fields present in 1 B-scans: not used"));
 }
 
 TEST(RadialGeometry, SummaryDescribesTheStarNotParallelLines) {

@@ -1,6 +1,7 @@
 // The scan-type classifier (libretina scan_type.h): macula phantoms of both families, with
 // dropouts, noise and vessels, are macula; the ONH phantom is ONH with the longest BM gap its
-// BMO ellipse implies; circle scans are refused; and the rule's two thresholds bite exactly.
+// BMO ellipse implies; radial scans are classified by the same rule; circle scans are refused;
+// and the rule's two thresholds bite exactly.
 
 #include <gtest/gtest.h>
 
@@ -75,6 +76,42 @@ TEST(ScanType, OnhPhantomIsOnhWithTheGapOfItsBmoEllipse) {
     // B-scans whose chord is >= 0.5 mm: those within |dy| <= Y sqrt(1 - (0.5/W)^2) of the
     // widest chord, Y >= b: at least 2 * 0.76 * 0.94 / Distance(0.18 mm) - 1 ~ 7.
     EXPECT_GE(r.bscans_with_gap, 7);
+}
+
+// Radial scans are classified by the same rule as volumes: every line of a radial ONH scan
+// crosses the BMO through its centre, so each has an interior gap as long as the ellipse's
+// chord along it (between the minor and the major diameter); a radial macula scan has none.
+TEST(ScanType, RadialScansAreClassifiedByTheirBmGaps) {
+    test::TempDir dir;
+    const auto onh = test::run_octshape("phantom onh --pattern radial --lines 12 --ascans 192 -o '" +
+                                        (dir / "onh_radial.vol").string() + "'");
+    ASSERT_EQ(onh.exit_code, 0) << onh.err;
+    const io::Scan scan = io::read_scan((dir / "onh_radial.vol").string());
+    ASSERT_EQ(scan.meta.pattern, io::ScanPattern::kRadial);
+    const auto r = classify_scan(scan);
+    EXPECT_EQ(r.type, ScanType::kOnh) << r.reason;
+    EXPECT_EQ(r.bscans_with_gap, 12);  // every line holds the BMO centre
+    // The generator's default ellipse (a = 0.92, b = 0.76 mm): the longest chord through the
+    // centre is at most the major diameter; A-scan sampling adds +-1 ScaleX.
+    const double sx = scan.meta.scale_x_mm;
+    EXPECT_LE(r.longest_gap_mm, 2.0 * 0.92 + sx);
+    EXPECT_GE(r.longest_gap_mm, 2.0 * 0.76 - 2.0 * sx);
+
+    MaculaPhantomParams p;
+    p.radial = true;
+    p.radial_lines = 12;
+    p.size_x = 256;
+    p.size_z = 128;
+    p.scale_z_mm = 0.0154868;
+    p.pixels = false;
+    p.noise_um = 3.9;
+    p.missing_fraction = 0.02;
+    p.seed = 5;
+    const io::Scan mac = make_macula_phantom(p).scan;
+    ASSERT_EQ(mac.meta.pattern, io::ScanPattern::kRadial);
+    const auto m = classify_scan(mac);
+    EXPECT_EQ(m.type, ScanType::kMacula) << m.reason;
+    EXPECT_EQ(m.bscans_with_gap, 0);
 }
 
 TEST(ScanType, RealScans) {

@@ -158,4 +158,34 @@ RadialGeometry radial_geometry(const io::Scan& scan) {
     return g;
 }
 
+RadialGeometryQc radial_geometry_qc(const RadialGeometry& g) {
+    RadialGeometryQc qc;
+    const auto fixed = [](double v, int digits) {
+        std::ostringstream s;
+        s.setf(std::ios::fixed);
+        s.precision(digits);
+        s << v;
+        return s.str();
+    };
+    if (!g.regular) {
+        qc.flags.emplace_back("radial angular steps irregular");
+        qc.notes.push_back("radial angular steps from " + fixed(g.min_step_deg, 2) + " to " +
+                           fixed(g.max_step_deg, 2) + " deg (nominal " +
+                           fixed(g.nominal_step_deg, 2) + ")");
+        for (const std::string& s : g.irregular_steps) qc.notes.push_back("irregular step: " + s);
+    }
+    if (!g.lines_cross) {
+        qc.flags.emplace_back("radial lines miss their crossing");
+        qc.notes.push_back("radial lines miss their common crossing by up to " +
+                           fixed(1e3 * g.max_miss_mm, 1) + " um (RMS " +
+                           fixed(1e3 * g.rms_miss_mm, 1) + " um)");
+    }
+    if (g.num_bmo_fields > 0) {
+        qc.notes.push_back("HSF-OCT-104 BMO fields present in " +
+                           std::to_string(g.num_bmo_fields) +
+                           " B-scans: not used (their meaning is unverified)");
+    }
+    return qc;
+}
+
 }  // namespace octshape::retina

@@ -47,10 +47,13 @@ ScanTypeResult classify_scan(const io::Scan& scan, const ScanTypeParams& params)
     params.validate();
     ScanTypeResult r;
     const auto pattern = scan.meta.pattern;
-    if (pattern == io::ScanPattern::kCircle || pattern == io::ScanPattern::kRadial ||
-        pattern == io::ScanPattern::kRadialCircles) {
+    // Radial scans (lines through one point) are classified like volumes: a line through the
+    // disc crosses the whole BMO (an interior gap of its diameter there), a line through the
+    // fovea has BM everywhere. Circles (and the radial-plus-circles pattern, whose circle
+    // B-scans are no lines) are peripapillary RNFL scans without a shape analysis.
+    if (pattern == io::ScanPattern::kCircle || pattern == io::ScanPattern::kRadialCircles) {
         r.reason = std::string("scan pattern '") + std::string(io::to_string(pattern)) +
-                   "': peripapillary circle/radial scans have no fovea or ONH shape analysis";
+                   "': peripapillary circle scans have no fovea or ONH shape analysis";
         return r;
     }
     if (scan.num_bscans() == 0) {

@@ -253,19 +253,14 @@ void radial_qc(CubeResult& res,
                const RadialGeometry& geo,
                const CubeParams& params) {
     macula_qc(res, scan, ScanGeometry(scan), params);
+    const RadialGeometryQc qc = radial_geometry_qc(geo);
+    res.qc_flags.insert(res.qc_flags.end(), qc.flags.begin(), qc.flags.end());
+    res.notes.insert(res.notes.end(), qc.notes.begin(), qc.notes.end());
     if (!geo.regular) {
-        res.qc_flags.push_back("radial angular steps irregular");
-        for (const std::string& s : geo.irregular_steps) res.notes.push_back("irregular step: " + s);
         res.notes.push_back("volumes weight every half-line by 2 pi / n although the steps differ");
     }
-    if (!geo.lines_cross) res.qc_flags.push_back("radial lines miss their crossing");
     if (res.radial.centre_offset_distance_mm > res.radial.centre_offset_limit_mm) {
         res.qc_flags.push_back("centre off the line crossing");
-    }
-    if (geo.num_bmo_fields > 0) {
-        res.notes.push_back("HSF-OCT-104 BMO fields present in " +
-                            std::to_string(geo.num_bmo_fields) +
-                            " B-scans: not used (their meaning is unverified)");
     }
 }
 

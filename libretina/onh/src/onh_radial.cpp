@@ -104,15 +104,9 @@ void radial_check(const io::Scan& scan, const RadialOnhGrid& grid, const IlmSurf
     r.radial_grid_step_mm = grid.step_mm;
     r.radial_max_miss_mm = g.max_miss_mm;
     r.radial_max_step_deg = g.max_step_deg;
-    if (!g.regular) {
-        r.qc_flags.push_back("radial lines unevenly spaced: largest step " +
-                             fmt(g.max_step_deg, 2) + " deg (nominal " +
-                             fmt(g.nominal_step_deg, 2) + ")");
-    }
-    if (!g.lines_cross) {
-        r.qc_flags.push_back("radial lines miss their crossing by up to " +
-                             fmt(1e3 * g.max_miss_mm, 1) + " um");
-    }
+    const RadialGeometryQc qc = radial_geometry_qc(g);
+    r.qc_flags.insert(r.qc_flags.end(), qc.flags.begin(), qc.flags.end());
+    r.notes.insert(r.notes.end(), qc.notes.begin(), qc.notes.end());
     if (scan.meta.laterality != io::Laterality::kOD && scan.meta.laterality != io::Laterality::kOS) {
         r.qc_flags.push_back("laterality unknown: nasal taken as SLO +x");
     }

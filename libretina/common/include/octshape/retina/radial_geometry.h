@@ -80,4 +80,14 @@ struct RadialGeometry {
 // zero length, or no two lines that cross (all parallel).
 [[nodiscard]] RadialGeometry radial_geometry(const io::Scan& scan);
 
+// The QC of a radial scan's lines, the same for every analysis of one: stable flags
+// ("radial angular steps irregular", "radial lines miss their crossing") with their details
+// (the largest and the nominal step, each irregular step, how far the lines miss) as notes,
+// and a note when HSF-OCT-104 BMO fields are present (never used: their meaning is unverified).
+struct RadialGeometryQc {
+    std::vector<std::string> flags;
+    std::vector<std::string> notes;
+};
+[[nodiscard]] RadialGeometryQc radial_geometry_qc(const RadialGeometry& g);
+
 }  // namespace octshape::retina

@@ -5,8 +5,9 @@
 // so the device's BM segmentation of a B-scan through the disc has a long *interior* gap:
 // missing values with valid BM on both sides. A macula scan has BM everywhere; its gaps are a
 // few missing A-scans (shadows, dropouts) or runs that touch the end of the B-scan (a line
-// scan reaching the disc edge). Circle and radial patterns are peripapillary RNFL scans that
-// octshape does not analyse.
+// scan reaching the disc edge). Radial scans are classified by the same rule (a line through
+// the disc crosses the whole BMO). Circle patterns are peripapillary RNFL scans that octshape
+// does not analyse.
 
 #include <string>
 
