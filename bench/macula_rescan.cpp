@@ -14,7 +14,7 @@
 //    step 180/N deg, i.e. every phase of the star, plus +-3 deg of cyclotorsion), fresh noise
 //    and BM tilt as for a volume. The same eyes and tilts as the volume run. A second
 //    table gives each parameter's within-eye SD in bins of the crossing offset (what the
-//    offset costs), a third the mean error against the truth in those bins.
+//    offset costs), a third the RMS error against the truth in those bins.
 // Usage: macula_rescan [EYES [REPEATS [ASCANS [BSCANS]]]] [--pattern volume|radial]
 //                      [--lines N] [--max-offset-um D] [--noise-px S]
 //        (default 20 10 768 61, 12 lines, 150 um, 1 px = 3.87 um of thickness noise)
@@ -313,13 +313,14 @@ int main(int argc, char** argv) {
     }
     if (o.radial) {
         // What the crossing offset costs: per bin of the true offset, the RMS of the deviations
-        // from the eye's mean (scaled by REPEATS / (REPEATS - 1), as the within-eye SD above)
-        // and the mean error against the truth (signed; NaN where the truth has none).
+        // from the eye's mean (scaled by REPEATS / (REPEATS - 1), as the within-eye SD above:
+        // that mean carries the eye's own offset bias) and the RMS error against the truth
+        // (NaN where the truth has none).
         const std::vector<double> edges{0.0, 50.0, 100.0, 150.0, 1e9};
         const double scale = repeats / (repeats - 1.0);
         for (const bool truth : {false, true}) {
             std::printf("\n%s by crossing offset (um; scans per bin in the header)\n",
-                        truth ? "mean error vs truth" : "within-eye SD");
+                        truth ? "RMS error vs truth" : "within-eye SD");
             std::printf("%-24s", "parameter");
             for (std::size_t b = 0; b + 1 < edges.size(); ++b) {
                 if (edges[b] >= o.max_offset_um) break;
@@ -344,13 +345,14 @@ int main(int argc, char** argv) {
                             if (offset_um(e, k) < edges[b] || offset_um(e, k) >= edges[b + 1]) {
                                 continue;
                             }
-                            sum += truth ? err[i](e, k) : resid[i](e, k) * resid[i](e, k);
+                            const double x = truth ? err[i](e, k) : resid[i](e, k);
+                            if (!std::isfinite(x)) continue;  // a missing value
+                            sum += x * x;
                             ++n;
                         }
                     }
                     const double v = n == 0 ? std::nan("")
-                                     : truth ? sum / n
-                                             : std::sqrt(scale * sum / n);
+                                     : std::sqrt((truth ? 1.0 : scale) * sum / n);
                     std::printf(" %15.4g", v);
                 }
                 std::printf("\n");
