@@ -9,9 +9,16 @@ cmake --build --preset release -j 2 --target octshape_benches
 ./scripts/mesh_family.sh build/mesh_family || echo "(no bunny: npm/node unavailable)"
 while read -r bench; do
   [ -n "$bench" ] || continue
+  # One run per line of `runs` (its arguments; an empty line: the defaults). The re-scan
+  # benches also run on radial scans (issue 20; full sizes: see each bench's usage line).
   case "$bench" in
-    rofi_autostop) args=(--bunny build/mesh_family/bunny.obj) ;;
-    *) args=() ;;
+    rofi_autostop) runs=("--bunny build/mesh_family/bunny.obj") ;;
+    macula_rescan) runs=("" "--pattern radial --lines 12" "--pattern radial --lines 24") ;;
+    onh_rescan) runs=("" "--pattern radial --lines 24 --ilm device") ;;
+    *) runs=("") ;;
   esac
-  "./build/release/bench/$bench" "${args[@]}"
+  for run in "${runs[@]}"; do
+    read -ra args <<< "$run"
+    "./build/release/bench/$bench" "${args[@]}"
+  done
 done < build/release/bench/benches.txt

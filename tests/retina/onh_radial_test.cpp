@@ -73,6 +73,32 @@ TEST(OnhRadialPhantom, LinesCrossWhereTheTruthSaysAndSampleTheVolumesEye) {
     }
 }
 
+TEST(OnhRadialPhantom, CrossingOffsetInAnyDirection) {
+    // crossing_offset_y_um moves the crossing along grid +y (the re-scan bench places it in
+    // every direction); the lines still cross there, and the 500 um bound is on the distance.
+    OnhPhantomParams p = radial_params(OnhShape::kCupped, io::Laterality::kOD, 60.0, 12);
+    p.crossing_offset_y_um = -80.0;
+    OnhPhantomParams vol = p;
+    vol.radial = false;
+    const Eigen::Vector2d c = onh_radial_crossing(p);
+    EXPECT_NEAR((c - OnhPhantomGeometry(vol).bmo_centre() - Eigen::Vector2d(0.060, -0.080)).norm(),
+                0.0, 1e-12);
+    const std::vector<Eigen::Vector2d> pts = onh_sample_points(p);
+    for (int k = 0; k < 12; ++k) {
+        const Eigen::Vector2d a = pts[static_cast<std::size_t>(k * p.num_ascans)];
+        const Eigen::Vector2d b = pts[static_cast<std::size_t>((k + 1) * p.num_ascans - 1)];
+        EXPECT_NEAR((0.5 * (a + b) - c).norm(), 0.0, 1e-12);
+    }
+    p.crossing_offset_um = 400.0;
+    p.crossing_offset_y_um = 400.0;  // each within 500 um, the distance 566 um is not
+    try {
+        p.validate();
+        ADD_FAILURE() << "a crossing 566 um from the BMO centre was accepted";
+    } catch (const UsageError& e) {
+        EXPECT_NE(std::string(e.what()).find("crossing_offset_y_um"), std::string::npos) << e.what();
+    }
+}
+
 TEST(OnhRadialPhantom, InplaneTruthIsNeverShorterThanTheSurfaceDistance) {
     // The closest point of the ILM curve in a plane is a point of the ILM surface: the in-plane
     // MRW is >= the 3-D distance from the same BMO point. With the crossing at the BMO centre

@@ -219,7 +219,11 @@ void OnhPhantomParams::validate() const {
                 "line_length_mm", "must be in [2, 12] mm");
         require(std::isfinite(crossing_offset_um) && std::fabs(crossing_offset_um) <= 500.0,
                 "crossing_offset_um", "must be within +-500 um");
-        require(0.5 * line_length_mm >= kDiscRadiusMm + 1e-3 * std::fabs(crossing_offset_um),
+        require(std::isfinite(crossing_offset_y_um) &&
+                    std::hypot(crossing_offset_um, crossing_offset_y_um) <= 500.0,
+                "crossing_offset_y_um", "must keep the crossing within 500 um of the BMO centre");
+        require(0.5 * line_length_mm >=
+                    kDiscRadiusMm + 1e-3 * std::hypot(crossing_offset_um, crossing_offset_y_um),
                 "line_length_mm",
                 "puts the 1.5 mm disc around the BMO centre outside the scanned circle (half "
                 "the line length must be >= 1.5 mm + the crossing offset)");
@@ -272,7 +276,7 @@ OnhPhantomParams onh_phantom_preset(OnhShape shape) {
 Eigen::Vector2d onh_radial_crossing(const OnhPhantomParams& p) {
     const phantom::GridFrame f = phantom::grid_frame(layout_of(p));
     return f.centre_mm() + Eigen::Vector2d(p.bmo_offset_x_mm + 1e-3 * p.crossing_offset_um,
-                                           p.bmo_offset_y_mm);
+                                           p.bmo_offset_y_mm + 1e-3 * p.crossing_offset_y_um);
 }
 
 Eigen::Vector2d onh_radial_direction(const OnhPhantomParams& p, int k) {
@@ -337,7 +341,8 @@ OnhPhantomGeometry::OnhPhantomGeometry(const OnhPhantomParams& params)
         for (double y : {0.0, height}) s_max_ = std::max(s_max_, normalised(x, y).norm());
     }
     if (params.radial) {  // the radial lines' ends (the farthest A-scans of each line)
-        const Eigen::Vector2d cross = centre_ + Eigen::Vector2d(1e-3 * params.crossing_offset_um, 0.0);
+        const Eigen::Vector2d cross =
+            centre_ + 1e-3 * Eigen::Vector2d(params.crossing_offset_um, params.crossing_offset_y_um);
         for (int k = 0; k < params.radial_lines; ++k) {
             const double a = kPi * k / params.radial_lines;
             const Eigen::Vector2d u(std::cos(a), std::sin(a));
@@ -1447,6 +1452,9 @@ nlohmann::json onh_truth_to_json(const OnhPhantomParams& params,
         j["options"]["radial_lines"] = params.radial_lines;
         j["options"]["line_length_mm"] = params.line_length_mm;
         j["options"]["crossing_offset_um"] = params.crossing_offset_um;
+        if (params.crossing_offset_y_um != 0.0) {  // only then (older truth files unchanged)
+            j["options"]["crossing_offset_y_um"] = params.crossing_offset_y_um;
+        }
         // The truth's grid frame is the volume's of the same parameters; the radial scan
         // itself has no grid: the lines' crossing places it.
         j["options"]["crossing_mm"] = {c.x(), c.y()};

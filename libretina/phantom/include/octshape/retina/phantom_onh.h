@@ -84,14 +84,15 @@ struct OnhPhantomParams {
     int speckle_looks = 4;  // multiplicative speckle ~ Gamma(L, 1/L) (mean 1)
     // Radial scan (ScanPattern 5) of the SAME eye: radial_lines B-scans of line_length_mm and
     // num_ascans A-scans each, line k at k * 180 / radial_lines deg from grid +x towards +y
-    // (superior), all through the crossing = BMO centre + (crossing_offset_um, 0) um in the
-    // grid frame. The eye and the truth's grid frame are those of the volume these parameters
+    // (superior), all through the crossing = BMO centre + (crossing_offset_um,
+    // crossing_offset_y_um) um in the grid frame. The eye and the truth's grid frame are those of the volume these parameters
     // make (num_bscans, field_mm), so a volume and a radial phantom of the same parameters
     // sample one continuous eye (onh_sample_points).
     bool radial = false;
     int radial_lines = 24;
     double line_length_mm = 4.35;
-    double crossing_offset_um = 0.0;
+    double crossing_offset_um = 0.0;    // along grid +x
+    double crossing_offset_y_um = 0.0;  // along grid +y (re-scan benches: any direction)
 
     // Throws UsageError naming the bad field (geometry that does not fit the image is
     // reported by make_onh_phantom, which knows every column).
