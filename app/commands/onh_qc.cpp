@@ -296,7 +296,8 @@ cv::Mat onh_mrw_picture(const retina::OnhResult& r, const std::string& title) {
         cv::circle(img, a.px(r.bmo_anatomical_deg[i], r.mrw_mm[i]), 2, kMrw, -1);
     }
     std::vector<LegendItem> legend{
-        {LegendItem::kDot, kMrw, r.radial ? "3-D MRW at each ellipse point" : "MRW at each BMO point"},
+        {LegendItem::kDot, kMrw,
+         r.radial ? "3-D MRW at each ellipse point" : "MRW at each BMO point"},
         {LegendItem::kLine, cv::Scalar(40, 40, 200), "30-degree sector means"}};
     std::string means = "mean " + printf_number("%.0f um", r.mrw_mean_mm * 1e3);
     if (r.radial) {
@@ -322,8 +323,11 @@ cv::Mat onh_mrw_picture(const retina::OnhResult& r, const std::string& title) {
     int base = 0;
     const int means_w =
         cv::getTextSize(means, cv::FONT_HERSHEY_SIMPLEX, 0.45, 1, &base).width;
-    draw_legend(img, {a.plot.x, 56}, legend, 0.45, cv::Scalar(20, 20, 20), W - means_w - 30);
-    plain_text(img, means, {W - 10 - means_w, 56}, 0.45, cv::Scalar(20, 20, 20));
+    // A volume's as before; a radial scan's longer text right-aligned.
+    draw_legend(img, {a.plot.x, 56}, legend, 0.45, cv::Scalar(20, 20, 20),
+                r.radial ? W - means_w - 30 : W - 10);
+    plain_text(img, means, {r.radial ? W - 10 - means_w : W - 150, 56}, 0.45,
+               cv::Scalar(20, 20, 20));
     return img;
 }
 
@@ -342,8 +346,10 @@ void write_onh_qc(const io::Scan& scan,
     const std::string enface = (d / qc::picture_name(stem, qc::kEnface)).string();
     const std::string bscans = (d / qc::picture_name(stem, qc::kBscans)).string();
     // Every picture is drawn before any is written: a drawing error leaves no picture behind.
-    const cv::Mat e = r.radial ? radial_enface_picture(scan, r, p, title) : enface_picture(r, p, title);
-    const cv::Mat b = r.radial ? radial_bscans_picture(scan, r, title) : bscans_picture(scan, r, title);
+    const cv::Mat e =
+        r.radial ? radial_enface_picture(scan, r, p, title) : enface_picture(r, p, title);
+    const cv::Mat b =
+        r.radial ? radial_bscans_picture(scan, r, title) : bscans_picture(scan, r, title);
     const cv::Mat m = onh_mrw_picture(r, title);
     save_png(e, enface);
     save_png(b, bscans);

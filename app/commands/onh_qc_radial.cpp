@@ -82,8 +82,7 @@ std::vector<std::array<Eigen::Vector2d, 2>> line_cut(const io::Scan& scan,
             const double db = d[static_cast<std::size_t>(ib)];
             if ((da < 0.0) == (db < 0.0)) continue;
             const double t = da / (da - db);
-            const Eigen::Vector3d p =
-                r.ilm_V.row(ia) + t * (r.ilm_V.row(ib) - r.ilm_V.row(ia));
+            const Eigen::Vector3d p = r.ilm_V.row(ia) + t * (r.ilm_V.row(ib) - r.ilm_V.row(ia));
             const double s = (p.head<2>() - o).dot(u);
             hit[static_cast<std::size_t>(hits++)] = {s / ds, -p.z() / dz};
         }
@@ -181,16 +180,15 @@ cv::Mat radial_enface_picture(const io::Scan& scan,
     map.copyTo(out(cv::Rect(L.margin, L.top + L.margin, W, H)));
     std::vector<std::vector<cv::Point>> contours;
     cv::findContours(cup_big, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
-    cv::drawContours(out, contours, -1, cv::Scalar(0, 0, 0), 2, cv::LINE_AA, cv::noArray(),
-                     INT_MAX, cv::Point(L.margin, L.top + L.margin));
+    cv::drawContours(out, contours, -1, cv::Scalar(0, 0, 0), 2, cv::LINE_AA, cv::noArray(), INT_MAX,
+                     cv::Point(L.margin, L.top + L.margin));
     // The lines where they were scanned (Start -> End on the SLO), numbered at their End.
     for (int k = 0; k < static_cast<int>(geo.lines.size()); ++k) {
         const Eigen::Vector2d s = r.radial_crossing_mm + geo.ascan_mm(k, 0.0, nx);
         const Eigen::Vector2d e = r.radial_crossing_mm + geo.ascan_mm(k, nx - 1.0, nx);
         cv::line(out, L.px(s.x(), s.y()), L.px(e.x(), e.y()), kLine, 1, cv::LINE_8);
         const Eigen::Vector2d u = geo.direction(k);
-        const cv::Point q = L.px(e.x(), e.y()) +
-                            round_pt(16.0 * u.x() - 6.0, -16.0 * u.y() + 5.0);
+        const cv::Point q = L.px(e.x(), e.y()) + round_pt(16.0 * u.x() - 6.0, -16.0 * u.y() + 5.0);
         outlined_text(out, std::to_string(k + 1), q, 0.4, kLine);
     }
     const Eigen::Vector2d c = r.ellipse.centre_mm;
@@ -230,11 +228,11 @@ cv::Mat radial_enface_picture(const io::Scan& scan,
          {LegendItem::kCross, palette::kMagenta, "BMO centre"},
          {LegendItem::kDot, kNotScanned, "outside the scanned circle"}},
         0.45, palette::kText, canvas_w + bar_w - 8);
-    plain_text(out,
-               "ILM surface: " + r.ilm_source + ", interpolated between the lines" +
-                   printf_number("; lines miss the crossing by <= %.0f um",
-                                 r.radial_max_miss_mm * 1e3),
-               {8, end + 14}, 0.45, palette::kText);
+    plain_text(
+        out,
+        "ILM surface: " + r.ilm_source + ", interpolated between the lines" +
+            printf_number("; lines miss the crossing by <= %.0f um", r.radial_max_miss_mm * 1e3),
+        {8, end + 14}, 0.45, palette::kText);
     plain_text(out,
                "BMO area " + printf_number("%.3f mm2", r.ellipse.area_mm2) + "   cup volume " +
                    printf_number("%.3f mm3", r.cup_volume_mm3) + "   CONHT " +
@@ -327,8 +325,7 @@ cv::Mat radial_bscans_picture(const io::Scan& scan,
         }
         // The ILM the analysis used: its mesh cut by this B-scan's vertical plane.
         for (const auto& s : cuts[static_cast<std::size_t>(k)]) {
-            cv::line(img, at(s[0].x(), s[0].y()), at(s[1].x(), s[1].y()), kUsedIlm, 1,
-                     cv::LINE_AA);
+            cv::line(img, at(s[0].x(), s[0].y()), at(s[1].x(), s[1].y()), kUsedIlm, 1, cv::LINE_AA);
         }
         for (const auto& m : r.mrw_inplane) {
             if (m.bscan != k) continue;
@@ -344,11 +341,10 @@ cv::Mat radial_bscans_picture(const io::Scan& scan,
         }
         // Which way the line runs: the anatomical angle of its Start (left) and End (right).
         const double ang = geo.lines[static_cast<std::size_t>(k)].angle_deg;
-        outlined_text(img,
-                      "B-scan " + std::to_string(k + 1) + printf_number(", %.0f deg", ang),
+        outlined_text(img, "B-scan " + std::to_string(k + 1) + printf_number(", %.0f deg", ang),
                       {6, 16}, 0.45, palette::kWhite);
-        outlined_text(img, printf_number("%.0f", std::fmod(ang + 180.0, 360.0)),
-                      {4, L.panel_h - 8}, 0.4, palette::kWhite);
+        outlined_text(img, printf_number("%.0f", std::fmod(ang + 180.0, 360.0)), {4, L.panel_h - 8},
+                      0.4, palette::kWhite);
         outlined_text(img, printf_number("%.0f", ang), {L.panel_w - 30, L.panel_h - 8}, 0.4,
                       palette::kWhite);
     }

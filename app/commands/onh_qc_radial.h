@@ -17,10 +17,10 @@ namespace octshape::app {
 // En-face picture: the (n - 1) x (n - 1) cells of the radial grid, `ppm` pixels per mm, inside
 // a margin (for the lines' labels) under the title strip.
 struct RadialEnfaceLayout {
-    double ppm = 1.0;     // picture pixels per mm
-    int margin = 0;       // pixels around the grid
-    int map_height = 0;   // pixels of the grid's height
-    int top = 0;          // rows above the canvas (title strip)
+    double ppm = 1.0;    // picture pixels per mm
+    int margin = 0;      // pixels around the grid
+    int map_height = 0;  // pixels of the grid's height
+    int top = 0;         // rows above the canvas (title strip)
     // Picture pixel of grid mm (x, y); y up (superior at the top).
     [[nodiscard]] cv::Point px(double x_mm, double y_mm) const;
 };

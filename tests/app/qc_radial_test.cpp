@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -43,7 +44,8 @@ const RadialOnh& analysed_sample() {
         io::ReadOptions read;
         read.pixels = true;
         o.scan = io::read_scan(radial_onh_sample().string(), read);
-        const retina::IlmSurface ilm = retina::build_ilm_surface(o.scan, retina::IlmSource::kDevice);
+        const retina::IlmSurface ilm =
+            retina::build_ilm_surface(o.scan, retina::IlmSource::kDevice);
         o.r = retina::analyse_onh(o.scan, ilm);
         o.geo = retina::radial_geometry(o.scan);
         return o;
@@ -106,14 +108,15 @@ TEST(OnhRadialQc, EnfaceDrawsEachBmoPointOnItsLine) {
     for (int k = 0; k < 12; ++k) {
         const Eigen::Vector2d u = s.geo.direction(k);
         const double a = std::atan2(u.y(), u.x()) + 7.5 * std::numbers::pi / 180.0;
-        const Eigen::Vector2d q = s.r.radial_crossing_mm + rr * Eigen::Vector2d(std::cos(a), std::sin(a));
-        EXPECT_FALSE(any_near(img, L.px(q.x(), q.y()), 2,
-                              [&](const cv::Vec3b& c) { return c == line; }))
-            << k;
+        const Eigen::Vector2d q =
+            s.r.radial_crossing_mm + rr * Eigen::Vector2d(std::cos(a), std::sin(a));
+        EXPECT_FALSE(any_near(img, L.px(q.x(), q.y()), 2, [&](const cv::Vec3b& c) {
+            return c == line;
+        })) << k;
         const Eigen::Vector2d on = s.r.radial_crossing_mm + rr * u;
-        EXPECT_TRUE(any_near(img, L.px(on.x(), on.y()), 1,
-                             [&](const cv::Vec3b& c) { return c == line; }))
-            << k;
+        EXPECT_TRUE(any_near(img, L.px(on.x(), on.y()), 1, [&](const cv::Vec3b& c) {
+            return c == line;
+        })) << k;
     }
 }
 
@@ -154,8 +157,7 @@ TEST(OnhRadialQc, BscanSheetDrawsTheUsedIlmWhereTheIlmIsAndTheInplaneMrw) {
     // point at the end of the BM line (half an A-scan beyond its last value: 1.6 px here).
     ASSERT_EQ(s.r.mrw_inplane.size(), 24U);
     for (const auto& m : s.r.mrw_inplane) {
-        const Eigen::Vector2d o =
-            s.r.radial_crossing_mm + s.geo.ascan_mm(m.bscan, 0.0, nx);
+        const Eigen::Vector2d o = s.r.radial_crossing_mm + s.geo.ascan_mm(m.bscan, 0.0, nx);
         const Eigen::Vector2d u = s.geo.direction(m.bscan);
         const double ds = s.geo.lines[static_cast<std::size_t>(m.bscan)].length_mm / (nx - 1);
         const double a0 = (m.bmo_mm.head<2>() - o).dot(u) / ds;
@@ -180,9 +182,9 @@ TEST(OnhRadialQc, BscanSheetDrawsTheUsedIlmWhereTheIlmIsAndTheInplaneMrw) {
 
 TEST(OnhRadialQc, CliWritesTheThreePicturesWholeUnderTheStem) {
     const test::TempDir dir;
-    const auto r = test::run_octshape("onh " + radial_onh_sample().string() +
-                                      " --ilm device -o " + (dir / "left.json").string() +
-                                      " --qc " + (dir / "qc").string());
+    const auto r =
+        test::run_octshape("onh " + radial_onh_sample().string() + " --ilm device -o " +
+                           (dir / "left.json").string() + " --qc " + (dir / "qc").string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     // Exactly the volume's three names (the gallery and the cohort's resume know them), no
     // temporary left beside them (each is written atomically).
@@ -205,13 +207,40 @@ TEST(OnhRadialQc, CliWritesTheThreePicturesWholeUnderTheStem) {
     EXPECT_EQ(j["radial"]["lines"], 12);
 }
 
+// The cohort writes them where it writes a volume's (qc/<eye key>_KIND.png) and its gallery
+// lists them. (`--type onh`: the automatic scan type refuses radial patterns, docs/cohort.md.)
+TEST(OnhRadialQc, CohortWritesThemAndTheGalleryListsThem) {
+    const test::TempDir dir;
+    fs::create_directories(dir / "in");
+    fs::copy_file(radial_onh_sample(), dir / "in" / "scan.vol");
+    const auto r = test::run_octshape("cohort " + (dir / "in").string() + " -o " +
+                                      (dir / "out").string() +
+                                      " --type onh --ilm device --qc -q --jobs 1");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    std::vector<std::string> pngs;
+    for (const auto& e : fs::directory_iterator(dir / "out" / "qc")) {
+        if (e.path().extension() == ".png") pngs.push_back(e.path().filename());
+    }
+    std::sort(pngs.begin(), pngs.end());
+    ASSERT_EQ(pngs.size(), 3U);
+    const std::string page = test::slurp(dir / "out" / "qc" / "index.html");
+    for (const char* kind : {"_bscans.png", "_enface.png", "_mrw.png"}) {
+        const auto it = std::find_if(pngs.begin(), pngs.end(),
+                                     [&](const std::string& n) { return n.ends_with(kind); });
+        ASSERT_NE(it, pngs.end()) << kind;
+        EXPECT_NE(page.find("src=\"" + *it + "\""), std::string::npos) << *it;
+        EXPECT_FALSE(cv::imread((dir / "out" / "qc" / *it).string()).empty()) << *it;
+    }
+    EXPECT_EQ(page.find("scan.vol"), std::string::npos);  // no file name on the shared page
+}
+
 // ---- Radial macula -----------------------------------------------------------------------
 
 TEST(MaculaRadialQc, ThicknessIsDrawnAlongEachLineAndNowhereElse) {
     const test::TempDir dir;
     const auto vol = dir / "m.vol";
-    const auto made = test::run_octshape("phantom macula --pattern radial --lines 12 -o " +
-                                         vol.string());
+    const auto made =
+        test::run_octshape("phantom macula --pattern radial --lines 12 -o " + vol.string());
     ASSERT_EQ(made.exit_code, 0) << made.err;
     io::ReadOptions read;
     read.pixels = true;
@@ -276,9 +305,9 @@ TEST(MaculaRadialQc, CliWritesItsThreePictures) {
     ASSERT_EQ(test::run_octshape("phantom macula --pattern radial --lines 6 -o " + vol.string())
                   .exit_code,
               0);
-    const auto r = test::run_octshape("macula " + vol.string() + " -o " +
-                                      (dir / "right.json").string() + " --qc " +
-                                      (dir / "qc").string());
+    const auto r =
+        test::run_octshape("macula " + vol.string() + " -o " + (dir / "right.json").string() +
+                           " --qc " + (dir / "qc").string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     std::set<std::string> names;
     for (const auto& e : fs::directory_iterator(dir / "qc")) names.insert(e.path().filename());
