@@ -392,7 +392,7 @@ cv::Mat macula_radial_thickness_picture(const retina::CubeResult& r, const io::S
          {LegendItem::kLine, kSlope, "steepest slope"},
          {LegendItem::kLine, kFlat, "pit flat"},
          {LegendItem::kCross, kCentre, "centre (" + r.centre_source + ")"},
-         {LegendItem::kCross, palette::kCyan, "line crossing"}},
+         {LegendItem::kTiltedCross, palette::kCyan, "line crossing"}},
         0.45, kText, W + bar_w - 8);
     plain_text(legend, summary_line(r), {8, end + 14}, 0.45, kText);
     if (layout_out != nullptr) {

@@ -220,7 +220,7 @@ cv::Mat radial_enface_picture(const io::Scan& scan,
     const int end = draw_legend(
         out, {8, y0},
         {{LegendItem::kLine, kLine, "radial lines (B-scan number at the End)"},
-         {LegendItem::kCross, kCrossing, "line crossing"},
+         {LegendItem::kTiltedCross, kCrossing, "line crossing"},
          {LegendItem::kDot, kBmo, "BMO points (two per line)"},
          {LegendItem::kLine, kEllipse, "BMO ellipse"},
          {LegendItem::kLine, kDisc, printf_number("disc, %.1f mm radius", p.disc_radius_mm)},
