@@ -35,21 +35,7 @@ cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
     const retina::GridSurface& g = r.rpe;
     const int cw = g.cols - 1;
     const int ch = g.rows - 1;
-    std::vector<double> h(static_cast<std::size_t>(cw) * static_cast<std::size_t>(ch),
-                          std::numeric_limits<double>::quiet_NaN());
-    std::vector<double> top(h.size(), -std::numeric_limits<double>::infinity());
-    const mesh::FaceGeometry fg = mesh::face_geometry(r.ilm_V, r.ilm_F);
-    for (Eigen::Index f = 0; f < r.ilm_F.rows(); ++f) {
-        if (std::isnan(r.face_height_mm(f))) continue;
-        const int a = std::clamp(static_cast<int>(fg.centroids(f, 0) / g.dx_mm), 0, cw - 1);
-        const int b = std::clamp(static_cast<int>(fg.centroids(f, 1) / g.dy_mm), 0, ch - 1);
-        const auto i = static_cast<std::size_t>(b) * static_cast<std::size_t>(cw) +
-                       static_cast<std::size_t>(a);
-        if (fg.centroids(f, 2) > top[i]) {
-            top[i] = fg.centroids(f, 2);
-            h[i] = r.face_height_mm(f);
-        }
-    }
+    const std::vector<double> h = onh_cell_heights(r);
     double lo = 0.0;
     double hi = 0.1;
     for (const double v : h) {

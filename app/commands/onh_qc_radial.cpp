@@ -28,30 +28,6 @@ cv::Point round_pt(double x, double y) {
     return {static_cast<int>(std::lround(x)), static_cast<int>(std::lround(y))};
 }
 
-// Height above the RPE of the topmost ILM face over each grid cell (NaN: no face), row-major
-// (b * (cols - 1) + a) over the (cols - 1) x (rows - 1) cells of r.rpe.
-std::vector<double> cell_heights(const retina::OnhResult& r) {
-    const retina::GridSurface& g = r.rpe;
-    const int cw = g.cols - 1;
-    const int ch = g.rows - 1;
-    std::vector<double> h(static_cast<std::size_t>(cw) * static_cast<std::size_t>(ch),
-                          std::numeric_limits<double>::quiet_NaN());
-    std::vector<double> top(h.size(), -std::numeric_limits<double>::infinity());
-    const mesh::FaceGeometry fg = mesh::face_geometry(r.ilm_V, r.ilm_F);
-    for (Eigen::Index f = 0; f < r.ilm_F.rows(); ++f) {
-        if (std::isnan(r.face_height_mm(f))) continue;
-        const int a = std::clamp(static_cast<int>(fg.centroids(f, 0) / g.dx_mm), 0, cw - 1);
-        const int b = std::clamp(static_cast<int>(fg.centroids(f, 1) / g.dy_mm), 0, ch - 1);
-        const auto i = static_cast<std::size_t>(b) * static_cast<std::size_t>(cw) +
-                       static_cast<std::size_t>(a);
-        if (fg.centroids(f, 2) > top[i]) {
-            top[i] = fg.centroids(f, 2);
-            h[i] = r.face_height_mm(f);
-        }
-    }
-    return h;
-}
-
 // The ILM mesh cut by the vertical plane of line `line`: segments of (A-scan, depth px).
 std::vector<std::array<Eigen::Vector2d, 2>> line_cut(const io::Scan& scan,
                                                      const retina::RadialGeometry& geo,
@@ -113,6 +89,28 @@ cv::Point RadialSheetLayout::px(int line, double ascan, double depth_px) const {
     return round_pt(o.x + (ascan + 0.5) * sx() - 0.5, o.y + (depth_px - z0 + 0.5) * sz() - 0.5);
 }
 
+std::vector<double> onh_cell_heights(const retina::OnhResult& r) {
+    const retina::GridSurface& g = r.rpe;
+    const int cw = g.cols - 1;
+    const int ch = g.rows - 1;
+    std::vector<double> h(static_cast<std::size_t>(cw) * static_cast<std::size_t>(ch),
+                          std::numeric_limits<double>::quiet_NaN());
+    std::vector<double> top(h.size(), -std::numeric_limits<double>::infinity());
+    const mesh::FaceGeometry fg = mesh::face_geometry(r.ilm_V, r.ilm_F);
+    for (Eigen::Index f = 0; f < r.ilm_F.rows(); ++f) {
+        if (std::isnan(r.face_height_mm(f))) continue;
+        const int a = std::clamp(static_cast<int>(fg.centroids(f, 0) / g.dx_mm), 0, cw - 1);
+        const int b = std::clamp(static_cast<int>(fg.centroids(f, 1) / g.dy_mm), 0, ch - 1);
+        const auto i = static_cast<std::size_t>(b) * static_cast<std::size_t>(cw) +
+                       static_cast<std::size_t>(a);
+        if (fg.centroids(f, 2) > top[i]) {
+            top[i] = fg.centroids(f, 2);
+            h[i] = r.face_height_mm(f);
+        }
+    }
+    return h;
+}
+
 double radial_ascan_of(const retina::RadialGeometry& geo,
                        const retina::OnhResult& r,
                        int line,
@@ -133,7 +131,7 @@ cv::Mat radial_enface_picture(const io::Scan& scan,
     const retina::GridSurface& g = r.rpe;
     const int cw = g.cols - 1;
     const int ch = g.rows - 1;
-    const std::vector<double> h = cell_heights(r);
+    const std::vector<double> h = onh_cell_heights(r);
     double lo = 0.0;
     double hi = 0.1;
     for (const double v : h) {

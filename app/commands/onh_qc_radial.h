@@ -7,6 +7,7 @@
 
 #include <opencv2/core.hpp>
 #include <string>
+#include <vector>
 
 #include "octshape/io/scan.h"
 #include "octshape/retina/onh.h"
@@ -46,6 +47,11 @@ struct RadialSheetLayout {
     // centres, fractional) of B-scan `line`.
     [[nodiscard]] cv::Point px(int line, double ascan, double depth_px) const;
 };
+
+// Height above the RPE of the topmost ILM face over each cell of r.rpe (NaN: no face),
+// row-major (b * (cols - 1) + a) over its (cols - 1) x (rows - 1) cells: the en-face pictures'
+// values, a volume's and a radial scan's.
+[[nodiscard]] std::vector<double> onh_cell_heights(const retina::OnhResult& r);
 
 // Fractional A-scan index along line `line` of grid mm point `xy` (its projection on the line).
 [[nodiscard]] double radial_ascan_of(const retina::RadialGeometry& geo,
