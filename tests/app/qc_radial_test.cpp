@@ -295,8 +295,33 @@ TEST(MaculaRadialQc, ThicknessIsDrawnAlongEachLineAndNowhereElse) {
     // The B-scan picture: the line nearest the horizontal, i.e. the phantom's first (0 deg).
     int b = -1;
     const cv::Mat bscan = app::macula_bscan_picture(r, scan, "t", &b);
-    EXPECT_FALSE(bscan.empty());
-    EXPECT_EQ(b, 0);
+    ASSERT_FALSE(bscan.empty());
+    ASSERT_EQ(b, 0);
+    // Its fitted profile (BM raised by the fitted thickness: yellow) on the device ILM along
+    // the line, 0.3-1.8 mm either side of the centre's foot (the phantom's fit RMSE is below
+    // 0.1 um). The picture's layout (macula_qc.cpp): 900 px wide, depth rows stretched by half
+    // the width's factor, at (70, 24) under the 34-px title; the 2-px stroke and rounding:
+    // within 2 px.
+    const double sx = 900.0 / nx;
+    const int H = std::max(120, static_cast<int>(std::lround(scan.meta.size_z * sx * 0.5)));
+    const double sz = static_cast<double>(H) / scan.meta.size_z;
+    const auto& ilm = scan.bscans[0].seg[static_cast<std::size_t>(io::Layer::kILM)];
+    const Eigen::Vector2d p0 = geo.ascan_mm(0, 0.0, nx);
+    const double ds = geo.lines[0].length_mm / (nx - 1);
+    const double foot = (r.centre_mm - p0).dot(geo.direction(0)) / ds;
+    int on_ilm = 0;
+    int tried = 0;
+    for (int a = 0; a < nx; ++a) {
+        const double rr = std::fabs(a - foot) * ds;
+        if (rr < 0.3 || rr > 1.8 || !io::is_valid(ilm[static_cast<std::size_t>(a)])) continue;
+        const cv::Point q(70 + static_cast<int>(std::lround((a + 0.5) * sx)),
+                          34 + 24 + static_cast<int>(std::lround(
+                                        (ilm[static_cast<std::size_t>(a)] + 0.5) * sz)));
+        ++tried;
+        if (any_near(bscan, q, 2, yellowish)) ++on_ilm;
+    }
+    EXPECT_GT(tried, 300);
+    EXPECT_EQ(on_ilm, tried);
 }
 
 TEST(MaculaRadialQc, CliWritesItsThreePictures) {
