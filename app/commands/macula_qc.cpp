@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <optional>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <vector>
@@ -12,6 +13,7 @@
 #include "commands/qc_draw.h"
 #include "commands/qc_names.h"
 #include "octshape/error.h"
+#include "octshape/retina/radial_geometry.h"
 
 namespace octshape::app {
 namespace {
@@ -257,44 +259,176 @@ cv::Mat profiles_picture(const retina::CubeResult& r, const std::string& title) 
     return stack({title_strip(img.cols, 34, title), legend, img});
 }
 
-// The fitted thickness h(r) along the half-line in direction `sign` (+1: +x) at grid x, or NaN.
-double fitted_thickness(const retina::CubeResult& r, int sign, double x_mm) {
-    for (const auto& h : r.half_lines) {
-        if (!h.valid || std::fabs(h.direction.y()) > 1e-6 || h.direction.x() * sign <= 0.0) {
-            continue;
-        }
-        const double rr = (x_mm - r.centre_mm.x()) * sign;
-        if (rr < 0.0 || rr > h.r_mm.back()) return std::numeric_limits<double>::quiet_NaN();
-        // The Bezier segments are monotone in r: bisect for the parameter giving rr.
-        for (const auto* fit : {&h.interior, &h.exterior}) {
-            const double r0 = retina::bezier_point(fit->control, 0.0).x();
-            const double r1 = retina::bezier_point(fit->control, 1.0).x();
-            if (rr < std::min(r0, r1) || rr > std::max(r0, r1)) continue;
-            double t0 = 0.0;
-            double t1 = 1.0;
-            for (int it = 0; it < 40; ++it) {
-                const double tm = 0.5 * (t0 + t1);
-                const double rm = retina::bezier_point(fit->control, tm).x();
-                if ((rm < rr) == (r0 < r1)) {
-                    t0 = tm;
-                } else {
-                    t1 = tm;
-                }
+// The fitted thickness h(r) of half-line `h` at distance `rr` from its origin, or NaN.
+double fitted_thickness(const retina::CubeHalfLine& h, double rr) {
+    if (!h.valid || rr < 0.0 || rr > h.r_mm.back()) return std::numeric_limits<double>::quiet_NaN();
+    // The Bezier segments are monotone in r: bisect for the parameter giving rr.
+    for (const auto* fit : {&h.interior, &h.exterior}) {
+        const double r0 = retina::bezier_point(fit->control, 0.0).x();
+        const double r1 = retina::bezier_point(fit->control, 1.0).x();
+        if (rr < std::min(r0, r1) || rr > std::max(r0, r1)) continue;
+        double t0 = 0.0;
+        double t1 = 1.0;
+        for (int it = 0; it < 40; ++it) {
+            const double tm = 0.5 * (t0 + t1);
+            const double rm = retina::bezier_point(fit->control, tm).x();
+            if ((rm < rr) == (r0 < r1)) {
+                t0 = tm;
+            } else {
+                t1 = tm;
             }
-            return retina::bezier_point(fit->control, 0.5 * (t0 + t1)).y();
         }
+        return retina::bezier_point(fit->control, 0.5 * (t0 + t1)).y();
+    }
+    return std::numeric_limits<double>::quiet_NaN();
+}
+
+// The fitted thickness at position `p` (grid or radial mm) of a B-scan running along `u`: from
+// the half-line along that B-scan (direction +-u) pointing towards p.
+double fitted_thickness_at(const retina::CubeResult& r, const Eigen::Vector2d& u,
+                           const Eigen::Vector2d& p) {
+    for (const auto& h : r.half_lines) {
+        if (std::fabs(h.direction.x() * u.y() - h.direction.y() * u.x()) > 1e-6) continue;
+        const Eigen::Vector2d o = std::isnan(h.origin_mm.x()) ? r.centre_mm : h.origin_mm;
+        const double rr = (p - o).dot(h.direction);
+        if (rr < 0.0) continue;
+        return fitted_thickness(h, rr);
     }
     return std::numeric_limits<double>::quiet_NaN();
 }
 
 // The B-scan through the centre with the device ILM and BM and the fitted profile drawn from
 // BM up by the fitted thickness (along the nasal and temporal half-lines, which lie on it).
-cv::Mat bscan_picture(const retina::CubeResult& r, const io::Scan& scan, const std::string& title) {
+}  // namespace
+
+std::pair<double, double> macula_thickness_range(const retina::CubeResult& r) {
+    return thickness_range(r);
+}
+
+cv::Point RadialThicknessLayout::px(double x_mm, double y_mm) const {
+    return {static_cast<int>(std::lround(crossing.x + x_mm * ppm)),
+            static_cast<int>(std::lround(crossing.y - y_mm * ppm))};
+}
+
+cv::Mat macula_radial_thickness_picture(const retina::CubeResult& r, const io::Scan& scan,
+                                        const std::string& title,
+                                        RadialThicknessLayout* layout_out) {
+    const retina::RadialGeometry geo = retina::radial_geometry(scan);
+    const retina::ThicknessMap& m = r.map;  // one row per line, one column per A-scan
+    const int nx = scan.meta.size_x;
+    const int nl = static_cast<int>(geo.lines.size());
+    double reach = 0.5;
+    for (int k = 0; k < nl; ++k) {
+        reach = std::max({reach, geo.ascan_mm(k, 0.0, nx).norm(),
+                          geo.ascan_mm(k, nx - 1.0, nx).norm()});
+    }
+    reach += 0.25;  // room for the lines' numbers
+    const int W = 800;
+    RadialThicknessLayout L;
+    L.ppm = W / (2.0 * reach);
+    L.crossing = {0.5 * W, 0.5 * W};
+    const auto [lo, hi] = thickness_range(r);
+    cv::Mat ramp(1, 256, CV_8UC1);
+    for (int i = 0; i < 256; ++i) ramp.at<uchar>(0, i) = static_cast<uchar>(i);
+    cv::Mat lut;
+    cv::applyColorMap(ramp, lut, cv::COLORMAP_VIRIDIS);
+    cv::Mat img(W, W, CV_8UC3, kPanel);
+    // Each line where it was scanned, 7 px wide, coloured by its own thickness A-scan by
+    // A-scan (nothing is interpolated between the lines).
+    const cv::Scalar missing(110, 110, 110);
+    for (int k = 0; k < nl; ++k) {
+        for (int a = 0; a + 1 < nx && a + 1 < m.cols; ++a) {
+            const Eigen::Vector2d p = geo.ascan_mm(k, a, nx);
+            const Eigen::Vector2d q = geo.ascan_mm(k, a + 1.0, nx);
+            const double v = k < m.rows ? m.at(k, a) : std::numeric_limits<double>::quiet_NaN();
+            cv::Scalar c = missing;
+            if (!std::isnan(v)) {
+                const int i = static_cast<int>(
+                    std::lround(255 * std::clamp((v - lo) / (hi - lo), 0.0, 1.0)));
+                const cv::Vec3b& b = lut.at<cv::Vec3b>(0, i);
+                c = cv::Scalar(b[0], b[1], b[2]);
+            }
+            cv::line(img, L.px(p.x(), p.y()), L.px(q.x(), q.y()), c, 7, cv::LINE_8);
+        }
+        const Eigen::Vector2d e = geo.ascan_mm(k, nx - 1.0, nx);
+        const Eigen::Vector2d u = geo.direction(k);
+        const cv::Point t = L.px(e.x() + 0.12 * u.x(), e.y() + 0.12 * u.y()) + cv::Point(-6, 5);
+        outlined_text(img, std::to_string(k + 1), t, 0.4, cv::Scalar(200, 200, 200));
+    }
+    auto poly = [&](const retina::CubeDisk& d, cv::Scalar c) {
+        if (d.points.empty()) return;
+        std::vector<cv::Point> pts;
+        for (const auto& p : d.points) pts.push_back(L.px(p.x(), p.y()));
+        cv::polylines(img, pts, true, c, 2, cv::LINE_AA);
+    };
+    poly(r.rim, kRim);
+    poly(r.slope, kSlope);
+    poly(r.pit_flat, kFlat);
+    for (const auto& h : r.half_lines) {
+        const char* label = h.angle_deg == 0.0 ? "N" : (h.angle_deg == 90.0 ? "S" : nullptr);
+        if (label == nullptr || h.r_mm.empty()) continue;
+        const Eigen::Vector2d o = std::isnan(h.origin_mm.x()) ? r.centre_mm : h.origin_mm;
+        const Eigen::Vector2d e = o + 0.5 * h.r_mm.back() * h.direction;
+        const Eigen::Vector2d side(-h.direction.y(), h.direction.x());
+        const Eigen::Vector2d at = e + 0.2 * side;
+        outlined_text(img, label, L.px(at.x(), at.y()) + cv::Point(-7, 7), 0.7, palette::kWhite);
+    }
+    cv::drawMarker(img, L.px(0.0, 0.0), palette::kCyan, cv::MARKER_TILTED_CROSS, 14, 2);
+    cv::drawMarker(img, L.px(r.centre_mm.x(), r.centre_mm.y()), kCentre, cv::MARKER_CROSS, 18, 2);
+    scale_bar(img, {14, W - 16}, L.ppm, palette::kWhite);
+
+    const int bar_w = 130;
+    cv::Mat body(W + 40, W + bar_w, CV_8UC3, kPanel);
+    img.copyTo(body(cv::Rect(0, 30, W, W)));
+    colour_bar(body, cv::Rect(W + 18, 30 + 6, 22, W - 12), lo, hi, cv::COLORMAP_VIRIDIS,
+               "thickness (um)", 1e3, "%.0f");
+    cv::Mat legend(100, W + bar_w, CV_8UC3, kPanel);
+    const int end = draw_legend(
+        legend, {8, 22},
+        {{LegendItem::kLine, cv::Scalar(lut.at<cv::Vec3b>(0, 128)),
+          "thickness along each line (B-scan number at its End)"},
+         {LegendItem::kDot, missing, "missing"},
+         {LegendItem::kLine, kRim, "rim"},
+         {LegendItem::kLine, kSlope, "steepest slope"},
+         {LegendItem::kLine, kFlat, "pit flat"},
+         {LegendItem::kCross, kCentre, "centre (" + r.centre_source + ")"},
+         {LegendItem::kTiltedCross, palette::kCyan, "line crossing"}},
+        0.45, kText, W + bar_w - 8);
+    plain_text(legend, summary_line(r), {8, end + 14}, 0.45, kText);
+    if (layout_out != nullptr) {
+        *layout_out = L;
+        layout_out->crossing.y += 34 + 30;  // the title strip and the body's top margin
+    }
+    return stack({title_strip(W + bar_w, 34, title), body, legend});
+}
+
+cv::Mat macula_bscan_picture(const retina::CubeResult& r, const io::Scan& scan,
+                             const std::string& title, int* bscan_out) {
     const int nb = scan.num_bscans();
-    const int b = r.line_scan || r.map.dy_mm <= 0.0
-                      ? 0
-                      : std::clamp(static_cast<int>(std::lround(r.centre_mm.y() / r.map.dy_mm)),
-                                   0, nb - 1);
+    // Where A-scan a of the B-scan lies (grid mm, or radial mm), and its direction.
+    std::optional<retina::RadialGeometry> geo;
+    if (r.radial_scan) geo = retina::radial_geometry(scan);
+    int b = r.line_scan || r.map.dy_mm <= 0.0
+                ? 0
+                : std::clamp(static_cast<int>(std::lround(r.centre_mm.y() / r.map.dy_mm)), 0,
+                             nb - 1);
+    if (geo) {
+        // The line nearest to the horizontal (nasal-temporal), as a device shows first.
+        double best = 2.0;
+        for (int k = 0; k < static_cast<int>(geo->lines.size()); ++k) {
+            const double s = std::fabs(geo->direction(k).y());
+            if (s < best - 1e-9) {
+                best = s;
+                b = k;
+            }
+        }
+    }
+    const Eigen::Vector2d u = geo ? geo->direction(b) : Eigen::Vector2d(1.0, 0.0);
+    auto position = [&](double a) -> Eigen::Vector2d {
+        if (geo) return geo->ascan_mm(b, a, scan.meta.size_x);
+        return {a * r.map.dx_mm, b * r.map.dy_mm};
+    };
+    if (bscan_out != nullptr) *bscan_out = b;
     const io::BScan& bs = scan.bscans[static_cast<std::size_t>(b)];
     const int w = scan.meta.size_x;
     const int h = scan.meta.size_z;
@@ -330,25 +464,29 @@ cv::Mat bscan_picture(const retina::CubeResult& r, const io::Scan& scan, const s
     draw(bm, kBm);
     draw(line_of(static_cast<int>(io::Layer::kILM)), kIlm);
     if (bm != nullptr && scan.meta.scale_z_mm > 0.0) {
-        for (const int sign : {1, -1}) {
-            std::vector<cv::Point> pts;
-            for (int a = 0; a < w && a < static_cast<int>(bm->size()); ++a) {
-                const double t = fitted_thickness(r, sign, a * r.map.dx_mm);
-                if (std::isnan(t) || !io::is_valid((*bm)[static_cast<std::size_t>(a)])) {
-                    if (pts.size() > 1) cv::polylines(img, pts, false, kFit, 2, cv::LINE_AA);
-                    pts.clear();
-                    continue;
-                }
-                pts.push_back(pt(a, (*bm)[static_cast<std::size_t>(a)] - t / scan.meta.scale_z_mm));
+        std::vector<cv::Point> pts;
+        for (int a = 0; a < w && a < static_cast<int>(bm->size()); ++a) {
+            const double t = fitted_thickness_at(r, u, position(a));
+            if (std::isnan(t) || !io::is_valid((*bm)[static_cast<std::size_t>(a)])) {
+                if (pts.size() > 1) cv::polylines(img, pts, false, kFit, 2, cv::LINE_AA);
+                pts.clear();
+                continue;
             }
-            if (pts.size() > 1) cv::polylines(img, pts, false, kFit, 2, cv::LINE_AA);
+            pts.push_back(pt(a, (*bm)[static_cast<std::size_t>(a)] - t / scan.meta.scale_z_mm));
         }
+        if (pts.size() > 1) cv::polylines(img, pts, false, kFit, 2, cv::LINE_AA);
     }
-    const int cx = static_cast<int>(std::lround((r.centre_mm.x() / r.map.dx_mm + 0.5) * sx));
+    // The centre's A-scan: its foot on the B-scan.
+    const Eigen::Vector2d p0 = position(0.0);
+    const double step = (position(w - 1.0) - p0).norm() / std::max(1, w - 1);
+    const double a_centre = step > 0.0 ? (r.centre_mm - p0).dot(u) / step : 0.0;
+    const int cx = static_cast<int>(std::lround((a_centre + 0.5) * sx));
     cv::line(img, {cx, 0}, {cx, H - 1}, kCentre, 1, cv::LINE_AA);
     outlined_text(img,
                   "B-scan " + std::to_string(b + 1) + " of " + std::to_string(nb) +
-                      " (through the centre)" +
+                      (geo ? printf_number(" (through the centre, %.0f deg)",
+                                           geo->lines[static_cast<std::size_t>(b)].angle_deg)
+                           : std::string(" (through the centre)")) +
                       (pixels ? ""
                               : scan.meta.format == io::SourceFormat::kIowaSurfaces
                                     ? "; a segmentation file has no pixels"
@@ -382,8 +520,6 @@ cv::Mat bscan_picture(const retina::CubeResult& r, const io::Scan& scan, const s
     return stack({title_strip(framed.cols, 34, title), framed, legend});
 }
 
-}  // namespace
-
 void write_macula_qc(const retina::CubeResult& r, const io::Scan& scan, const std::string& dir,
                      const std::string& stem) {
     std::error_code ec;
@@ -392,10 +528,16 @@ void write_macula_qc(const retina::CubeResult& r, const io::Scan& scan, const st
     const std::filesystem::path d(dir);
     const std::string title = scan_title(scan.meta, scan.num_bscans());
     const bool one_row = r.line_scan || r.map.rows < 2;
-    save_png(one_row ? thickness_line_picture(r, title) : thickness_map_picture(r, title),
-             (d / qc::picture_name(stem, qc::kThickness)).string());
-    save_png(profiles_picture(r, title), (d / qc::picture_name(stem, qc::kProfiles)).string());
-    save_png(bscan_picture(r, scan, title), (d / qc::picture_name(stem, qc::kBscan)).string());
+    // A radial scan's map rows are its lines, not a grid: the thickness is drawn along them.
+    // Every picture is drawn before any is written: a drawing error leaves no picture behind.
+    const cv::Mat t = r.radial_scan ? macula_radial_thickness_picture(r, scan, title)
+                      : one_row     ? thickness_line_picture(r, title)
+                                    : thickness_map_picture(r, title);
+    const cv::Mat p = profiles_picture(r, title);
+    const cv::Mat b = macula_bscan_picture(r, scan, title);
+    save_png(t, (d / qc::picture_name(stem, qc::kThickness)).string());
+    save_png(p, (d / qc::picture_name(stem, qc::kProfiles)).string());
+    save_png(b, (d / qc::picture_name(stem, qc::kBscan)).string());
 }
 
 }  // namespace octshape::app

@@ -5,6 +5,7 @@
 // their fitted Beziers on axes with values and units; the B-scan through the centre with the
 // device ILM and BM and the fitted profile.
 
+#include <opencv2/core.hpp>
 #include <string>
 
 #include "octshape/io/scan.h"
@@ -16,5 +17,31 @@ namespace octshape::app {
 // `scan` is the analysed scan; its pixels are drawn when loaded. Throws OutputError.
 void write_macula_qc(const retina::CubeResult& r, const io::Scan& scan, const std::string& dir,
                      const std::string& stem);
+
+// Where the thickness picture of a radial scan draws a point of the radial frame (mm from the
+// lines' crossing, x = SLO +x, y = superior): `ppm` pixels per mm, the crossing at `crossing`.
+struct RadialThicknessLayout {
+    double ppm = 1.0;
+    cv::Point2d crossing{0.0, 0.0};
+    [[nodiscard]] cv::Point px(double x_mm, double y_mm) const;
+};
+
+// A radial scan's thickness picture: the thickness along each line, drawn where the line was
+// scanned (no value between the lines), with the disks, the centre and the crossing.
+[[nodiscard]] cv::Mat macula_radial_thickness_picture(const retina::CubeResult& r,
+                                                      const io::Scan& scan,
+                                                      const std::string& title,
+                                                      RadialThicknessLayout* layout = nullptr);
+
+// The B-scan picture: a volume's B-scan through the centre, a radial scan's line nearest to
+// the horizontal (nasal-temporal), with the fitted profile along the half-lines on it.
+// `bscan` (when given) receives the B-scan's index.
+[[nodiscard]] cv::Mat macula_bscan_picture(const retina::CubeResult& r,
+                                           const io::Scan& scan,
+                                           const std::string& title,
+                                           int* bscan = nullptr);
+
+// The thickness colour range of the thickness pictures: [lo, hi] mm (VIRIDIS, lo dark).
+[[nodiscard]] std::pair<double, double> macula_thickness_range(const retina::CubeResult& r);
 
 }  // namespace octshape::app

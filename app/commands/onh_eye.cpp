@@ -145,9 +145,6 @@ EyeResult analyse_onh_eye(const std::string& file,
             throw UsageError("--ilm levelset is not available on radial scans (the level set "
                              "needs a volume's 3-D grid): use --ilm device");
         }
-        if (!o.qc_dir.empty()) {
-            throw UsageError("--qc: the ONH QC pictures of radial scans are not available yet");
-        }
     }
     std::optional<std::vector<retina::BmoPoint>> bmo;
     if (!o.bmo_file.empty()) {

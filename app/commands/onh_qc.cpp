@@ -1,5 +1,7 @@
 #include "commands/onh_qc.h"
 
+#include "commands/onh_qc_radial.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -25,6 +27,7 @@ const cv::Scalar& kUsedIlm = palette::kRed;  // was (40, 40, 240): the one red o
 const cv::Scalar& kBm = palette::kBlue;
 const cv::Scalar& kFilled = palette::kCyan;
 const cv::Scalar& kMrw = palette::kPink;
+const cv::Scalar& kInplane = palette::kDeepBlue;  // radial scans: the in-plane MRW
 
 // Height above the RPE of the topmost ILM face over each grid cell.
 cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
@@ -32,21 +35,7 @@ cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
     const retina::GridSurface& g = r.rpe;
     const int cw = g.cols - 1;
     const int ch = g.rows - 1;
-    std::vector<double> h(static_cast<std::size_t>(cw) * static_cast<std::size_t>(ch),
-                          std::numeric_limits<double>::quiet_NaN());
-    std::vector<double> top(h.size(), -std::numeric_limits<double>::infinity());
-    const mesh::FaceGeometry fg = mesh::face_geometry(r.ilm_V, r.ilm_F);
-    for (Eigen::Index f = 0; f < r.ilm_F.rows(); ++f) {
-        if (std::isnan(r.face_height_mm(f))) continue;
-        const int a = std::clamp(static_cast<int>(fg.centroids(f, 0) / g.dx_mm), 0, cw - 1);
-        const int b = std::clamp(static_cast<int>(fg.centroids(f, 1) / g.dy_mm), 0, ch - 1);
-        const auto i = static_cast<std::size_t>(b) * static_cast<std::size_t>(cw) +
-                       static_cast<std::size_t>(a);
-        if (fg.centroids(f, 2) > top[i]) {
-            top[i] = fg.centroids(f, 2);
-            h[i] = r.face_height_mm(f);
-        }
-    }
+    const std::vector<double> h = onh_cell_heights(r);
     double lo = 0.0;
     double hi = 0.1;
     for (const double v : h) {
@@ -242,9 +231,12 @@ cv::Mat bscans_picture(const io::Scan& scan, const retina::OnhResult& r,
     return out;
 }
 
-cv::Mat mrw_picture(const retina::OnhResult& r, const std::string& title) {
+}  // namespace
+
+cv::Mat onh_mrw_picture(const retina::OnhResult& r, const std::string& title) {
     const int W = 930;
-    const int H = 420;
+    const int extra = r.radial ? 24 : 0;  // a second legend row
+    const int H = 420 + extra;
     cv::Mat img(H, W, CV_8UC3, palette::kWhite);
     cv::rectangle(img, cv::Rect(0, 0, W, 34), palette::kPanel, -1);
     outlined_text(img, title, {8, 24}, 0.55, palette::kWhite);
@@ -252,9 +244,10 @@ cv::Mat mrw_picture(const retina::OnhResult& r, const std::string& title) {
     for (const double m : r.mrw_mm) {
         if (std::isfinite(m)) hi = std::max(hi, m);
     }
+    for (const auto& m : r.mrw_inplane) hi = std::max(hi, m.mrw_mm);
     hi *= 1.1;
     Axes a;
-    a.plot = cv::Rect(80, 84, W - 110, H - 174);
+    a.plot = cv::Rect(80, 84 + extra, W - 110, H - 174 - extra);
     a.x0 = 0.0;
     a.x1 = 360.0;
     a.y0 = 0.0;
@@ -288,16 +281,41 @@ cv::Mat mrw_picture(const retina::OnhResult& r, const std::string& title) {
     for (std::size_t i = 0; i < r.mrw_mm.size(); ++i) {
         cv::circle(img, a.px(r.bmo_anatomical_deg[i], r.mrw_mm[i]), 2, kMrw, -1);
     }
-    draw_legend(img, {a.plot.x, 56},
-                {{LegendItem::kDot, kMrw, "MRW at each BMO point"},
-                 {LegendItem::kLine, cv::Scalar(40, 40, 200), "30-degree sector means"}},
-                0.45, cv::Scalar(20, 20, 20), W - 10);
-    plain_text(img, "mean " + printf_number("%.0f um", r.mrw_mean_mm * 1e3),
-               {W - 150, 56}, 0.45, cv::Scalar(20, 20, 20));
+    std::vector<LegendItem> legend{
+        {LegendItem::kDot, kMrw,
+         r.radial ? "3-D MRW at each ellipse point" : "MRW at each BMO point"},
+        {LegendItem::kLine, cv::Scalar(40, 40, 200), "30-degree sector means"}};
+    std::string means = "mean " + printf_number("%.0f um", r.mrw_mean_mm * 1e3);
+    if (r.radial) {
+        // The in-plane MRW (the device's definition) at each measured BMO point, numbered by
+        // its B-scan (the contact sheet's panels), and its sector means.
+        for (int k = 0; k < 12; ++k) {
+            const double m = r.mrw_inplane_sector_mm[static_cast<std::size_t>(k)];
+            if (std::isnan(m)) continue;
+            const double lo = std::max(0.0, 30.0 * k - 15.0);
+            const double up = std::min(360.0, 30.0 * k + 15.0);
+            cv::line(img, a.px(lo, m), a.px(up, m), kInplane, 1);
+            if (k == 0) cv::line(img, a.px(345.0, m), a.px(360.0, m), kInplane, 1);
+        }
+        for (const auto& m : r.mrw_inplane) {
+            const cv::Point q = a.px(m.anatomical_deg, m.mrw_mm);
+            cv::circle(img, q, 4, kInplane, 1, cv::LINE_AA);
+            plain_text(img, std::to_string(m.bscan + 1), q + cv::Point(5, -5), 0.33, kInplane);
+        }
+        legend.push_back({LegendItem::kRing, kInplane, "in-plane MRW (B-scan number)"});
+        legend.push_back({LegendItem::kLine, kInplane, "its sector means"});
+        means = "3-D " + means + printf_number(", in-plane %.0f um", r.mrw_inplane_mean_mm * 1e3);
+    }
+    int base = 0;
+    const int means_w =
+        cv::getTextSize(means, cv::FONT_HERSHEY_SIMPLEX, 0.45, 1, &base).width;
+    // A volume's as before; a radial scan's longer text right-aligned.
+    draw_legend(img, {a.plot.x, 56}, legend, 0.45, cv::Scalar(20, 20, 20),
+                r.radial ? W - means_w - 30 : W - 10);
+    plain_text(img, means, {r.radial ? W - 10 - means_w : W - 150, 56}, 0.45,
+               cv::Scalar(20, 20, 20));
     return img;
 }
-
-}  // namespace
 
 void write_onh_qc(const io::Scan& scan,
                   const retina::OnhResult& r,
@@ -309,9 +327,19 @@ void write_onh_qc(const io::Scan& scan,
     if (ec) throw OutputError(dir, "cannot create the QC directory: " + ec.message());
     const std::filesystem::path d(dir);
     const std::string title = scan_title(scan.meta, scan.num_bscans());
-    save_png(enface_picture(r, p, title), (d / qc::picture_name(stem, qc::kEnface)).string());
-    save_png(bscans_picture(scan, r, title), (d / qc::picture_name(stem, qc::kBscans)).string());
-    save_png(mrw_picture(r, title), (d / qc::picture_name(stem, qc::kMrw)).string());
+    // A radial scan's pictures under the volume's names (the gallery and the cohort's resume
+    // know them): its lines on the scanned circle, and every radial B-scan.
+    const std::string enface = (d / qc::picture_name(stem, qc::kEnface)).string();
+    const std::string bscans = (d / qc::picture_name(stem, qc::kBscans)).string();
+    // Every picture is drawn before any is written: a drawing error leaves no picture behind.
+    const cv::Mat e =
+        r.radial ? radial_enface_picture(scan, r, p, title) : enface_picture(r, p, title);
+    const cv::Mat b =
+        r.radial ? radial_bscans_picture(scan, r, title) : bscans_picture(scan, r, title);
+    const cv::Mat m = onh_mrw_picture(r, title);
+    save_png(e, enface);
+    save_png(b, bscans);
+    save_png(m, (d / qc::picture_name(stem, qc::kMrw)).string());
 }
 
 }  // namespace octshape::app

@@ -193,6 +193,9 @@ int draw_legend(cv::Mat& img, cv::Point p, const std::vector<LegendItem>& items,
             case LegendItem::kCross:
                 cv::drawMarker(img, mid, it.colour, cv::MARKER_CROSS, 12, 2);
                 break;
+            case LegendItem::kTiltedCross:
+                cv::drawMarker(img, mid, it.colour, cv::MARKER_TILTED_CROSS, 10, 2);
+                break;
         }
         plain_text(img, it.label, {x + 24, y}, font, text);
         x += w;

@@ -71,9 +71,10 @@ void colour_bar(cv::Mat& img, cv::Rect where, double lo, double hi, int map,
 // A 1 mm scale bar, `px_per_mm` long, its left end at `p`, labelled "1 mm".
 void scale_bar(cv::Mat& img, cv::Point p, double px_per_mm, cv::Scalar c);
 
-// One legend entry: a line (kLine), a filled dot (kDot) or a ring (kRing) of `colour`.
+// One legend entry: a line (kLine), a filled dot (kDot), a ring (kRing), a cross (kCross, +)
+// or a tilted cross (kTiltedCross, x) of `colour`.
 struct LegendItem {
-    enum Kind { kLine, kDot, kRing, kCross };
+    enum Kind { kLine, kDot, kRing, kCross, kTiltedCross };
     Kind kind = kLine;
     cv::Scalar colour;
     std::string label;

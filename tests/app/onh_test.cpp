@@ -295,8 +295,7 @@ TEST(OnhCli, RadialRefusalsHaveTheirExitCodesAndWriteNothing) {
     const auto sample = test::source_dir() / "sample_scans" / "onh_radial_cupped_os.vol";
     const auto out = (dir / "x.json").string();
     // What the radial path does not do: usage errors (64), before any output.
-    for (const std::string& opts : std::vector<std::string>{
-             "", "--ilm levelset", "--ilm device --qc " + (dir / "qc").string()}) {
+    for (const std::string& opts : std::vector<std::string>{"", "--ilm levelset"}) {
         const auto r = test::run_octshape("onh " + sample.string() + " " + opts + " -o " + out);
         EXPECT_EQ(r.exit_code, 64) << opts << ": " << r.err;
         EXPECT_NE(r.err.find("radial"), std::string::npos) << r.err;
@@ -312,13 +311,15 @@ TEST(OnhCli, RadialRefusalsHaveTheirExitCodesAndWriteNothing) {
     const auto broken = dir / "broken.vol";
     io::write_vol_file(scan, broken.string());
     const auto r = test::run_octshape("onh " + broken.string() + " --ilm device -o " + out +
-                                      " --csv " + (dir / "x.csv").string());
+                                      " --csv " + (dir / "x.csv").string() + " --qc " +
+                                      (dir / "qc").string());
     EXPECT_EQ(r.exit_code, 69) << r.err;
     EXPECT_NE(r.err.find("broken.vol"), std::string::npos) << r.err;
     EXPECT_NE(r.err.find("Start = End"), std::string::npos) << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     EXPECT_FALSE(std::filesystem::exists(out));
     EXPECT_FALSE(std::filesystem::exists(dir / "x.csv"));
+    EXPECT_FALSE(std::filesystem::exists(dir / "qc"));  // no picture of a failed analysis
 }
 
 }  // namespace

@@ -1,0 +1,78 @@
+#pragma once
+// The QC pictures of a radial ONH scan (ScanPattern 5; docs/outputs.md "QC pictures"): the
+// en-face picture of the scanned circle with the lines where they were scanned, and a contact
+// sheet of every radial B-scan. The MRW picture is the volume's (onh_qc.cpp) with the in-plane
+// MRW added. Each picture comes with its layout (where a grid mm point, or a B-scan pixel, is
+// drawn) so that the tests can check marks at their pixels.
+
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "octshape/io/scan.h"
+#include "octshape/retina/onh.h"
+#include "octshape/retina/radial_geometry.h"
+
+namespace octshape::app {
+
+// En-face picture: the (n - 1) x (n - 1) cells of the radial grid, `ppm` pixels per mm, inside
+// a margin (for the lines' labels) under the title strip.
+struct RadialEnfaceLayout {
+    double ppm = 1.0;    // picture pixels per mm
+    int margin = 0;      // pixels around the grid
+    int map_height = 0;  // pixels of the grid's height
+    int top = 0;         // rows above the canvas (title strip)
+    // Picture pixel of grid mm (x, y); y up (superior at the top).
+    [[nodiscard]] cv::Point px(double x_mm, double y_mm) const;
+};
+
+// Contact sheet: B-scan k in panel (k % cols, k / cols), each panel_w x panel_h pixels of the
+// B-scan's depth rows [z0, z1) (all A-scans), `gap` pixels between panels, below `top` rows.
+struct RadialSheetLayout {
+    int lines = 0;
+    int cols = 1;
+    int rows = 1;
+    int size_x = 0;
+    int z0 = 0;  // first depth row shown
+    int z1 = 0;  // one past the last
+    int panel_w = 0;
+    int panel_h = 0;
+    int gap = 0;
+    int top = 0;
+    [[nodiscard]] double sx() const { return static_cast<double>(panel_w) / size_x; }
+    [[nodiscard]] double sz() const { return static_cast<double>(panel_h) / (z1 - z0); }
+    // Top-left pixel of panel `line`.
+    [[nodiscard]] cv::Point origin(int line) const;
+    // Picture pixel of A-scan `ascan` and depth `depth_px` (pixel indices, values at pixel
+    // centres, fractional) of B-scan `line`.
+    [[nodiscard]] cv::Point px(int line, double ascan, double depth_px) const;
+};
+
+// Height above the RPE of the topmost ILM face over each cell of r.rpe (NaN: no face),
+// row-major (b * (cols - 1) + a) over its (cols - 1) x (rows - 1) cells: the en-face pictures'
+// values, a volume's and a radial scan's.
+[[nodiscard]] std::vector<double> onh_cell_heights(const retina::OnhResult& r);
+
+// Fractional A-scan index along line `line` of grid mm point `xy` (its projection on the line).
+[[nodiscard]] double radial_ascan_of(const retina::RadialGeometry& geo,
+                                     const retina::OnhResult& r,
+                                     int line,
+                                     int size_x,
+                                     const Eigen::Vector2d& xy);
+
+[[nodiscard]] cv::Mat radial_enface_picture(const io::Scan& scan,
+                                            const retina::OnhResult& r,
+                                            const retina::OnhParams& p,
+                                            const std::string& title,
+                                            RadialEnfaceLayout* layout = nullptr);
+
+[[nodiscard]] cv::Mat radial_bscans_picture(const io::Scan& scan,
+                                            const retina::OnhResult& r,
+                                            const std::string& title,
+                                            RadialSheetLayout* layout = nullptr);
+
+// The MRW per BMO point against the anatomical angle: 3-D (every resampled ellipse point) and,
+// for a radial scan, in-plane (every measured BMO point, numbered by its B-scan).
+[[nodiscard]] cv::Mat onh_mrw_picture(const retina::OnhResult& r, const std::string& title);
+
+}  // namespace octshape::app
