@@ -207,21 +207,29 @@ RadialSamples radial_half_lines(const ThicknessMap& m,
         const V2 p0 = geo.ascan_mm(k, 0, size_x);
         const double s0 = (centre_mm - p0).dot(u);  // the foot of the centre, mm from Start
         const V2 foot = p0 + s0 * u;
+        // The line passes the centre at distance `miss`: the A-scan s mm from the foot lies at
+        // rho = sqrt(s^2 + miss^2) from the centre, so the half-line is fitted as a radial
+        // profile about the centre (docs/algorithms/cube.md "Radial scans", step 4).
+        const double miss = (centre_mm - foot).norm();
+        const double s_max = std::sqrt(std::max(0.0, r_max * r_max - miss * miss));
         for (const double sign : {1.0, -1.0}) {
             CubeHalfLine h;
             h.direction = sign * u;
             h.angle_deg = geo.anatomical_angle_deg(h.direction);
-            h.origin_mm = foot;
+            h.foot_mm = foot;  // origin_mm stays NaN: r = 0 is the centre
             h.r_mm.push_back(0.0);
             h.h_mm.push_back(cft_mm);
-            // A-scans beyond the foot in this direction, nearest first.
-            const int a_first = sign > 0 ? static_cast<int>(std::floor(s0 / step)) + 1
+            // A-scans beyond the foot in this direction, nearest first (one at the foot itself
+            // belongs to the + side).
+            const int a_first = sign > 0 ? static_cast<int>(std::ceil(s0 / step))
                                          : static_cast<int>(std::ceil(s0 / step)) - 1;
             for (int a = a_first; a >= 0 && a < m.cols; a += sign > 0 ? 1 : -1) {
-                const double r = sign * (a * step - s0);
-                if (r <= kSameRadiusMm) continue;
-                if (r > r_max) break;
-                h.r_mm.push_back(r);
+                const double s = sign * (a * step - s0);
+                if (s < 0.0) continue;
+                if (s > s_max) break;
+                const double rho = std::hypot(s, miss);
+                if (rho <= kSameRadiusMm) continue;  // the centre itself
+                h.r_mm.push_back(rho);
                 h.h_mm.push_back(m.at(k, a));
                 if (std::isnan(h.h_mm.back())) ++h.num_missing;
             }
