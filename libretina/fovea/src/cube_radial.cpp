@@ -21,13 +21,12 @@ namespace {
 // read from the crossing-offset table (bench/macula_radial: 12 and 24 lines, Bezier and
 // Scheibe eyes, worst of 8 directions; tests/retina/cube_radial_test.cpp asserts it on 3;
 // docs/algorithms/cube.md "Radial scans"): the largest offset tabulated at which every
-// parameter but the pit volume meets the volume analysis's targets (1 %, 2 um, 0.2 deg) is
-// 25 um; at 50 um the Bezier pit-flat diameter (3.2 um) and slope diameter (9.3 um) and at
-// 75 um the slope miss them. The pit volume, a small difference A h - V_r, misses its 1 %
-// from ~10 um (1.7-2.7 % at 25 um).
+// parameter meets the volume analysis's targets (1 %, 2 um, 0.2 deg) is 25 um; at 50 um the
+// Bezier pit-flat diameter (2.7 um) and slope diameter (8.1 um) miss them, at 75 um also the
+// pit volume (1.1 %).
 constexpr double kRadialOffsetLimitMm = 0.025;
 
-// Samples closer than this (mm) to the foot of the centre are the centre itself.
+// Samples closer than this (mm) to the centre are the centre itself.
 constexpr double kSameRadiusMm = 1e-9;
 
 struct LineSamples {
