@@ -226,10 +226,7 @@ RadialErrors radial_errors(const CubeResult& r, const MaculaPhantom& ph) {
 // than a 193-B-scan volume's bilinear samples (39 um across), so the same targets apply. The
 // Scheibe pit-flat diameter is the model's limit (a cubic cannot follow Scheibe's pit floor:
 // 1-17 %, docs/algorithms/cube.md), as for volumes.
-// `pit_volume`: false where the pit volume is known to miss its target (a crossing offset above
-// ~10 um: docs/algorithms/cube.md "Radial scans"); its error is printed in the tables.
-void expect_within_volume_targets(const RadialErrors& e, const MaculaTruth& t, bool scheibe,
-                                  bool pit_volume = true) {
+void expect_within_volume_targets(const RadialErrors& e, const MaculaTruth& t, bool scheibe) {
     auto tol = [](double v) { return std::max(0.01 * std::fabs(v), 0.002); };
     EXPECT_LE(e.cft, tol(t.cft_mm));
     EXPECT_LE(e.rim_height, tol(t.rim_height_mm));
@@ -239,9 +236,7 @@ void expect_within_volume_targets(const RadialErrors& e, const MaculaTruth& t, b
     EXPECT_LE(e.slope_deg, 0.2);
     EXPECT_LE(e.vr_rel, 0.01);
     EXPECT_LE(e.vir_rel, 0.01);
-    if (pit_volume) {
-        EXPECT_LE(e.vp_rel, 0.01);
-    }
+    EXPECT_LE(e.vp_rel, 0.01);
     EXPECT_LE(e.flat_diameter, scheibe ? 0.17 * t.pit_flat_diameter_mm : tol(t.pit_flat_diameter_mm));
 }
 
@@ -260,7 +255,7 @@ std::string row(const std::string& tag, const RadialErrors& e) {
 TEST(CubeRadial, TwelveAndTwentyFourLinesWithinTheVolumeTargets) {
     // The crossing on the fovea (every line through it; the centre is still searched), and
     // 20 um from it in an oblique direction so that no line passes through the fovea: within
-    // the QC limit, where every parameter but the pit volume meets the volume targets.
+    // the QC limit, where every parameter meets the volume targets.
     for (const auto f : {MaculaFamily::kBezier, MaculaFamily::kScheibe}) {
         for (const int lines : {12, 24}) {
             for (const auto eye : {io::Laterality::kOD, io::Laterality::kOS})
@@ -278,7 +273,7 @@ TEST(CubeRadial, TwelveAndTwentyFourLinesWithinTheVolumeTargets) {
                 }
                 const RadialErrors e = radial_errors(r, ph);
                 std::cout << row(tag, e) << '\n';
-                expect_within_volume_targets(e, ph.truth, f == MaculaFamily::kScheibe, off == 0.0);
+                expect_within_volume_targets(e, ph.truth, f == MaculaFamily::kScheibe);
                 EXPECT_TRUE(r.qc_flags.empty()) << r.qc_flags.front();
             }
         }
@@ -317,13 +312,12 @@ TEST(CubeRadial, CrossingOffsetTableAndItsQcFlag) {
             std::cout << row(to_string(f) + " " + std::to_string(static_cast<int>(off)) + " um",
                              worst)
                       << (flagged ? "  [flagged]" : "") << '\n';
-            // Up to the limit every parameter but the pit volume meets the volume targets (in
-            // every direction: `worst`); the pit volume only at 0 offset.
+            // Up to the limit every parameter meets the volume targets (in every direction:
+            // `worst`).
             if (off * 1e-3 <= limit + 1e-12) {
                 const MaculaPhantom ph = make_macula_phantom(radial_params(f, 12, off, 0.0));
                 SCOPED_TRACE(off);
-                expect_within_volume_targets(worst, ph.truth, f == MaculaFamily::kScheibe,
-                                             off == 0.0);
+                expect_within_volume_targets(worst, ph.truth, f == MaculaFamily::kScheibe);
             }
         }
     }
@@ -344,7 +338,7 @@ TEST(CubeRadial, ReportCarriesTheCrossingOffsetAndItsFlag) {
     EXPECT_EQ(j["radial"]["centre_offset_limit_mm"].get<double>(), 0.025);
     EXPECT_FALSE(j["radial"]["bmo_fields"]["used"].get<bool>());
     EXPECT_EQ(j["options"]["num_half_lines"], 24);
-    EXPECT_EQ(j["radial"]["half_line_origins_mm"].size(), 24U);
+    EXPECT_EQ(j["radial"]["half_line_feet_mm"].size(), 24U);
     EXPECT_EQ(cube_csv_values(r).front(), "radial");
 }
 

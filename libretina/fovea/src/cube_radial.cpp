@@ -21,13 +21,12 @@ namespace {
 // read from the crossing-offset table (bench/macula_radial: 12 and 24 lines, Bezier and
 // Scheibe eyes, worst of 8 directions; tests/retina/cube_radial_test.cpp asserts it on 3;
 // docs/algorithms/cube.md "Radial scans"): the largest offset tabulated at which every
-// parameter but the pit volume meets the volume analysis's targets (1 %, 2 um, 0.2 deg) is
-// 25 um; at 50 um the Bezier pit-flat diameter (3.2 um) and slope diameter (9.3 um) and at
-// 75 um the slope miss them. The pit volume, a small difference A h - V_r, misses its 1 %
-// from ~10 um (1.7-2.7 % at 25 um).
+// parameter meets the volume analysis's targets (1 %, 2 um, 0.2 deg) is 25 um; at 50 um the
+// Bezier pit-flat diameter (2.7 um) and slope diameter (8.1 um) miss them, at 75 um also the
+// pit volume (1.1 %).
 constexpr double kRadialOffsetLimitMm = 0.025;
 
-// Samples closer than this (mm) to the foot of the centre are the centre itself.
+// Samples closer than this (mm) to the centre are the centre itself.
 constexpr double kSameRadiusMm = 1e-9;
 
 struct LineSamples {
@@ -207,21 +206,29 @@ RadialSamples radial_half_lines(const ThicknessMap& m,
         const V2 p0 = geo.ascan_mm(k, 0, size_x);
         const double s0 = (centre_mm - p0).dot(u);  // the foot of the centre, mm from Start
         const V2 foot = p0 + s0 * u;
+        // The line passes the centre at distance `miss`: the A-scan s mm from the foot lies at
+        // rho = sqrt(s^2 + miss^2) from the centre, so the half-line is fitted as a radial
+        // profile about the centre (docs/algorithms/cube.md "Radial scans", step 4).
+        const double miss = (centre_mm - foot).norm();
+        const double s_max = std::sqrt(std::max(0.0, r_max * r_max - miss * miss));
         for (const double sign : {1.0, -1.0}) {
             CubeHalfLine h;
             h.direction = sign * u;
             h.angle_deg = geo.anatomical_angle_deg(h.direction);
-            h.origin_mm = foot;
+            h.foot_mm = foot;  // origin_mm stays NaN: r = 0 is the centre
             h.r_mm.push_back(0.0);
             h.h_mm.push_back(cft_mm);
-            // A-scans beyond the foot in this direction, nearest first.
-            const int a_first = sign > 0 ? static_cast<int>(std::floor(s0 / step)) + 1
+            // A-scans beyond the foot in this direction, nearest first (one at the foot itself
+            // belongs to the + side).
+            const int a_first = sign > 0 ? static_cast<int>(std::ceil(s0 / step))
                                          : static_cast<int>(std::ceil(s0 / step)) - 1;
             for (int a = a_first; a >= 0 && a < m.cols; a += sign > 0 ? 1 : -1) {
-                const double r = sign * (a * step - s0);
-                if (r <= kSameRadiusMm) continue;
-                if (r > r_max) break;
-                h.r_mm.push_back(r);
+                const double s = sign * (a * step - s0);
+                if (s < 0.0) continue;
+                if (s > s_max) break;
+                const double rho = std::hypot(s, miss);
+                if (rho <= kSameRadiusMm) continue;  // the centre itself
+                h.r_mm.push_back(rho);
                 h.h_mm.push_back(m.at(k, a));
                 if (std::isnan(h.h_mm.back())) ++h.num_missing;
             }

@@ -189,11 +189,11 @@ J cube_json(const CubeResult& r, const CubeParams& p) {
         rad["centre_offset_limit_mm"] = num(q.centre_offset_limit_mm);
         rad["bmo_fields"] = J{{"bscans_with_fields", q.num_bmo_fields}, {"used", false}};
         j["radial"] = std::move(rad);
-        J origins = J::array();
+        J feet = J::array();
         for (const auto& h : r.half_lines) {
-            origins.push_back(J::array({num(h.origin_mm.x()), num(h.origin_mm.y())}));
+            feet.push_back(J::array({num(h.foot_mm.x()), num(h.foot_mm.y())}));
         }
-        j["radial"]["half_line_origins_mm"] = std::move(origins);
+        j["radial"]["half_line_feet_mm"] = std::move(feet);
     }
     j["qc_flags"] = r.qc_flags;
     j["notes"] = r.notes;

@@ -184,9 +184,14 @@ struct MaxSlope {
 struct CubeHalfLine {
     double angle_deg = 0.0;                               // anatomical
     Eigen::Vector2d direction = Eigen::Vector2d::Zero();  // unit, grid frame
-    // Where r = 0 lies (grid mm); NaN = the centre. A radial scan's half-line runs along its
-    // B-scan from the foot of the centre on that line.
+    // Where r = 0 lies (grid mm); NaN = the centre (every analysis: a radial scan's r are the
+    // samples' distances from the centre, see foot_mm).
     Eigen::Vector2d origin_mm{kMissing, kMissing};
+    // Radial scans: the foot of the centre on the half-line's B-scan (its point nearest the
+    // centre, grid mm). The half-line's A-scans lie at foot + s * direction, s >= 0, and r =
+    // sqrt(s^2 + |foot - centre|^2); their points are placed at centre + r * direction. NaN
+    // for volumes and line scans.
+    Eigen::Vector2d foot_mm{kMissing, kMissing};
     bool valid = false;  // the fit was possible (else `problem` says why)
     std::string problem;
     std::vector<double> r_mm;  // samples along the half-line
