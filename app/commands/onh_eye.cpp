@@ -141,10 +141,6 @@ EyeResult analyse_onh_eye(const std::string& file,
     with_file_named(file, [&] { retina::require_onh_scan(scan); });
     if (retina::is_radial_scan(scan)) {
         // What the radial path does not do yet is refused before any work (usage, exit 64).
-        if (source == retina::IlmSource::kLevelSet) {
-            throw UsageError("--ilm levelset is not available on radial scans (the level set "
-                             "needs a volume's 3-D grid): use --ilm device");
-        }
         if (!o.qc_dir.empty()) {
             throw UsageError("--qc: the ONH QC pictures of radial scans are not available yet");
         }

@@ -105,7 +105,6 @@ TEST(OnhRadial, RefusesWhatItCannotDoAndImpossibleGeometry) {
     p.num_ascans = 128;
     const io::Scan scan = render_onh_scan(p);
     EXPECT_NO_THROW(require_onh_scan(scan));
-    EXPECT_THROW((void)build_ilm_surface(scan, IlmSource::kLevelSet), UsageError);
     const IlmSurface ilm = device_ilm_surface(scan);
     std::vector<BmoPoint> file(6);  // points without their B-scans (not read_radial_bmo_csv's)
     EXPECT_THROW((void)analyse_onh(scan, ilm, {}, file), UsageError);
@@ -142,9 +141,9 @@ struct RadialCase {
     OnhResult r;
 };
 
-RadialCase run_radial(const OnhPhantomParams& p) {
+RadialCase run_radial(const OnhPhantomParams& p, IlmSource source = IlmSource::kDevice) {
     RadialCase c{make_onh_phantom(p), {}};
-    c.r = analyse_onh(c.ph.scan, build_ilm_surface(c.ph.scan, IlmSource::kDevice));
+    c.r = analyse_onh(c.ph.scan, build_ilm_surface(c.ph.scan, source));
     return c;
 }
 
@@ -271,6 +270,31 @@ SLOW_TEST(OnhRadialTruth, OverhangWithDeviceIlmIsBlindToTheCavity) {
         EXPECT_LT(r.cup_volume_mm3, t.cup_volume_mm3) << name;
         EXPECT_GT(r.mrw_mean_mm, t.mrw_mean_mm + 0.05) << name;
         EXPECT_GT(r.mrw_inplane_mean_mm, t.inplane.mean_mm + 0.05) << name;
+    }
+}
+
+// ---- The level-set ILM on radial scans ------------------------------------------------------
+
+// Slow: every shape, both eyes, 24 lines, level-set ILM (~1-2 s each in Release).
+SLOW_TEST(OnhRadialTruth, LevelSetEveryShapeBothEyes) {
+    for (const OnhShape shape : {OnhShape::kCupped, OnhShape::kSwollen, OnhShape::kOverhang}) {
+        for (const io::Laterality eye : {io::Laterality::kOD, io::Laterality::kOS}) {
+            const std::string name =
+                "levelset " + to_string(shape) + (eye == io::Laterality::kOD ? " OD" : " OS");
+            const RadialCase c = run_radial(radial_params(shape, eye), IlmSource::kLevelSet);
+            print_row(name, c);
+        }
+    }
+}
+
+SLOW_TEST(OnhRadialTruth, LevelSetLineCount) {
+    for (const int lines : {12, 48}) {
+        for (const OnhShape shape : {OnhShape::kCupped, OnhShape::kOverhang}) {
+            const std::string name = "levelset " + to_string(shape) + " " + std::to_string(lines);
+            const RadialCase c = run_radial(radial_params(shape, io::Laterality::kOD, 0.0, lines),
+                                            IlmSource::kLevelSet);
+            print_row(name, c);
+        }
     }
 }
 
