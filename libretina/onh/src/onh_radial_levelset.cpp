@@ -9,7 +9,6 @@
 
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -275,7 +274,6 @@ std::string bscan_list(const std::vector<int>& ks) {
 }  // namespace
 
 IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParams& params) {
-    const auto t0 = std::chrono::steady_clock::now();
     params.validate();
     if (!scan.pixels_loaded) throw AnalysisError("level-set ILM needs the B-scan pixels");
     const RadialOnhGrid grid = radial_onh_grid(scan);
@@ -332,7 +330,7 @@ IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParam
                     ok = ok && l.valid[static_cast<std::size_t>(c)] != 0;
                 }
             }
-            valid[i] = ok ? 1 : 0;
+            valid[i] = ok ? 1 : 0;  // eroded below (the clip's nearest-node rule)
             wc.lo[i] = lo;
             wc.len[i] = hi - lo;
             wc.offset[i] = off;
@@ -341,6 +339,27 @@ IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParam
     }
     wc.offset[nn] = off;
     wc.size = off;
+    // The clip keeps a face when the node nearest its centroid is valid; with the valid nodes
+    // eroded by one (every 8-neighbour scanned and valid) such a centroid lies in cells whose
+    // corners are all scanned, where the RPE (NaN outside the circle) is defined: no ILM face
+    // outside the RPE grid, as on the device ILM's mesh of the scanned cells.
+    {
+        std::vector<std::uint8_t> eroded(nn, 0);
+        for (int b = 1; b + 1 < n; ++b) {
+            for (int a = 1; a + 1 < n; ++a) {
+                bool ok = true;
+                for (int db = -1; db <= 1 && ok; ++db) {
+                    for (int da = -1; da <= 1 && ok; ++da) {
+                        ok = valid[static_cast<std::size_t>(b + db) * static_cast<std::size_t>(n) +
+                                   static_cast<std::size_t>(a + da)] != 0;
+                    }
+                }
+                eroded[static_cast<std::size_t>(b) * static_cast<std::size_t>(n) +
+                       static_cast<std::size_t>(a)] = ok ? 1 : 0;
+            }
+        }
+        valid.swap(eroded);
+    }
     std::vector<float> phi(static_cast<std::size_t>(off));
     for (std::size_t i = 0; i < nn; ++i) {
         const auto& tp = taps[i];
@@ -395,17 +414,16 @@ IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParam
                                bscan_list(edge));
     }
     for (const auto& wmsg : res.warnings) out.notes.push_back(wmsg);
-    const double secs =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     out.notes.push_back(
         "level-set ILM (radial): a 2-D level set per B-scan (" + std::to_string(nl) +
         " B-scans, " + std::to_string(it_min) + "-" + std::to_string(it_max) + " iterations, " +
         std::to_string(nl - static_cast<int>(unconverged.size())) + " converged), their signed "
         "distances interpolated between the lines (linear in angle about the crossing) on a " +
         fmt(grid.step_mm * 1e3, 1) + " um grid; " + std::to_string(raw_faces) +
-        " marching-cubes faces, " + std::to_string(out.F.rows()) + " after clip and component (" +
-        std::to_string(c.components) + " components), " + std::to_string(res.rofi_iterations) +
-        " RoFi iterations, " + fmt(secs, 2) + " s");
+        " marching-cubes faces, " + std::to_string(out.F.rows()) +
+        " after the clip to the scanned circle and the largest of " +
+        std::to_string(c.components) + " components, " + std::to_string(res.rofi_iterations) +
+        " RoFi iterations");
     if (missing > 0) {
         out.notes.push_back(std::to_string(missing) +
                             " A-scans without a device ILM value were filled for the level "
