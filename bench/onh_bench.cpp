@@ -63,8 +63,10 @@ int main(int argc, char** argv) {
     const retina::IlmSource dev = retina::IlmSource::kDevice;
     const retina::IlmSource lset = retina::IlmSource::kLevelSet;
     for (const auto& [shape, radial, source] :
-         {Case{retina::OnhShape::kCupped, false, dev}, Case{retina::OnhShape::kOverhang, false, dev},
-          Case{retina::OnhShape::kCupped, true, dev}, Case{retina::OnhShape::kCupped, true, lset},
+         {Case{retina::OnhShape::kCupped, false, dev},
+          Case{retina::OnhShape::kOverhang, false, dev},
+          Case{retina::OnhShape::kCupped, true, dev},
+          Case{retina::OnhShape::kCupped, true, lset},
           Case{retina::OnhShape::kOverhang, true, lset}}) {
         const bool levelset = source == lset;
         const std::string name = retina::to_string(shape) + (radial ? "/radial24" : "") +

@@ -120,8 +120,9 @@ void require_image(const io::Scan& scan, int b0, int nb, const std::string& wher
     if (!(hi > lo)) {
         throw AnalysisError(
             std::isfinite(lo)
-                ? "level-set ILM: the B-scans" + where + " hold no image (every pixel with data is " +
-                      std::to_string(lo) + "); --ilm device uses the device's ILM line instead"
+                ? "level-set ILM: the B-scans" + where +
+                      " hold no image (every pixel with data is " + std::to_string(lo) +
+                      "); --ilm device uses the device's ILM line instead"
                 : "level-set ILM: no pixel" + where +
                       " holds data (all missing, NaN or invalid); --ilm device uses the "
                       "device's ILM line instead");
@@ -160,11 +161,13 @@ DeviceIlm device_ilm(const io::Scan& scan) {
     const int nb = scan.num_bscans(), na = meta.size_x, nz = meta.size_z;
     if (nb < 2 || na < 2 || nz < 4 || !(meta.distance_mm > 0.0) || !(meta.scale_x_mm > 0.0) ||
         !(meta.scale_z_mm > 0.0)) {
-        throw AnalysisError("level-set ILM needs a volume scan (>= 2 B-scans with a B-scan distance)");
+        throw AnalysisError(
+            "level-set ILM needs a volume scan (>= 2 B-scans with a B-scan distance)");
     }
     if (!scan.pixels_loaded) throw AnalysisError("level-set ILM needs the B-scan pixels");
     require_image(scan, 0, nb, "");
-    DeviceIlm out = device_ilm_rows(scan, 0, nb, {meta.scale_x_mm, meta.distance_mm, meta.scale_z_mm});
+    DeviceIlm out =
+        device_ilm_rows(scan, 0, nb, {meta.scale_x_mm, meta.distance_mm, meta.scale_z_mm});
     if (!fill_missing(out.ilm, nb, na)) throw AnalysisError("level-set ILM: the scan has no device ILM");
     return out;
 }
