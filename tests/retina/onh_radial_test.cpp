@@ -323,18 +323,25 @@ void expect_levelset_accurate(const RadialCase& c, const std::string& name) {
     EXPECT_LE(rms, ds / std::sqrt(12.0) + 0.004) << name;
 }
 
-// Slow: every shape, both eyes, 24 lines, level-set ILM (~2-4 s each in Release).
-SLOW_TEST(OnhRadialTruth, LevelSetEveryShapeBothEyes) {
-    for (const OnhShape shape : {OnhShape::kCupped, OnhShape::kSwollen, OnhShape::kOverhang}) {
-        for (const io::Laterality eye : {io::Laterality::kOD, io::Laterality::kOS}) {
-            const std::string name =
-                "levelset " + to_string(shape) + (eye == io::Laterality::kOD ? " OD" : " OS");
-            const RadialCase c = run_radial(radial_params(shape, eye), IlmSource::kLevelSet);
-            print_row(name, c);
-            expect_levelset_accurate(c, name);
-        }
+// Both eyes of one shape, 24 lines, level-set ILM (phantom and truth ~2 s, the level set
+// ~1.5 s per eye in Release); one test per shape so that they run in parallel.
+void levelset_both_eyes(OnhShape shape) {
+    for (const io::Laterality eye : {io::Laterality::kOD, io::Laterality::kOS}) {
+        const std::string name =
+            "levelset " + to_string(shape) + (eye == io::Laterality::kOD ? " OD" : " OS");
+        const RadialCase c = run_radial(radial_params(shape, eye), IlmSource::kLevelSet);
+        print_row(name, c);
+        expect_levelset_accurate(c, name);
     }
 }
+
+// Slow: two full-size radial phantoms each.
+SLOW_TEST(OnhRadialTruth, LevelSetCuppedBothEyes) { levelset_both_eyes(OnhShape::kCupped); }
+SLOW_TEST(OnhRadialTruth, LevelSetSwollenBothEyes) { levelset_both_eyes(OnhShape::kSwollen); }
+// The overhang: the device ILM's envelope misses V_cup by -4.7 %, V_bmo by +12.7 %, the MRWs by
+// +130 um and the MRW area by +65 % (OverhangWithDeviceIlmIsBlindToTheCavity); the level set
+// meets every target.
+SLOW_TEST(OnhRadialTruth, LevelSetOverhangBothEyes) { levelset_both_eyes(OnhShape::kOverhang); }
 
 // Slow: 12 lines (15 deg apart: 0.22 mm at the BMO), cupped and overhang.
 SLOW_TEST(OnhRadialTruth, LevelSetTwelveLines) {

@@ -57,7 +57,9 @@ struct IlmSurface {
 [[nodiscard]] IlmSurface device_ilm_surface(const io::Scan& scan);
 
 // The level-set ILM (retina/levelset.h: Chan–Vese narrow band on the B-scan intensities,
-// marching cubes, RoFi) with its diagnostics as notes and QC flags. Needs the pixels.
+// marching cubes, RoFi) with its diagnostics as notes and QC flags. Needs the pixels. On a
+// radial scan a 2-D level set per B-scan, interpolated between the lines (bscan_curves filled;
+// docs/algorithms/onh.md "Radial scans").
 [[nodiscard]] IlmSurface levelset_ilm_surface(const io::Scan& scan);
 
 // Builds the ILM of `source` (the one place a new source is added).
