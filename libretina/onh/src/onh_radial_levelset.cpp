@@ -403,9 +403,10 @@ IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParam
     out.source = "levelset";
     out.bscan_curves.resize(static_cast<std::size_t>(nl));
     int it_min = std::numeric_limits<int>::max(), it_max = 0, missing = 0;
-    std::vector<int> unconverged, edge;
+    std::vector<int> unconverged, edge, iterations;
     for (int k = 0; k < nl; ++k) {
         BscanLevelSet& l = bs[static_cast<std::size_t>(k)];
+        iterations.push_back(l.iterations);
         it_min = std::min(it_min, l.iterations);
         it_max = std::max(it_max, l.iterations);
         missing += l.missing_ilm_columns;
@@ -435,6 +436,8 @@ IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParam
         " marching-cubes faces, " + std::to_string(out.F.rows()) +
         " after the clip to the scanned circle and the largest of " + std::to_string(c.components) +
         " components, " + std::to_string(res.rofi_iterations) + " RoFi iterations");
+    out.notes.push_back("level-set iterations per radial B-scan (0, 1, ...): " +
+                        bscan_list(iterations));
     if (missing > 0) {
         out.notes.push_back(std::to_string(missing) +
                             " A-scans without a device ILM value were filled for the level "
