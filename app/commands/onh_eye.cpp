@@ -139,13 +139,6 @@ EyeResult analyse_onh_eye(const std::string& file,
     const std::string& sha = input.sha256;
     prov.mark("read_hash");
     with_file_named(file, [&] { retina::require_onh_scan(scan); });
-    if (retina::is_radial_scan(scan)) {
-        // What the radial path does not do yet is refused before any work (usage, exit 64).
-        if (source == retina::IlmSource::kLevelSet) {
-            throw UsageError("--ilm levelset is not available on radial scans (the level set "
-                             "needs a volume's 3-D grid): use --ilm device");
-        }
-    }
     std::optional<std::vector<retina::BmoPoint>> bmo;
     if (!o.bmo_file.empty()) {
         bmo = retina::is_radial_scan(scan)

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -290,17 +291,94 @@ TEST(OnhCli, RadialBmoFileGivesThePointsOnTheirBscans) {
     EXPECT_FALSE(std::filesystem::exists(dir / "m.json"));
 }
 
-TEST(OnhCli, RadialRefusalsHaveTheirExitCodesAndWriteNothing) {
+// The default ILM (the level set) on the radial sample: a 2-D level set per B-scan,
+// interpolated between the lines (docs/algorithms/onh.md "Radial scans"). The sample is coarse
+// (12 lines, 128 A-scans: ds = 34 um, the crossing 50 um off the BMO centre); measured BMO area
+// +0.03 %, volumes within 1.4 %, CONHT +2.2 um, MRWs within 2.6 um, MRW area +0.1 %. The
+// issue's targets (1 %, 2 %, 5 um, 2 %) are asserted; the level set sits 1-3 um above the
+// device line's exact ILM (levelset.md), which the 5 um and 2 % hold with a margin.
+TEST(OnhCli, RadialDefaultIsTheLevelSet) {
+    const test::TempDir dir;
+    const auto sample = test::source_dir() / "sample_scans" / "onh_radial_cupped_os.vol";
+    const json truth =
+        json::parse(slurp(test::source_dir() / "sample_scans" / "onh_radial_cupped_os.truth.json"));
+    const auto r = test::run_octshape("onh " + sample.string() + " -o " +
+                                      (dir / "eye.json").string() + " --csv " +
+                                      (dir / "eye.csv").string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const json j = json::parse(slurp(dir / "eye.json"));
+    EXPECT_EQ(j["options"]["ilm_source"], "levelset");
+    const json& v = j["parameters"];
+    const json& t = truth["truth"];
+    auto rel = [&](const char* k) { return v[k].get<double>() / t[k].get<double>() - 1.0; };
+    EXPECT_LT(std::fabs(rel("bmo_area_mm2")), 0.01);
+    for (const char* k : {"cup_volume_mm3", "bmo_volume_mm3", "total_volume_mm3",
+                          "annular_volume_mm3", "mrw_area_mm2"}) {
+        EXPECT_LT(std::fabs(rel(k)), 0.02) << k;
+    }
+    for (const char* k : {"conht_mm", "mrw_mean_mm", "mrw_inplane_mean_mm"}) {
+        EXPECT_NEAR(v[k].get<double>(), t[k].get<double>(), 0.005) << k;
+    }
+    EXPECT_EQ(j["radial"]["mrw_inplane_points"].size(), 24U);
+    EXPECT_TRUE(j["qc_flags"].empty()) << j["qc_flags"];
+    bool noted = false;
+    for (const auto& n : j["notes"]) {
+        noted = noted || n.get<std::string>().find("2-D level set per B-scan (12 B-scans") !=
+                             std::string::npos;
+    }
+    EXPECT_TRUE(noted) << j["notes"];
+    // The CSV keeps its columns: the same header as the device ILM's.
+    const auto d = test::run_octshape("onh " + sample.string() + " --ilm device -o " +
+                                      (dir / "dev.json").string() + " --csv " +
+                                      (dir / "dev.csv").string());
+    ASSERT_EQ(d.exit_code, 0) << d.err;
+    EXPECT_EQ(read_csv(dir / "eye.csv")[0], read_csv(dir / "dev.csv")[0]);
+}
+
+// A radial scan whose B-scan holds no image (all pixels equal) is refused by the level set
+// (exit 69, one line naming the file and the B-scan, nothing written); --ilm device analyses it.
+TEST(OnhCli, RadialLevelSetRefusesABlankBscan) {
+    const test::TempDir dir;
+    const auto sample = test::source_dir() / "sample_scans" / "onh_radial_cupped_os.vol";
+    io::ReadOptions with_pixels;
+    with_pixels.pixels = true;
+    io::Scan scan = io::read_scan(sample.string(), with_pixels);
+    std::fill(scan.bscans[5].pixels.begin(), scan.bscans[5].pixels.end(), 0.0F);
+    const auto blank = dir / "blank.vol";
+    io::write_vol_file(scan, blank.string());
+    const auto out = (dir / "x.json").string();
+    const auto r = test::run_octshape("onh " + blank.string() + " -o " + out + " --csv " +
+                                      (dir / "x.csv").string());
+    EXPECT_EQ(r.exit_code, 69) << r.err;
+    EXPECT_NE(r.err.find("blank.vol"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("radial B-scan 5"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(out));
+    EXPECT_FALSE(std::filesystem::exists(dir / "x.csv"));
+    const auto d = test::run_octshape("onh " + blank.string() + " --ilm device -o " + out);
+    EXPECT_EQ(d.exit_code, 0) << d.err;
+}
+
+TEST(OnhCli, RadialDefaultsRunWithPicturesAndImpossibleGeometryWritesNothing) {
     const test::TempDir dir;
     const auto sample = test::source_dir() / "sample_scans" / "onh_radial_cupped_os.vol";
     const auto out = (dir / "x.json").string();
-    // What the radial path does not do: usage errors (64), before any output.
-    for (const std::string& opts : std::vector<std::string>{"", "--ilm levelset"}) {
-        const auto r = test::run_octshape("onh " + sample.string() + " " + opts + " -o " + out);
-        EXPECT_EQ(r.exit_code, 64) << opts << ": " << r.err;
-        EXPECT_NE(r.err.find("radial"), std::string::npos) << r.err;
-        EXPECT_FALSE(std::filesystem::exists(out));
-        EXPECT_FALSE(std::filesystem::exists(dir / "qc"));
+    // The defaults on a radial scan (level-set ILM) with the QC pictures: nothing refused any
+    // more; the three pictures of the eye's stem and the JSON are written.
+    {
+        const auto r = test::run_octshape("onh " + sample.string() + " --qc " +
+                                          (dir / "qc").string() + " -o " + out);
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        const json j = json::parse(slurp(out));
+        EXPECT_EQ(j["options"]["ilm_source"], "levelset");
+        int pictures = 0;
+        for (const auto& e : std::filesystem::directory_iterator(dir / "qc")) {
+            EXPECT_EQ(e.path().extension(), ".png") << e.path();
+            ++pictures;
+        }
+        EXPECT_EQ(pictures, 3);
+        std::filesystem::remove_all(dir / "qc");
+        std::filesystem::remove(out);
     }
     // Impossible geometry: one line with Start = End on the SLO (69, one line naming the file).
     io::ReadOptions with_pixels;

@@ -96,29 +96,21 @@ bool fill_missing(std::vector<float>& ilm, int nb, int na) {
 }
 
 
-DeviceIlm device_ilm(const io::Scan& scan) {
-    const auto& meta = scan.meta;
-    DeviceIlm out;
-    out.nb = scan.num_bscans();
-    out.na = meta.size_x;
-    out.nz = meta.size_z;
-    const int nb = out.nb, na = out.na, nz = out.nz;
-    if (nb < 2 || na < 2 || nz < 4 || !(meta.distance_mm > 0.0) || !(meta.scale_x_mm > 0.0) ||
-        !(meta.scale_z_mm > 0.0)) {
-        throw AnalysisError("level-set ILM needs a volume scan (>= 2 B-scans with a B-scan distance)");
-    }
-    if (!scan.pixels_loaded) throw AnalysisError("level-set ILM needs the B-scan pixels");
-    const auto npx = static_cast<std::size_t>(na) * static_cast<std::size_t>(nz);
-    for (const auto& bs : scan.bscans) {
-        if (bs.pixels.size() != npx) throw AnalysisError("level-set ILM: a B-scan has no pixels");
+void require_image(const io::Scan& scan, int b0, int nb, const std::string& where) {
+    const auto npx = static_cast<std::size_t>(scan.meta.size_x) *
+                     static_cast<std::size_t>(scan.meta.size_z);
+    for (int b = b0; b < b0 + nb; ++b) {
+        if (scan.bscans[static_cast<std::size_t>(b)].pixels.size() != npx) {
+            throw AnalysisError("level-set ILM: a B-scan has no pixels" + where);
+        }
     }
     // An image: some contrast among the pixels that hold data (the evolution reads max(v, 0)).
     // Without it (all zero, all "no data", NaN or 1e30) the surface would stay where the device
     // line started it and be reported as a segmentation of pixels that show nothing.
     float lo = std::numeric_limits<float>::infinity();
     float hi = -std::numeric_limits<float>::infinity();
-    for (const auto& bs : scan.bscans) {
-        for (const float v : bs.pixels) {
+    for (int b = b0; b < b0 + nb; ++b) {
+        for (const float v : scan.bscans[static_cast<std::size_t>(b)].pixels) {
             if (std::isnan(v) || !(v < io::kInvalidThreshold)) continue;
             const float u = std::max(v, 0.0F);
             lo = std::min(lo, u);
@@ -128,19 +120,29 @@ DeviceIlm device_ilm(const io::Scan& scan) {
     if (!(hi > lo)) {
         throw AnalysisError(
             std::isfinite(lo)
-                ? "level-set ILM: the B-scans hold no image (every pixel with data is " +
-                      std::to_string(lo) + "); --ilm device uses the device's ILM line instead"
-                : std::string("level-set ILM: no pixel holds data (all missing, NaN or "
-                              "invalid); --ilm device uses the device's ILM line instead"));
+                ? "level-set ILM: the B-scans" + where +
+                      " hold no image (every pixel with data is " + std::to_string(lo) +
+                      "); --ilm device uses the device's ILM line instead"
+                : "level-set ILM: no pixel" + where +
+                      " holds data (all missing, NaN or invalid); --ilm device uses the "
+                      "device's ILM line instead");
     }
-    out.h = {meta.scale_x_mm, meta.distance_mm, meta.scale_z_mm};
+}
+
+DeviceIlm device_ilm_rows(const io::Scan& scan, int b0, int nb, const Spacing& h) {
+    DeviceIlm out;
+    out.nb = nb;
+    out.na = scan.meta.size_x;
+    out.nz = scan.meta.size_z;
+    out.h = h;
+    const int na = out.na, nz = out.nz;
     // Device ILM (pixels), missing values filled for the initialisation and clipped later.
     const auto ncol = static_cast<std::size_t>(nb) * static_cast<std::size_t>(na);
     out.ilm.resize(ncol);
     out.valid.assign(ncol, 1);
     for (int b = 0; b < nb; ++b) {
         for (int a = 0; a < na; ++a) {
-            const float v = scan.depth_px(static_cast<int>(io::Layer::kILM), b, a);
+            const float v = scan.depth_px(static_cast<int>(io::Layer::kILM), b0 + b, a);
             const auto c = static_cast<std::size_t>(b * na + a);
             if (io::is_valid(v) && v >= -1.0F && v <= static_cast<float>(nz)) {
                 out.ilm[c] = v;
@@ -151,6 +153,21 @@ DeviceIlm device_ilm(const io::Scan& scan) {
             }
         }
     }
+    return out;
+}
+
+DeviceIlm device_ilm(const io::Scan& scan) {
+    const auto& meta = scan.meta;
+    const int nb = scan.num_bscans(), na = meta.size_x, nz = meta.size_z;
+    if (nb < 2 || na < 2 || nz < 4 || !(meta.distance_mm > 0.0) || !(meta.scale_x_mm > 0.0) ||
+        !(meta.scale_z_mm > 0.0)) {
+        throw AnalysisError(
+            "level-set ILM needs a volume scan (>= 2 B-scans with a B-scan distance)");
+    }
+    if (!scan.pixels_loaded) throw AnalysisError("level-set ILM needs the B-scan pixels");
+    require_image(scan, 0, nb, "");
+    DeviceIlm out =
+        device_ilm_rows(scan, 0, nb, {meta.scale_x_mm, meta.distance_mm, meta.scale_z_mm});
     if (!fill_missing(out.ilm, nb, na)) throw AnalysisError("level-set ILM: the scan has no device ILM");
     return out;
 }
@@ -211,7 +228,7 @@ void binomial_pass(std::vector<float>& buf, std::vector<float>& tmp, int rows, i
 }
 
 std::vector<float> despeckle(const io::Scan& scan, const Windows& w, int despeckle_passes,
-                             DeviceIlm& ilm) {
+                             DeviceIlm& ilm, int b0) {
     const int nb = w.nb, na = w.na, nz = ilm.nz;
     std::vector<float> image(static_cast<std::size_t>(w.size));
     const int pad = 2 * despeckle_passes;
@@ -228,7 +245,7 @@ std::vector<float> despeckle(const io::Scan& scan, const Windows& w, int despeck
         const int rows = r1 - r0;
         buf.resize(static_cast<std::size_t>(rows) * static_cast<std::size_t>(na));
         tmp.resize(buf.size());
-        const auto& px = scan.bscans[static_cast<std::size_t>(b)].pixels;
+        const auto& px = scan.bscans[static_cast<std::size_t>(b0 + b)].pixels;
         for (int r = 0; r < rows; ++r) {
             const float* in = px.data() + static_cast<std::ptrdiff_t>(r0 + r) * na;
             float* out = buf.data() + static_cast<std::ptrdiff_t>(r) * na;

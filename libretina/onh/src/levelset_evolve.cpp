@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -23,7 +24,11 @@ public:
     Evolver(const Windows& w, std::vector<float>& phi, const std::vector<float>& image,
             const LevelSetParams& p, const Spacing& h)
         : w_(w), phi_(phi), image_(image), p_(p), h_{h.hx, h.hy, h.hz} {
-        const double hx = h.hx, hy = h.hy, hz = h.hz;
+        // One B-scan (a radial scan's 2-D level set): the clamped neighbours make every
+        // y-difference zero, so the curvature and the upwind gradient are the 2-D ones; the
+        // y-spacing must then also leave the time steps (it is no direction of this image).
+        if (w.nb == 1) h_[1] = std::numeric_limits<double>::infinity();
+        const double hx = h_[0], hy = h_[1], hz = h_[2];
         cols_.resize(w.lo.size());
         for (std::size_t c = 0; c < cols_.size(); ++c) {
             cols_[c] = {w.offset[c] - w.lo[c], w.lo[c], w.lo[c] + w.len[c]};
@@ -45,7 +50,7 @@ public:
             }
         }
         tile_active_.assign(tile_last_change_.size(), 1);
-        far_ = static_cast<float>((p.band_layers + 1) * std::max({hx, hy, hz}));
+        far_ = static_cast<float>((p.band_layers + 1) * std::max({hx, w.nb == 1 ? hx : hy, hz}));
         const double inv_h = 1.0 / hx + 1.0 / hy + 1.0 / hz;
         const double inv_h2 = 1.0 / (hx * hx) + 1.0 / (hy * hy) + 1.0 / (hz * hz);
         dt_ = p.cfl / (inv_h + 2.0 * p.mu_mm * inv_h2);

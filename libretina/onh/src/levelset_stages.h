@@ -18,6 +18,7 @@
 // Method, equations (LS-1 …) and measurements: docs/algorithms/levelset.md.
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "octshape/io/scan.h"
@@ -43,6 +44,15 @@ struct DeviceIlm {
 
 // AnalysisError unless the scan is a volume with pixels and at least one device ILM value.
 [[nodiscard]] DeviceIlm device_ilm(const io::Scan& scan);
+
+// AnalysisError unless B-scans [b0, b0 + nb) all have pixels and those with data show some
+// contrast (not all equal, not all missing); `where` (e.g. " of radial B-scan 3") is added to
+// the message.
+void require_image(const io::Scan& scan, int b0, int nb, const std::string& where);
+
+// The device ILM of B-scans [b0, b0 + nb) in pixels, with spacing h; missing values NaN (not
+// yet filled) and their columns marked invalid and counted.
+[[nodiscard]] DeviceIlm device_ilm_rows(const io::Scan& scan, int b0, int nb, const Spacing& h);
 
 // Fills NaN entries of an nb × na grid: linear interpolation along each B-scan (constant beyond
 // its first and last value), then B-scans without a value copy the nearest B-scan that has one
@@ -72,8 +82,9 @@ struct Windows {
 // and depth over the rows the B-scan's windows use (padded by 2 per pass), stored on the
 // windows. A pixel at or above io::kInvalidThreshold (or NaN) counts as 0 and clears its
 // column's valid flag. Needs ilm.valid sized nb × na.
+// The windows' B-scan b is the scan's B-scan b0 + b.
 [[nodiscard]] std::vector<float> despeckle(const io::Scan& scan, const Windows& w,
-                                           int despeckle_passes, DeviceIlm& ilm);
+                                           int despeckle_passes, DeviceIlm& ilm, int b0 = 0);
 
 // One [1 4 6 4 1]/16 pass along x (rows of length na) and then along depth over rows
 // [0, rows), edge samples repeated.

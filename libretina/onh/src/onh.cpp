@@ -70,15 +70,6 @@ IlmSource ilm_source_from_string(const std::string& name) {
 
 namespace {
 
-// The level set runs on a volume's 3-D grid; radial scans have none yet.
-void refuse_radial_levelset(const io::Scan& scan) {
-    if (is_radial_scan(scan)) {
-        throw UsageError(
-            "--ilm levelset is not available on radial scans (the level set needs a volume's "
-            "3-D grid; docs/algorithms/onh.md \"Radial scans\"): use --ilm device");
-    }
-}
-
 IlmSurface surface_from_levelset(const LevelSetResult& ls) {
     IlmSurface out;
     out.V = ls.V;
@@ -106,7 +97,7 @@ IlmSurface surface_from_levelset(const LevelSetResult& ls) {
 }  // namespace
 
 IlmSurface levelset_ilm_surface(const io::Scan& scan) {
-    refuse_radial_levelset(scan);
+    if (is_radial_scan(scan)) return onh_detail::radial_levelset_ilm_surface(scan);
     require_onh_volume(scan);
     return surface_from_levelset(levelset_ilm(scan));
 }
@@ -145,7 +136,13 @@ IlmSurface build_ilm_surface(const io::Scan& scan, IlmSource source) {
 
 IlmSurface build_ilm_surface_releasing_pixels(io::Scan& scan, IlmSource source) {
     if (source != IlmSource::kLevelSet) return build_ilm_surface(scan, source);
-    refuse_radial_levelset(scan);
+    if (is_radial_scan(scan)) {
+        // The radial pixels (24 B-scans) are small beside the surface's stages: freed after.
+        IlmSurface s = onh_detail::radial_levelset_ilm_surface(scan);
+        for (auto& bs : scan.bscans) bs.pixels = std::vector<float>();
+        scan.pixels_loaded = false;
+        return s;
+    }
     require_onh_volume(scan);
     return surface_from_levelset(levelset_ilm_releasing_pixels(scan));
 }

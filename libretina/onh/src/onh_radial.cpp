@@ -218,9 +218,32 @@ GridSurface radial_bmo_points(const io::Scan& scan, const RadialOnhGrid& grid,
     return bm;
 }
 
+// Closest point of the segments (s, z) to (s0, z0): {distance, s, z}; NaN without segments.
+std::array<double, 3> closest_on_segments(const std::vector<PlaneSegment>& segs, double s0,
+                                          double z0) {
+    std::array<double, 3> best{kNaN, kNaN, kNaN};
+    double best_d2 = std::numeric_limits<double>::infinity();
+    for (const PlaneSegment& g : segs) {
+        const double es = g.s1 - g.s0, ez = g.z1 - g.z0;
+        const double len2 = es * es + ez * ez;
+        const double t =
+            len2 > 0.0 ? std::clamp(((s0 - g.s0) * es + (z0 - g.z0) * ez) / len2, 0.0, 1.0) : 0.0;
+        const double qs = g.s0 + t * es;
+        const double qz = g.z0 + t * ez;
+        const double d2 = (qs - s0) * (qs - s0) + (qz - z0) * (qz - z0);
+        if (d2 < best_d2) {
+            best_d2 = d2;
+            best = {std::sqrt(d2), qs, qz};
+        }
+    }
+    return best;
+}
+
 // Writes mrw_inplane and its summaries: for each measured BMO point, the closest point of its
-// B-scan's ILM line (the device line: the in-plane MRW of the device's definition).
-void inplane_rim_width(const io::Scan& scan, const RadialOnhGrid& grid, OnhResult& r) {
+// B-scan's ILM curve in the B-scan's plane: the zero level of that B-scan's 2-D level set
+// (ilm.bscan_curves) or, for the device ILM, the device line (the device's definition).
+void inplane_rim_width(const io::Scan& scan, const RadialOnhGrid& grid, const IlmSurface& surf,
+                       OnhResult& r) {
     const int nx = grid.size_x;
     const Eigen::Vector2d c = r.ellipse.centre_mm;
     std::array<double, 12> sum{};
@@ -230,13 +253,15 @@ void inplane_rim_width(const io::Scan& scan, const RadialOnhGrid& grid, OnhResul
     std::vector<std::vector<double>> ilm(grid.geo.lines.size());
     for (const BmoPoint& p : r.bmo_measured) {
         const auto k = static_cast<std::size_t>(p.bscan);
-        if (ilm[k].empty()) ilm[k] = line_heights(scan, p.bscan, io::Layer::kILM);
+        const bool curves = !surf.bscan_curves.empty();
+        if (!curves && ilm[k].empty()) ilm[k] = line_heights(scan, p.bscan, io::Layer::kILM);
         const RadialLine& line = grid.geo.lines[k];
         const double ds = line.length_mm / (nx - 1);
         // The point's position along its line (it lies on it by construction).
         const Eigen::Vector2d start = grid.ascan_grid_mm(p.bscan, 0.0);
         const double s0 = (p.mm.head<2>() - start).norm();
-        const auto [d, qs, qz] = closest_on_line(ilm[k], ds, s0, p.mm.z());
+        const auto [d, qs, qz] = curves ? closest_on_segments(surf.bscan_curves.at(k), s0, p.mm.z())
+                                        : closest_on_line(ilm[k], ds, s0, p.mm.z());
         if (std::isnan(d)) {
             ++skipped;
             continue;
@@ -284,6 +309,23 @@ double RadialOnhGrid::half_line_ascan(int h, double r) const {
     const auto i = static_cast<std::size_t>(h);
     const RadialLine& l = geo.lines[static_cast<std::size_t>(half_line[i])];
     return (l.crossing_along_mm + half_sign[i] * r) * (size_x - 1) / l.length_mm;
+}
+
+RadialOnhGrid::Blend RadialOnhGrid::blend_at(const Eigen::Vector2d& p) const {
+    const int nh = static_cast<int>(half_angle.size());
+    double th = std::atan2(p.y(), p.x());
+    if (th < 0.0) th += 2.0 * kPi;
+    // Half-line j with a_j <= th < a_j+1 (cyclic).
+    const auto it = std::upper_bound(half_angle.begin(), half_angle.end(), th);
+    const int j1 = static_cast<int>(it - half_angle.begin()) % nh;
+    const int j0 = (j1 + nh - 1) % nh;
+    double a0 = half_angle[static_cast<std::size_t>(j0)];
+    double a1 = half_angle[static_cast<std::size_t>(j1)];
+    if (a1 <= a0) a1 += 2.0 * kPi;
+    double t = th;
+    if (t < a0) t += 2.0 * kPi;
+    const double w = a1 > a0 ? std::clamp((t - a0) / (a1 - a0), 0.0, 1.0) : 0.0;
+    return {j0, j1, w};
 }
 
 RadialOnhGrid radial_onh_grid(const io::Scan& scan) {
@@ -354,7 +396,6 @@ GridSurface radial_height_field(const io::Scan& scan, const RadialOnhGrid& grid,
     const auto nn = static_cast<std::size_t>(grid.n) * static_cast<std::size_t>(grid.n);
     s.z.assign(nn, kNaN);
     s.filled.assign(nn, 0);
-    const int nh = static_cast<int>(grid.half_angle.size());
     for (int b = 0; b < grid.n; ++b) {
         for (int a = 0; a < grid.n; ++a) {
             const std::size_t i = static_cast<std::size_t>(b) * static_cast<std::size_t>(grid.n) +
@@ -363,19 +404,7 @@ GridSurface radial_height_field(const io::Scan& scan, const RadialOnhGrid& grid,
             const Eigen::Vector2d p = Eigen::Vector2d(a * grid.step_mm, b * grid.step_mm) -
                                       grid.crossing_mm;
             const double r = p.norm();
-            double th = std::atan2(p.y(), p.x());
-            if (th < 0.0) th += 2.0 * kPi;
-            // Half-line j with a_j <= th < a_j+1 (cyclic).
-            const auto it =
-                std::upper_bound(grid.half_angle.begin(), grid.half_angle.end(), th);
-            const int j1 = static_cast<int>(it - grid.half_angle.begin()) % nh;
-            const int j0 = (j1 + nh - 1) % nh;
-            double a0 = grid.half_angle[static_cast<std::size_t>(j0)];
-            double a1 = grid.half_angle[static_cast<std::size_t>(j1)];
-            if (a1 <= a0) a1 += 2.0 * kPi;
-            double t = th;
-            if (t < a0) t += 2.0 * kPi;
-            const double w = a1 > a0 ? std::clamp((t - a0) / (a1 - a0), 0.0, 1.0) : 0.0;
+            const auto [j0, j1, w] = grid.blend_at(p);
             const double f0 = at_fraction(lines[static_cast<std::size_t>(
                                               grid.half_line[static_cast<std::size_t>(j0)])],
                                           grid.half_line_ascan(j0, r));
@@ -457,7 +486,7 @@ OnhResult analyse_onh_radial(const io::Scan& scan, const IlmSurface& ilm,
     const double bmo_radius = std::sqrt(r.ellipse.semi_major_mm * r.ellipse.semi_minor_mm);
     minimum_rim_width(grid.geo.mean_length_mm / (grid.size_x - 1),
                       bmo_radius * grid.geo.max_step_deg * kPi / 180.0, r);
-    inplane_rim_width(scan, grid, r);
+    inplane_rim_width(scan, grid, ilm, r);
     const double side = (grid.n - 1) * grid.step_mm;
     check_onh_result(r, side, side, scan.meta.size_z * scan.meta.scale_z_mm);
     r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -22,6 +22,7 @@
 
 #include "octshape/io/scan.h"
 #include "octshape/mesh/mesh.h"
+#include "octshape/retina/levelset.h"
 #include "octshape/retina/onh.h"
 #include "octshape/retina/radial_geometry.h"
 #include "octshape/retina/scan_geometry.h"
@@ -140,6 +141,14 @@ struct RadialOnhGrid {
     }
     // Fractional A-scan index of the point `r` mm from the crossing along half-line h.
     [[nodiscard]] double half_line_ascan(int h, double r) const;
+    // The two half-lines about a point p (grid mm relative to the crossing, p != 0) and the
+    // weight of the second: h0, h1 neighbours in angle (a_h0 <= theta < a_h1, cyclic), w =
+    // (theta - a_h0) / (a_h1 - a_h0) — the interpolation linear in angle of every surface.
+    struct Blend {
+        int h0 = 0, h1 = 0;
+        double w = 0.0;
+    };
+    [[nodiscard]] Blend blend_at(const Eigen::Vector2d& p) const;
 };
 
 // AnalysisError (one line) when the radial scan cannot be placed or analysed (radial_geometry;
@@ -156,6 +165,15 @@ struct RadialOnhGrid {
 // The device ILM of a radial scan on its grid (missing values thin-plate filled inside the
 // scanned circle), meshed over the scanned circle.
 [[nodiscard]] IlmSurface radial_device_ilm_surface(const io::Scan& scan);
+
+// The level-set ILM of a radial scan (onh_radial_levelset.cpp): a 2-D level set per B-scan
+// (the volume's stages on one B-scan), each B-scan's signed distance to its zero-level curve
+// interpolated between the lines like radial_height_field onto the grid, marching cubes, the
+// clean-up (clip to the scanned circle, largest component, normals up) and RoFi. The curves go
+// to bscan_curves (the in-plane MRW). AnalysisError for a B-scan without pixels, without an
+// image or without a device ILM (naming it).
+[[nodiscard]] IlmSurface radial_levelset_ilm_surface(const io::Scan& scan,
+                                                     const LevelSetParams& params = {});
 
 // The radial driver (analyse_onh dispatches to it).
 [[nodiscard]] OnhResult analyse_onh_radial(

@@ -30,6 +30,12 @@ enum class IlmSource { kLevelSet, kDevice };
 // Parses "levelset" or "device"; throws UsageError naming the valid sources otherwise.
 [[nodiscard]] IlmSource ilm_source_from_string(const std::string& name);
 
+// A segment of a curve in one B-scan's vertical plane: (s, z) mm, s along the line from its
+// first A-scan, z the height (-depth).
+struct PlaneSegment {
+    double s0 = 0.0, z0 = 0.0, s1 = 0.0, z1 = 0.0;
+};
+
 // An ILM surface ready for the analysis.
 struct IlmSurface {
     mesh::Vertices V;    // grid mm
@@ -39,6 +45,10 @@ struct IlmSurface {
     std::vector<std::uint8_t> vertex_filled;  // #V flags (1 = filled), or empty
     std::vector<std::string> notes;
     std::vector<std::string> qc_flags;  // e.g. "level set did not converge"
+    // Radial scans with the level-set ILM: per B-scan (index = B-scan) the zero-level curve of
+    // its 2-D level set in the B-scan's own plane; the in-plane MRW is measured on it. Empty
+    // for the device ILM (the in-plane MRW then uses each B-scan's device ILM line).
+    std::vector<std::vector<PlaneSegment>> bscan_curves;
 };
 
 // The device ILM line as a graph mesh on the scan grid, missing values thin-plate filled
@@ -47,7 +57,9 @@ struct IlmSurface {
 [[nodiscard]] IlmSurface device_ilm_surface(const io::Scan& scan);
 
 // The level-set ILM (retina/levelset.h: Chan–Vese narrow band on the B-scan intensities,
-// marching cubes, RoFi) with its diagnostics as notes and QC flags. Needs the pixels.
+// marching cubes, RoFi) with its diagnostics as notes and QC flags. Needs the pixels. On a
+// radial scan a 2-D level set per B-scan, interpolated between the lines (bscan_curves filled;
+// docs/algorithms/onh.md "Radial scans").
 [[nodiscard]] IlmSurface levelset_ilm_surface(const io::Scan& scan);
 
 // Builds the ILM of `source` (the one place a new source is added).
