@@ -12,6 +12,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <set>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include "commands/macula_qc.h"
 #include "commands/onh_qc_radial.h"
@@ -232,6 +235,51 @@ TEST(OnhRadialQc, CohortWritesThemAndTheGalleryListsThem) {
         EXPECT_FALSE(cv::imread((dir / "out" / "qc" / *it).string()).empty()) << *it;
     }
     EXPECT_EQ(page.find("scan.vol"), std::string::npos);  // no file name on the shared page
+}
+
+// A folder of radial scans with the cohort's defaults (the classifier, the level-set ILM): the
+// radial ONH scan is an ONH eye, the radial macula scan a macula eye, each one row of its table
+// with the scan pattern it has.
+TEST(RadialCohort, DefaultsClassifyAndAnalyseRadialOnhAndMaculaScans) {
+    const test::TempDir dir;
+    fs::create_directories(dir / "in");
+    fs::copy_file(radial_onh_sample(), dir / "in" / "disc.vol");
+    const auto made = test::run_octshape("phantom macula --pattern radial --lines 12 -o " +
+                                         (dir / "in" / "fovea.vol").string());
+    ASSERT_EQ(made.exit_code, 0) << made.err;
+    fs::remove(dir / "in" / "fovea.truth.json");  // only the scans in the folder
+    const auto r = test::run_octshape("cohort " + (dir / "in").string() + " -o " +
+                                      (dir / "out").string() + " -q --jobs 1");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto rows = [&](const char* table) {
+        std::vector<std::string> lines;
+        std::istringstream in(test::slurp(dir / "out" / table));
+        for (std::string line; std::getline(in, line);) lines.push_back(line);
+        return lines;
+    };
+    const auto macula = rows("eyes.csv");
+    const auto onh = rows("eyes_onh.csv");
+    ASSERT_EQ(macula.size(), 2U);  // header + the radial macula eye
+    ASSERT_EQ(onh.size(), 2U);     // header + the radial ONH eye
+    EXPECT_NE(macula[1].find(",macula,"), std::string::npos) << macula[1];
+    EXPECT_NE(onh[1].find(",onh,"), std::string::npos) << onh[1];
+    EXPECT_NE(onh[1].find(",levelset,"), std::string::npos) << onh[1];
+    // The in-plane MRW exists for radial scans only (NA for volumes): the row is a radial eye's.
+    const auto split = [](const std::string& line) {
+        std::vector<std::string> cells;
+        std::istringstream in(line);
+        for (std::string c; std::getline(in, c, ',');) cells.push_back(c);
+        return cells;
+    };
+    const auto header = split(onh[0]);
+    const auto values = split(onh[1]);
+    const auto col = std::find(header.begin(), header.end(), "mrw_inplane_mean_mm");
+    ASSERT_NE(col, header.end()) << onh[0];
+    const auto at = static_cast<std::size_t>(col - header.begin());
+    ASSERT_LT(at, values.size());
+    EXPECT_GT(std::stod(values[at]), 0.1) << values[at];  // mm; a normal rim is ~0.3 mm
+    EXPECT_FALSE(fs::exists(dir / "out" / "failures.csv") &&
+                 rows("failures.csv").size() > 1);
 }
 
 // ---- Radial macula -----------------------------------------------------------------------
