@@ -23,8 +23,8 @@
 // step 180/N deg, every phase of the star, plus +-3 deg; the eye turns about the field centre
 // as above), fresh speckle, BM tilt and device-line noise as above; the same eyes as the
 // volume run. BSCANS then only sets the truth frame (the volume of the same parameters,
-// default 145). The ILM: --ilm levelset (default) or device; radial scans need device until
-// the level set runs on them (a usage error, exit 64, otherwise). Radial runs add the in-plane
+// default 145). The ILM: --ilm levelset (default; on a radial scan the 2-D level set per
+// B-scan) or device. Radial runs add the in-plane
 // MRW (the device's definition) and a table of within-eye SDs by crossing offset.
 // Usage: onh_rescan [EYES [REPEATS [BSCANS [ASCANS [NOISE_PX]]]]] [--pattern volume|radial]
 //                   [--lines N] [--max-offset-um D] [--ilm levelset|device]

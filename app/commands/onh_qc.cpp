@@ -35,14 +35,10 @@ cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
     const retina::GridSurface& g = r.rpe;
     const int cw = g.cols - 1;
     const int ch = g.rows - 1;
-    const std::vector<double> h = onh_cell_heights(r);
-    double lo = 0.0;
-    double hi = 0.1;
-    for (const double v : h) {
-        if (std::isnan(v)) continue;
-        lo = std::min(lo, v);
-        hi = std::max(hi, v);
-    }
+    const CellHeights heights = onh_cell_heights(r);
+    const std::vector<double>& h = heights.h;
+    const double lo = heights.lo;
+    const double hi = heights.hi;
     cv::Mat grey(ch, cw, CV_8UC1, cv::Scalar(0));
     for (int b = 0; b < ch; ++b) {
         for (int a = 0; a < cw; ++a) {

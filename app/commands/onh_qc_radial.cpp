@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
+#include <utility>
 #include <vector>
 
 #include "commands/qc_draw.h"
@@ -90,7 +91,7 @@ cv::Point RadialSheetLayout::px(int line, double ascan, double depth_px) const {
     return round_pt(o.x + (ascan + 0.5) * sx() - 0.5, o.y + (depth_px - z0 + 0.5) * sz() - 0.5);
 }
 
-std::vector<double> onh_cell_heights(const retina::OnhResult& r) {
+CellHeights onh_cell_heights(const retina::OnhResult& r) {
     const retina::GridSurface& g = r.rpe;
     const int cw = g.cols - 1;
     const int ch = g.rows - 1;
@@ -109,7 +110,14 @@ std::vector<double> onh_cell_heights(const retina::OnhResult& r) {
             h[i] = r.face_height_mm(f);
         }
     }
-    return h;
+    CellHeights out;
+    for (const double v : h) {
+        if (std::isnan(v)) continue;
+        out.lo = std::min(out.lo, v);
+        out.hi = std::max(out.hi, v);
+    }
+    out.h = std::move(h);
+    return out;
 }
 
 double radial_ascan_of(const retina::RadialGeometry& geo,
@@ -132,14 +140,10 @@ cv::Mat radial_enface_picture(const io::Scan& scan,
     const retina::GridSurface& g = r.rpe;
     const int cw = g.cols - 1;
     const int ch = g.rows - 1;
-    const std::vector<double> h = onh_cell_heights(r);
-    double lo = 0.0;
-    double hi = 0.1;
-    for (const double v : h) {
-        if (std::isnan(v)) continue;
-        lo = std::min(lo, v);
-        hi = std::max(hi, v);
-    }
+    const CellHeights heights = onh_cell_heights(r);
+    const std::vector<double>& h = heights.h;
+    const double lo = heights.lo;
+    const double hi = heights.hi;
     cv::Mat grey(ch, cw, CV_8UC1, cv::Scalar(0));
     cv::Mat none(ch, cw, CV_8UC1, cv::Scalar(0));
     cv::Mat cup(ch, cw, CV_8UC1, cv::Scalar(0));

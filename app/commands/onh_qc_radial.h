@@ -50,8 +50,14 @@ struct RadialSheetLayout {
 
 // Height above the RPE of the topmost ILM face over each cell of r.rpe (NaN: no face),
 // row-major (b * (cols - 1) + a) over its (cols - 1) x (rows - 1) cells: the en-face pictures'
-// values, a volume's and a radial scan's.
-[[nodiscard]] std::vector<double> onh_cell_heights(const retina::OnhResult& r);
+// values, a volume's and a radial scan's; with their colour range [lo, hi] (lo <= 0, hi >= 0.1
+// mm, so that a flat disc is not stretched over the whole scale).
+struct CellHeights {
+    std::vector<double> h;
+    double lo = 0.0;
+    double hi = 0.1;
+};
+[[nodiscard]] CellHeights onh_cell_heights(const retina::OnhResult& r);
 
 // Fractional A-scan index along line `line` of grid mm point `xy` (its projection on the line).
 [[nodiscard]] double radial_ascan_of(const retina::RadialGeometry& geo,
