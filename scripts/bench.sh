@@ -14,7 +14,7 @@ while read -r bench; do
   case "$bench" in
     rofi_autostop) runs=("--bunny build/mesh_family/bunny.obj") ;;
     macula_rescan) runs=("" "--pattern radial --lines 12" "--pattern radial --lines 24") ;;
-    onh_rescan) runs=("" "--pattern radial --lines 24 --ilm device") ;;
+    onh_rescan) runs=("" "--pattern radial --lines 24" "--pattern radial --lines 24 --ilm device") ;;
     *) runs=("") ;;
   esac
   for run in "${runs[@]}"; do
