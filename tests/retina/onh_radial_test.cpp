@@ -402,6 +402,17 @@ TEST(OnhRadial, LevelSetRefusesBscansWithoutAnImage) {
     no_pixels.pixels_loaded = false;
     EXPECT_THROW((void)build_ilm_surface(no_pixels, IlmSource::kLevelSet), AnalysisError);
     EXPECT_NO_THROW((void)analyse_onh(blank, build_ilm_surface(blank, IlmSource::kDevice)));
+    // A depth no radial grid can afford (128 A-scans of 34 um: ~128 x 128 nodes; x 65536 rows
+    // = 1.1e9 voxels > 2^28) is refused before any work, whatever the pixels say.
+    io::Scan deep = scan;
+    deep.meta.size_z = 65536;
+    try {
+        (void)build_ilm_surface(deep, IlmSource::kLevelSet);
+        ADD_FAILURE() << "a grid of 1e9 voxels was allocated";
+    } catch (const AnalysisError& e) {
+        EXPECT_NE(std::string(e.what()).find("radial grid would need"), std::string::npos)
+            << e.what();
+    }
 }
 
 }  // namespace

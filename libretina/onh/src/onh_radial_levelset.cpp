@@ -288,6 +288,20 @@ IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParam
     if (!scan.pixels_loaded) throw AnalysisError("level-set ILM needs the B-scan pixels");
     const RadialOnhGrid grid = radial_onh_grid(scan);
     if (scan.meta.size_z < 4) throw AnalysisError("level-set ILM: B-scans of fewer than 4 rows");
+    // Memory bound, before any work: the grid's depth windows hold at most n x n x SizeZ
+    // voxels (4 bytes each; the per-B-scan level sets are smaller). A real radial scan has
+    // n <= 257 nodes per side and 496-1024 rows (<= 68 M voxels); a file whose depth would need
+    // more than 2^28 voxels (1 GiB of distances) is refused rather than allocating what its
+    // few lines of pixels do not justify.
+    constexpr std::int64_t kMaxGridVoxels = std::int64_t{1} << 28;
+    const std::int64_t grid_voxels = std::int64_t{grid.n} * grid.n * scan.meta.size_z;
+    if (grid_voxels > kMaxGridVoxels) {
+        throw AnalysisError("level-set ILM: the radial grid would need " +
+                            std::to_string(grid_voxels) + " voxels (" + std::to_string(grid.n) +
+                            " x " + std::to_string(grid.n) + " nodes x " +
+                            std::to_string(scan.meta.size_z) + " rows), more than " +
+                            std::to_string(kMaxGridVoxels) + "; use --ilm device");
+    }
     const int nl = static_cast<int>(grid.geo.lines.size());
     const int na = scan.meta.size_x;
     const double hz = scan.meta.scale_z_mm;
