@@ -70,6 +70,21 @@ std::pair<double, double> thickness_range(const retina::CubeResult& r) {
 }
 
 // A volume's thickness map, with colour bar (um), 1 mm scale bar, the disks and the centre.
+// The rim, slope and pit-flat disks (Eq. 7.16-7.18) as closed lines; to_px(x, y) maps grid mm
+// to the picture's pixels.
+template <class ToPx>
+void draw_disks(cv::Mat& img, const retina::CubeResult& r, const ToPx& to_px) {
+    const auto poly = [&](const retina::CubeDisk& d, const cv::Scalar& c) {
+        if (d.points.empty()) return;
+        std::vector<cv::Point> pts;
+        for (const auto& p : d.points) pts.push_back(to_px(p.x(), p.y()));
+        cv::polylines(img, pts, true, c, 2, cv::LINE_AA);
+    };
+    poly(r.rim, kRim);
+    poly(r.slope, kSlope);
+    poly(r.pit_flat, kFlat);
+}
+
 cv::Mat thickness_map_picture(const retina::CubeResult& r, const std::string& title) {
     const retina::ThicknessMap& m = r.map;
     const double width_mm = (m.cols - 1) * m.dx_mm;
@@ -102,15 +117,7 @@ cv::Mat thickness_map_picture(const retina::CubeResult& r, const std::string& ti
         cv::line(img, to_px(r.centre_mm.x(), r.centre_mm.y()), to_px(e.x(), e.y()),
                  cv::Scalar(200, 200, 200), 1, cv::LINE_AA);
     }
-    auto poly = [&](const retina::CubeDisk& d, cv::Scalar c) {
-        if (d.points.empty()) return;
-        std::vector<cv::Point> pts;
-        for (const auto& p : d.points) pts.push_back(to_px(p.x(), p.y()));
-        cv::polylines(img, pts, true, c, 2, cv::LINE_AA);
-    };
-    poly(r.rim, kRim);
-    poly(r.slope, kSlope);
-    poly(r.pit_flat, kFlat);
+    draw_disks(img, r, to_px);
     // Anatomical labels at the ends of the nasal (0 deg) and superior (90 deg) half-lines.
     for (const auto& h : r.half_lines) {
         const char* label = h.angle_deg == 0.0 ? "N" : (h.angle_deg == 90.0 ? "S" : nullptr);
@@ -355,15 +362,7 @@ cv::Mat macula_radial_thickness_picture(const retina::CubeResult& r, const io::S
         const cv::Point t = L.px(e.x() + 0.12 * u.x(), e.y() + 0.12 * u.y()) + cv::Point(-6, 5);
         outlined_text(img, std::to_string(k + 1), t, 0.4, cv::Scalar(200, 200, 200));
     }
-    auto poly = [&](const retina::CubeDisk& d, cv::Scalar c) {
-        if (d.points.empty()) return;
-        std::vector<cv::Point> pts;
-        for (const auto& p : d.points) pts.push_back(L.px(p.x(), p.y()));
-        cv::polylines(img, pts, true, c, 2, cv::LINE_AA);
-    };
-    poly(r.rim, kRim);
-    poly(r.slope, kSlope);
-    poly(r.pit_flat, kFlat);
+    draw_disks(img, r, [&](double x, double y) { return L.px(x, y); });
     for (const auto& h : r.half_lines) {
         const char* label = h.angle_deg == 0.0 ? "N" : (h.angle_deg == 90.0 ? "S" : nullptr);
         if (label == nullptr || h.r_mm.empty()) continue;

@@ -19,14 +19,8 @@
 namespace octshape::app {
 namespace {
 
-const cv::Scalar& kEllipse = palette::kRed;
-const cv::Scalar& kDisc = palette::kYellow;
-const cv::Scalar& kBmo = palette::kWhite;
-const cv::Scalar& kDeviceIlm = palette::kGreen;
-const cv::Scalar& kUsedIlm = palette::kRed;  // was (40, 40, 240): the one red of the palette
-const cv::Scalar& kBm = palette::kBlue;
+using namespace onh_colours;  // onh_qc_radial.h
 const cv::Scalar& kFilled = palette::kCyan;
-const cv::Scalar& kMrw = palette::kPink;
 const cv::Scalar& kInplane = palette::kDeepBlue;  // radial scans: the in-plane MRW
 
 // Height above the RPE of the topmost ILM face over each grid cell.

@@ -14,14 +14,8 @@
 namespace octshape::app {
 namespace {
 
-// The colours of the volume's pictures (onh_qc.cpp), and those of what only a radial scan has.
-const cv::Scalar& kEllipse = palette::kRed;
-const cv::Scalar& kDisc = palette::kYellow;
-const cv::Scalar& kBmo = palette::kWhite;
-const cv::Scalar& kDeviceIlm = palette::kGreen;
-const cv::Scalar& kUsedIlm = palette::kRed;
-const cv::Scalar& kBm = palette::kBlue;
-const cv::Scalar& kMrw = palette::kPink;
+// The ONH pictures' colours (onh_qc_radial.h), and those of what only a radial scan has.
+using namespace onh_colours;
 const cv::Scalar& kCrossing = palette::kCyan;
 const cv::Scalar kLine(200, 200, 200);
 const cv::Scalar kNotScanned(60, 60, 60);

@@ -9,11 +9,23 @@
 #include <string>
 #include <vector>
 
+#include "commands/qc_draw.h"
 #include "octshape/io/scan.h"
 #include "octshape/retina/onh.h"
 #include "octshape/retina/radial_geometry.h"
 
 namespace octshape::app {
+
+// The colours of what an ONH picture draws, the same in a volume's and a radial scan's.
+namespace onh_colours {
+inline const cv::Scalar& kEllipse = palette::kRed;
+inline const cv::Scalar& kDisc = palette::kYellow;
+inline const cv::Scalar& kBmo = palette::kWhite;
+inline const cv::Scalar& kDeviceIlm = palette::kGreen;
+inline const cv::Scalar& kUsedIlm = palette::kRed;  // was (40, 40, 240): the one red of the palette
+inline const cv::Scalar& kBm = palette::kBlue;
+inline const cv::Scalar& kMrw = palette::kPink;
+}  // namespace onh_colours
 
 // En-face picture: the (n - 1) x (n - 1) cells of the radial grid, `ppm` pixels per mm, inside
 // a margin (for the lines' labels) under the title strip.
