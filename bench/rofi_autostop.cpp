@@ -15,9 +15,12 @@
 // over σ_s and p) and ENVT (automatic). MSAE in degrees; "cr" = flips created (flipped in the
 // output, not in the input). The cost table times the rule with its stop against the same
 // parameters and the same p without it (CPU s, one thread, min of 5, interleaved).
-// --curves FILE writes every run's (k, δ_k / l_e, MSAE_k, created_k) as TSV, for the analysis.
+// --curves FILE writes every run's (k, δ_k / l_e, MSAE_k, created_k) as TSV, for the analysis
+// (bench/rofi_oracle_analysis.py CURVES TRACE [SIGMAS]: the gap to the oracle split into the
+// stop's part and the parameters' part; scripts/bench.sh runs it on the default cases).
 // --trace FILE: the automatic rule's parameters alone, run to kMaxIterations without a stop,
-// every iteration's RofiProgress, MSAE and created flips as TSV (the curves of "Stopping");
+// every iteration's RofiProgress, MSAE and created flips, and the mesh's noise estimate (σ̂_n in
+// l_e, θ in degrees) as TSV (the curves of "Stopping"; bench/rofi_oracle_analysis.py);
 // --trace-sigma A,B,...: the same with these σ_s instead of the rule's.
 // --cost: the cost table alone, --reps N interleaved pairs (default 9), medians.
 // --only NAME,...: the cases whose name starts with one of these.
@@ -344,7 +347,7 @@ int main(int argc, char** argv) {
     if (!trace_path.empty()) {
         trace.open(trace_path);
         trace << "mesh\tsigma_s\tk\tdelta_le\twhiteness\tthreshold\ttested\tmsae\tcreated\t"
-                 "features\tfeature_rms_le\tflat_rms_le\n";
+                 "features\tfeature_rms_le\tflat_rms_le\tnoise_sigma_le\tnormal_angle_deg\n";
     }
     if (!cost_only) {
         std::printf("%-26s %7s %6s %6s | %4s %7s %4s | %7s %4s %-22s | %7s %4s | %7s %4s %7s "
@@ -391,7 +394,8 @@ int main(int argc, char** argv) {
                           << q.displacement / le << '\t' << q.whiteness << '\t' << q.threshold
                           << '\t' << q.tested_vertices << '\t' << m << '\t' << cr << '\t'
                           << q.feature_vertices << '\t' << q.feature_rms / le << '\t'
-                          << q.flat_rms / le << '\n';
+                          << q.flat_rms / le << '\t' << noise.noise_sigma << '\t'
+                          << noise.normal_angle_deg << '\n';
                 };
                 (void)mesh::rofi_denoise(c.noisy, c.F, tp);
             }

@@ -5,6 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 cmake --preset release >/dev/null
 cmake --build --preset release -j 2 --target octshape_benches
+mkdir -p build/bench
 # The bunny of the organic mesh family (npm package `bunny`; skipped if npm/node are absent).
 ./scripts/mesh_family.sh build/mesh_family || echo "(no bunny: npm/node unavailable)"
 while read -r bench; do
@@ -12,7 +13,8 @@ while read -r bench; do
   # One run per line of `runs` (its arguments; an empty line: the defaults). The re-scan
   # benches also run on radial scans (issue 20; full sizes: see each bench's usage line).
   case "$bench" in
-    rofi_autostop) runs=("--bunny build/mesh_family/bunny.obj") ;;
+    # rofi_autostop also writes its curves and trace for bench/rofi_oracle_analysis.py (below).
+    rofi_autostop) runs=("--bunny build/mesh_family/bunny.obj --curves build/bench/rofi_curves.tsv --trace build/bench/rofi_trace.tsv") ;;
     macula_rescan) runs=("" "--pattern radial --lines 12" "--pattern radial --lines 24") ;;
     onh_rescan) runs=("" "--pattern radial --lines 24" "--pattern radial --lines 24 --ilm device") ;;
     *) runs=("") ;;
@@ -21,4 +23,9 @@ while read -r bench; do
     read -ra args <<< "$run"
     "./build/release/bench/$bench" "${args[@]}"
   done
+  if [ "$bench" = rofi_autostop ]; then
+    # Where the automatic rule's distance to the oracle comes from (docs/algorithms/rofi.md,
+    # "Why the target is out of reach"; the whole family: rofi_autostop --full, see its usage).
+    python3 bench/rofi_oracle_analysis.py build/bench/rofi_curves.tsv build/bench/rofi_trace.tsv
+  fi
 done < build/release/bench/benches.txt
