@@ -148,6 +148,8 @@ def main(curves_path, trace_path, sigmas_path=None):
                         ("param", "perfect stop / oracle"), ("univ", "universal / oracle"),
                         ("transfer", "other seed's oracle / oracle")):
         v = ratios[name]
+        if not v:  # "transfer" needs both seeds (--full)
+            continue
         print("%-30s n=%2d median %.3f mean %.3f worst %.3f  <= 1.05 on %d" % (
             label, len(v), median(v), sum(v) / len(v), max(v), sum(1 for x in v if x <= 1.05)))
     print("auto creates more flips than the oracle on %d of %d: %s" % (
