@@ -20,7 +20,7 @@
 // stop's part and the parameters' part; scripts/bench.sh runs it on the default cases).
 // --trace FILE: the automatic rule's parameters alone, run to kMaxIterations without a stop,
 // every iteration's RofiProgress, MSAE and created flips, and the mesh's noise estimate (σ̂_n in
-// l_e, θ in degrees) as TSV (the curves of "Stopping"; bench/rofi_oracle_analysis.py);
+// l_e, θ in degrees) and the rule's maximum p as TSV (the curves of "Stopping"; bench/rofi_oracle_analysis.py);
 // --trace-sigma A,B,...: the same with these σ_s instead of the rule's.
 // --cost: the cost table alone, --reps N interleaved pairs (default 9), medians.
 // --only NAME,...: the cases whose name starts with one of these.
@@ -347,7 +347,8 @@ int main(int argc, char** argv) {
     if (!trace_path.empty()) {
         trace.open(trace_path);
         trace << "mesh\tsigma_s\tk\tdelta_le\twhiteness\tthreshold\ttested\tmsae\tcreated\t"
-                 "features\tfeature_rms_le\tflat_rms_le\tnoise_sigma_le\tnormal_angle_deg\n";
+                 "features\tfeature_rms_le\tflat_rms_le\tnoise_sigma_le\tnormal_angle_deg\t"
+                 "rule_iterations\n";
     }
     if (!cost_only) {
         std::printf("%-26s %7s %6s %6s | %4s %7s %4s | %7s %4s %-22s | %7s %4s | %7s %4s %7s "
@@ -395,7 +396,7 @@ int main(int argc, char** argv) {
                           << '\t' << q.tested_vertices << '\t' << m << '\t' << cr << '\t'
                           << q.feature_vertices << '\t' << q.feature_rms / le << '\t'
                           << q.flat_rms / le << '\t' << noise.noise_sigma << '\t'
-                          << noise.normal_angle_deg << '\n';
+                          << noise.normal_angle_deg << '\t' << ap.iterations << '\n';
                 };
                 (void)mesh::rofi_denoise(c.noisy, c.F, tp);
             }

@@ -4,7 +4,8 @@
 
 Reads the two TSVs `rofi_autostop --full --curves CURVES --trace TRACE` writes and prints, per
 mesh and over the family:
-  auto      the automatic rule (its stop, maximum 30): the trace at the stop's iteration;
+  auto      the automatic rule (its stop and its maximum p, both read off the trace): the
+            trace at the stop's iteration;
   stop*     the best iteration of the automatic parameters (k <= 80): a perfect stop;
   oracle    the best of the grid (sigma_s, lambda_I, r = 2 sigma_c, p);
   universal the one grid setting with the lowest worst ratio to the oracle over all meshes;
@@ -17,7 +18,7 @@ takes (sigma_s, lambda_I, disk) from the estimate gives both the same ones, so t
 the grid of the larger of the two ratios (each at its own best p: any stop) bounds such a rule
 from below on that pair.
 With a third TSV, `rofi_autostop --full --no-oracle --trace-sigma 0.5,0.7,0.9,1.2 --trace
-SIGMAS`: each sigma_s stopped by W (maximum 30 and 80), one of them picked per mesh with the
+SIGMAS`: each sigma_s stopped by W (the rule's maximum, and the trace's length), one of them picked per mesh with the
 truth (the best a choice among them could do) and without it (the largest residual at the
 stop: the run that removed the most before its residual stopped being white).
 Usage: rofi_oracle_analysis.py CURVES TRACE [SIGMAS]
@@ -52,7 +53,16 @@ def stop_k(t, maximum):
     return max(t)
 
 
-def sigma_choice(sigmas_path, oracle, today):
+def other_seed(m):
+    """The same surface and noise with the other seed ("... s1" <-> "... s2"), or None."""
+    if m.endswith(" s1"):
+        return m[:-1] + "2"
+    if m.endswith(" s2"):
+        return m[:-1] + "1"
+    return None
+
+
+def sigma_choice(sigmas_path, oracle, rule, rule_maximum):
     runs = collections.defaultdict(lambda: collections.defaultdict(dict))
     for row in read_tsv(sigmas_path):
         runs[row["mesh"]][float(row["sigma_s"])][int(row["k"])] = (
@@ -61,7 +71,8 @@ def sigma_choice(sigmas_path, oracle, today):
     print()
     print("sigma_s chosen per mesh among %s, each stopped by W:" % sorted(
         {s for m in runs for s in runs[m]}))
-    for maximum in (30, 80):
+    longest = max(max(t) for m in runs for t in runs[m].values())
+    for maximum in (rule_maximum, longest):
         for pick in ("truth", "largest residual"):
             ratios, worse = [], 0
             for m, by_sigma in runs.items():
@@ -73,7 +84,7 @@ def sigma_choice(sigmas_path, oracle, today):
                 else:
                     best = max(stopped.values(), key=lambda q: q[4])
                 ratios.append(best[0] / oracle[m])
-                worse += best[0] > today[m] * (1 + 1e-4)
+                worse += best[0] > rule[m] * (1 + 1e-4)
             print("  maximum %2d, picked by %-16s n=%2d median %.3f worst %.3f  <= 1.05 on %2d"
                   "  worse than the rule on %d" % (maximum, pick, len(ratios), median(ratios),
                                                    max(ratios),
@@ -88,32 +99,26 @@ def main(curves_path, trace_path, sigmas_path=None):
             continue
         key = (float(row["sigma_s"]), float(row["lambda_i"]), float(row["r"]), int(row["k"]))
         grid[row["mesh"]][key] = (float(row["msae"]), int(row["created"]))
-    # trace[mesh][k] = (msae, created, W, threshold)
+    # trace[mesh][k] = (msae, created, W, threshold); the noise estimate and the rule's maximum
+    # p are the same on every row of a mesh
     trace = collections.defaultdict(dict)
     estimate = {}
+    rule_maximum = None
     for row in read_tsv(trace_path):
+        if "rule_iterations" not in row:
+            sys.exit("%s: a trace of an older rofi_autostop (no noise estimate, no maximum p): "
+                     "write it again" % trace_path)
         trace[row["mesh"]][int(row["k"])] = (float(row["msae"]), int(row["created"]),
                                              float(row["whiteness"]), float(row["threshold"]))
-        if "noise_sigma_le" in row:  # traces before session 14 lack the estimate
-            estimate[row["mesh"]] = (float(row["noise_sigma_le"]),
-                                     float(row["normal_angle_deg"]))
+        estimate[row["mesh"]] = (float(row["noise_sigma_le"]), float(row["normal_angle_deg"]))
+        rule_maximum = int(row["rule_iterations"])
     meshes = [m for m in trace if m in grid]
     oracle = {m: min(grid[m].items(), key=lambda kv: kv[1][0]) for m in meshes}
-
-    def auto_k(m, maximum=30):
-        return stop_k(trace[m], maximum)
 
     # The universal setting: the grid key (over the keys every mesh has) whose worst ratio to
     # each mesh's oracle is lowest.
     common = set.intersection(*(set(grid[m]) for m in meshes))
     universal = min(common, key=lambda s: max(grid[m][s][0] / oracle[m][1][0] for m in meshes))
-
-    def other_seed(m):
-        if m.endswith(" s1"):
-            return m[:-1] + "2"
-        if m.endswith(" s2"):
-            return m[:-1] + "1"
-        return None
 
     print("%-26s %4s %7s %3s | %4s %7s | %7s %3s %-24s | %6s %6s %6s | %6s %6s" % (
         "mesh", "p", "auto", "cr", "k*", "stop*", "oracle", "cr", "(s_s, l_I, r, p)", "a/or", "a/st*",
@@ -121,7 +126,7 @@ def main(curves_path, trace_path, sigmas_path=None):
     ratios = collections.defaultdict(list)
     more_flips = []
     for m in meshes:
-        k = auto_k(m)
+        k = stop_k(trace[m], rule_maximum)
         a = trace[m][k][0]
         kbest = min(trace[m], key=lambda kk: trace[m][kk][0])
         s = trace[m][kbest][0]
@@ -157,7 +162,8 @@ def main(curves_path, trace_path, sigmas_path=None):
 
     if sigmas_path:
         sigma_choice(sigmas_path, {m: oracle[m][1][0] for m in meshes},
-                     {m: trace[m][auto_k(m)][0] for m in meshes})
+                     {m: trace[m][stop_k(trace[m], rule_maximum)][0] for m in meshes},
+                     rule_maximum)
 
     # Pairs of different surfaces with indistinguishable noise estimates.
     best_p = {m: {} for m in meshes}
@@ -165,11 +171,11 @@ def main(curves_path, trace_path, sigmas_path=None):
         for (ss, li, r, k), (v, _) in grid[m].items():
             key = (ss, li, r)
             best_p[m][key] = min(best_p[m].get(key, math.inf), v)
-    seeds = [m for m in meshes if m.endswith(" s1") and m[:-1] + "2" in estimate]
+    seeds = [m for m in meshes if m.endswith(" s1") and other_seed(m) in estimate]
     if not seeds:
         return
-    d_sigma = max(abs(estimate[m][0] - estimate[m[:-1] + "2"][0]) for m in seeds)
-    d_theta = max(abs(estimate[m][1] - estimate[m[:-1] + "2"][1]) for m in seeds)
+    d_sigma = max(abs(estimate[m][0] - estimate[other_seed(m)][0]) for m in seeds)
+    d_theta = max(abs(estimate[m][1] - estimate[other_seed(m)][1]) for m in seeds)
     bounds = []
     for i, a in enumerate(meshes):
         for b in meshes[i + 1:]:
