@@ -12,6 +12,8 @@
 #include <spdlog/spdlog.h>
 
 #include "commands/command.h"
+#include "commands/man_page.h"
+#include "octshape/version.h"
 #include "commands/provenance.h"
 #include "octshape/error.h"
 
@@ -81,6 +83,17 @@ int main(int argc, char** argv) {
     octshape::app::add_phantom_macula_command(*phantom, ctx);
     octshape::app::add_phantom_onh_command(*phantom, ctx);
     octshape::app::add_phantom_cohort_command(*phantom, ctx);
+
+    // Hidden (no group): prints the manual page octshape(1) made from the help text above; the
+    // build writes share/man/man1/octshape.1 with it (cmake/ManPage.cmake).
+    app.add_flag_callback(
+           "--man-page",
+           [&app] {
+               std::cout << octshape::app::man_page(app, kExitCodes, octshape::kVersion);
+               throw CLI::Success();
+           },
+           "Print the manual page (roff) and exit")
+        ->group("");
 
     try {
         app.parse(argc, argv);

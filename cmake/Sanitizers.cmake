@@ -18,6 +18,9 @@ if(OCTSHAPE_FUZZ)
 endif()
 
 # Every first-party target calls this once.
+# BUILD_INTERFACE: the flags are the build's own; an installed static library (libmesh, through
+# find_package) asks nothing of its consumer's flags.
 function(octshape_target_defaults target)
-  target_link_libraries(${target} PRIVATE octshape_warnings octshape_sanitizers)
+  target_link_libraries(${target} PRIVATE $<BUILD_INTERFACE:octshape_warnings>
+    $<BUILD_INTERFACE:octshape_sanitizers>)
 endfunction()

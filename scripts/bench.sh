@@ -3,7 +3,7 @@
 # benchmarks and their order are bench/CMakeLists.txt's (octshape_bench), written to benches.txt.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-cmake --preset release >/dev/null
+cmake --preset release -DOCTSHAPE_BUILD_BENCH=ON >/dev/null
 cmake --build --preset release -j 2 --target octshape_benches
 mkdir -p build/bench
 # The bunny of the organic mesh family (npm package `bunny`; skipped if npm/node are absent).

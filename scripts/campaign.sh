@@ -9,6 +9,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 preset=${1:-release}
 cmake --preset "$preset" >/dev/null
-cmake --build --preset "$preset" -j "$(nproc)" --target octshape octshape_tests
-OCTSHAPE_CAMPAIGN_LONG=1 "build/$preset/tests/octshape_tests" \
-  --gtest_filter='ScanCampaign.*:MeshCampaign.*'
+cmake --build --preset "$preset" -j "$(nproc)" --target octshape octshape_cli_tests \
+  octshape_mesh_tests
+OCTSHAPE_CAMPAIGN_LONG=1 "build/$preset/tests/octshape_cli_tests" --gtest_filter='ScanCampaign.*'
+OCTSHAPE_CAMPAIGN_LONG=1 "build/$preset/tests/octshape_mesh_tests" --gtest_filter='MeshCampaign.*'

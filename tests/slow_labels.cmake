@@ -1,14 +1,26 @@
 # cmake -DOUT=FILE -DDIR=SOURCE_DIR -DSOURCES="a.cpp;b.cpp" -P slow_labels.cmake
 # Writes one ctest `set_tests_properties(Suite.Name PROPERTIES LABELS slow)` per line that starts
-# with SLOW_TEST(Suite, Name) in the given test sources (tests/slow_test.h): the "slow" label is
-# set where the test is defined. ctest includes OUT after discovering the gtest tests.
-set(_out "# Generated from the SLOW_TEST( lines of the test sources (tests/slow_labels.cmake).\n")
+# with SLOW_TEST(Suite, Name) in the given test sources, and `... LABELS external` per line that
+# starts with EXTERNAL_TEST(Suite, Name) (tests/slow_test.h): a label is set where the test is
+# defined; a slow test gets COST 10 (started early). ctest includes OUT after discovering the
+# gtest tests.
+set(_out "# Generated from the SLOW_TEST( / EXTERNAL_TEST( lines of the test sources (tests/slow_labels.cmake).\n")
 foreach(_src IN LISTS SOURCES)
-  file(STRINGS "${DIR}/${_src}" _lines REGEX "^SLOW_TEST\\(")
-  foreach(_line IN LISTS _lines)
-    string(REGEX REPLACE "^SLOW_TEST\\(([A-Za-z0-9_]+), *([A-Za-z0-9_]+)\\).*" "\\1.\\2"
-           _name "${_line}")
-    string(APPEND _out "set_tests_properties(${_name} PROPERTIES LABELS slow)\n")
+  foreach(_kind slow external)
+    string(TOUPPER "${_kind}_TEST" _macro)
+    file(STRINGS "${DIR}/${_src}" _lines REGEX "^${_macro}\\(")
+    foreach(_line IN LISTS _lines)
+      string(REGEX REPLACE "^${_macro}\\(([A-Za-z0-9_]+), *([A-Za-z0-9_]+)\\).*" "\\1.\\2"
+             _name "${_line}")
+      # COST: on a clean clone (no timings of an earlier run) ctest starts the slow tests
+      # first, so that the short ones fill the other core instead of a slow one running last.
+      if(_kind STREQUAL "slow")
+        set(_props "LABELS slow COST 10")
+      else()
+        set(_props "LABELS ${_kind}")
+      endif()
+      string(APPEND _out "set_tests_properties(${_name} PROPERTIES ${_props})\n")
+    endforeach()
   endforeach()
 endforeach()
 # Rewritten only when it changes, so ctest and the build see a stable file.

@@ -7,3 +7,8 @@
 #include <gtest/gtest.h>
 
 #define SLOW_TEST(suite, name) TEST(suite, name)
+
+// EXTERNAL_TEST(Suite, Name) is TEST(Suite, Name) for a test that drives a program we do not
+// build (headless Chromium): label "external", run in Release only (the sanitizer preset
+// excludes the label: the sanitizers see nothing of the other program).
+#define EXTERNAL_TEST(suite, name) TEST(suite, name)

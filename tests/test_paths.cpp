@@ -2,14 +2,72 @@
 
 #include <sys/wait.h>
 
+#include <array>
 #include <atomic>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <random>
 #include <sstream>
 #include <stdexcept>
 
 namespace octshape::test {
+
+std::filesystem::path shared_dir() {
+    const char* env = std::getenv("OCTSHAPE_SHARED_DIR");
+    if (env != nullptr && *env != '\0') return env;
+    return OCTSHAPE_SHARED_DIR;
+}
+
+namespace {
+
+// Where each third-party file comes from (the shared folder's READMEs; tests/README.md).
+struct Source {
+    const char* prefix;  // a path under shared_dir(), or the folder that holds it
+    const char* origin;
+};
+constexpr std::array kSources{
+    Source{"realdata/fovea_line_716_0.vol",
+           "halirutan/spectralis-raw-data test-data/Willis_B_716_0.vol, MIT"},
+    Source{"realdata/onh_circle_716_2.vol",
+           "halirutan/spectralis-raw-data test-data/Willis_B_716_2.vol, MIT"},
+    Source{"realdata/onh_circle_716_4.vol",
+           "halirutan/spectralis-raw-data test-data/Willis_B_716_4.vol, MIT"},
+    Source{"realdata/onh_circle_valid.vol", "halirutan/HeyexImport Tests/valid.vol, MIT"},
+    Source{"realdata/not_spectralis_eyepy_written.vol",
+           "MedVisBonn/eyepy tests/data/filetypes/heyex_vol/test_volume.vol, MIT"},
+    Source{"realdata/T566581_Surfaces_Iowa.xml",
+           "barefootbiology/heyexr inst/extdata/TEST_T_566581_Surfaces_Iowa.xml, MIT"},
+    Source{"realdata/heyex_xml_dummy",
+           "MedVisBonn/eyepy tests/data/filetypes/heyex_xml/test_volume/, MIT"},
+    Source{"realdata/topcon_ukb_example_min.fda",
+           "DIAGNijmegen/rse-panimg tests/resources/oct/fda_minimized.fda, Apache-2.0"},
+    Source{"realdata/cirrus_macular_cube_512x128_os_Surfaces_Iowa.xml",
+           "made from scitran/ophthalmology iowa/zeissimg/"
+           "P73304206_MacularCube512x128_OS_Surfaces_Retina-JEI-Final.mat, MIT"},
+    Source{"meshes/", "bldeng/GuidedDenoising models/"},
+};
+
+std::string origin_of(const std::string& relative) {
+    for (const Source& s : kSources) {
+        if (relative.starts_with(s.prefix)) return s.origin;
+    }
+    return "see tests/README.md";
+}
+
+}  // namespace
+
+std::string shared_absent(std::initializer_list<const char*> relative) {
+    for (const char* r : relative) {
+        const auto p = shared_dir() / r;
+        std::error_code ec;
+        if (!std::filesystem::exists(p, ec)) {
+            return "third-party file absent: " + p.string() + " (from " + origin_of(r) +
+                   "; tests/README.md)";
+        }
+    }
+    return "";
+}
 
 std::string slurp(const std::filesystem::path& p) {
     std::ifstream in(p, std::ios::binary);

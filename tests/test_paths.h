@@ -2,19 +2,40 @@
 // Paths the tests need, fixed at configure time, and small helpers shared by test files.
 
 #include <filesystem>
+#include <initializer_list>
 #include <string>
 #include <vector>
+
+#include <gtest/gtest.h>
 
 namespace octshape::test {
 
 // The octshape executable under test.
 inline std::string exe() { return OCTSHAPE_EXE; }
 inline std::filesystem::path source_dir() { return OCTSHAPE_SOURCE_DIR; }
-// ../shared beside the repository: real files, hostile files, meshes.
-inline std::filesystem::path shared_dir() { return OCTSHAPE_SHARED_DIR; }
+// The folder of third-party test files (real scans, hostile files, meshes; tests/README.md):
+// $OCTSHAPE_SHARED_DIR when it is set and not empty, else the folder fixed at configure time
+// (the CMake cache variable of the same name, ../shared beside the clone by default).
+[[nodiscard]] std::filesystem::path shared_dir();
 inline std::filesystem::path realdata(const std::string& name) {
     return shared_dir() / "realdata" / name;
 }
+// "" when every one of `relative` (paths under shared_dir(), e.g. "realdata/x.vol") exists;
+// otherwise one line naming the first one absent and its public source (tests/README.md).
+[[nodiscard]] std::string shared_absent(std::initializer_list<const char*> relative);
+
+}  // namespace octshape::test
+
+// At the start of a test that reads third-party files: skips the test (one line naming the
+// file and where it comes from) when one is absent, so that a plain clone passes and ctest's
+// summary counts what it skipped.
+#define SKIP_UNLESS_SHARED(...)                                                          \
+    do {                                                                                 \
+        const std::string octshape_absent_ = ::octshape::test::shared_absent({__VA_ARGS__}); \
+        if (!octshape_absent_.empty()) GTEST_SKIP() << octshape_absent_;                 \
+    } while (0)
+
+namespace octshape::test {
 
 // A fresh empty directory under the system temp dir, removed by the destructor.
 class TempDir {

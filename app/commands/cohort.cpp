@@ -4,6 +4,7 @@
 // (one input, exactly as a cohort worker does it) and `octshape cohort-tables` (the tables from
 // the records). Layout, resume rule and the crash-safety argument: docs/cohort.md.
 
+#include <CLI/CLI.hpp>
 #include <fcntl.h>
 #include <sys/file.h>
 #include <unistd.h>

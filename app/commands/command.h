@@ -4,7 +4,10 @@
 // throwing an octshape::Error (main maps it to an exit code) or, for a partial success such as
 // a batch with failed inputs, by setting `RunContext::exit_code`.
 
-#include <CLI/CLI.hpp>
+
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace octshape::app {
 

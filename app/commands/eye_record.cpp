@@ -1,5 +1,6 @@
 #include "commands/eye_record.h"
 
+#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 #include <sys/stat.h>
 

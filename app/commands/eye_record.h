@@ -4,7 +4,6 @@
 // table builder that turns per-eye JSON objects into eyes.csv (`octshape merge` and
 // `octshape cohort` share it).
 
-#include <CLI/CLI.hpp>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -14,6 +13,10 @@
 #include <vector>
 
 #include "octshape/io/scan.h"
+
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace octshape::app {
 

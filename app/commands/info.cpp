@@ -1,5 +1,6 @@
 // `octshape info FILE [--json] [--show-identifiers]`: what an export holds.
 
+#include <CLI/CLI.hpp>
 #include <functional>
 #include <iomanip>
 #include <iostream>

@@ -2,6 +2,7 @@
 // (SPEC §4, docs/algorithms/cube.md); outputs documented in docs/outputs.md. The per-eye work is
 // analyse_macula_eye (commands/macula_eye.h), shared with `octshape cohort`.
 
+#include <CLI/CLI.hpp>
 #include <memory>
 #include <nlohmann/json.hpp>
 

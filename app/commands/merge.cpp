@@ -2,6 +2,7 @@
 // by `octshape macula -o` or by `octshape cohort` under OUTDIR/eyes). The same code path as the
 // cohort's own eyes.csv (eyes_csv in commands/eye_record.h), so both give identical bytes.
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <filesystem>
 #include <iostream>

@@ -3,6 +3,7 @@
 // documented in docs/outputs.md. The per-eye work is analyse_onh_eye (commands/onh_eye.h),
 // shared with `octshape cohort`.
 
+#include <CLI/CLI.hpp>
 #include <memory>
 #include <string>
 

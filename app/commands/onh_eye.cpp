@@ -1,5 +1,6 @@
 #include "commands/onh_eye.h"
 
+#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
 #include <filesystem>

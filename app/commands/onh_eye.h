@@ -4,12 +4,15 @@
 // the ILM surface, run the ONH analysis, optionally write the QC pictures and meshes, and build
 // the per-eye JSON object and CSV row (docs/outputs.md, docs/cohort.md).
 
-#include <CLI/CLI.hpp>
 #include <string>
 
 #include "commands/eye_record.h"
 #include "commands/segmentation.h"
 #include "octshape/retina/onh.h"
+
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace octshape::app {
 

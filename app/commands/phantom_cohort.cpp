@@ -10,6 +10,7 @@
 
 #include "octshape/retina/phantom_cohort.h"
 
+#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
 #include <filesystem>

@@ -1,6 +1,7 @@
 // `octshape phantom macula`: a synthetic Spectralis macula export and its true CuBe parameters
 // (docs/phantoms.md, "Macula phantoms").
 
+#include <CLI/CLI.hpp>
 #include <cmath>
 #include <filesystem>
 #include <string>

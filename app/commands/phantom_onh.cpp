@@ -1,5 +1,6 @@
 // `octshape phantom onh`: a synthetic Spectralis ONH volume and its truth (docs/phantoms.md).
 
+#include <CLI/CLI.hpp>
 #include <filesystem>
 #include <memory>
 #include <string>

@@ -3,6 +3,7 @@
 // can find a patient's rows or write a groups file keyed by subject_id. Without IDs on the
 // command line (where `ps` shows them) they are read from stdin, one per line.
 
+#include <CLI/CLI.hpp>
 #include <iostream>
 #include <memory>
 #include <string>

@@ -3,11 +3,14 @@
 // made elsewhere (an Iowa surfaces XML, io/iowa_surfaces.h) laid over the export, and which of
 // its surfaces plays Bruch's membrane (also for an Iowa file analysed alone).
 
-#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 #include <string>
 
 #include "octshape/io/scan.h"
+
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace octshape::app {
 

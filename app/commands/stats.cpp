@@ -2,6 +2,7 @@
 // per-group table of every parameter (thesis Tables 7.3, 8.2) and the test-retest ICC(2,1)
 // with its 95 % CI (Tables 7.1, 8.1). Definitions and layout: docs/stats.md.
 
+#include <CLI/CLI.hpp>
 #include <spdlog/fmt/fmt.h>
 #include <spdlog/spdlog.h>
 

@@ -129,6 +129,7 @@ struct MixedCohort {
 };
 
 TEST(CohortCli, AnalysesEveryEyeAndRecordsEveryBadFile) {
+    SKIP_UNLESS_SHARED("realdata/onh_circle_716_2.vol", "realdata/not_spectralis_eyepy_written.vol");
     MixedCohort c;
     const fs::path out = c.dir / "out";
     const auto r = test::run_octshape("cohort " + q(c.in) + " -o " + q(out) + " --jobs 2 " +
@@ -219,6 +220,7 @@ TEST(CohortCli, AnalysesEveryEyeAndRecordsEveryBadFile) {
 }
 
 TEST(CohortCli, ResumeRedoesNothingUnlessFileOptionOrVersionChanged) {
+    SKIP_UNLESS_SHARED("realdata/onh_circle_716_2.vol", "realdata/not_spectralis_eyepy_written.vol");
     MixedCohort c;
     const fs::path out = c.dir / "out";
     const std::string cmd = "cohort " + q(c.in) + " -o " + q(out) + " --jobs 2 " + c.key_arg();
@@ -292,6 +294,7 @@ TEST(CohortCli, ResumeRedoesNothingUnlessFileOptionOrVersionChanged) {
 }
 
 TEST(CohortCli, MergeAndPerScanMaculaGiveTheCohortCsvByteForByte) {
+    SKIP_UNLESS_SHARED("realdata/onh_circle_716_2.vol", "realdata/not_spectralis_eyepy_written.vol");
     MixedCohort c;
     const fs::path out = c.dir / "out";
     ASSERT_EQ(test::run_octshape("cohort " + q(c.in) + " -o " + q(out) + " " + c.key_arg())
@@ -381,6 +384,7 @@ std::map<std::string, std::string> folder_files(const fs::path& dir) {
 // output folder of one `octshape cohort` run, byte for byte: tables, per-eye JSON, failure
 // records, QC pictures and gallery. The tables refuse while an input has no record.
 TEST(CohortEye, EachInputAloneThenTheTablesGiveTheCohortsFolderByteForByte) {
+    SKIP_UNLESS_SHARED("realdata/onh_circle_716_2.vol", "realdata/not_spectralis_eyepy_written.vol");
     MixedCohort c;
     const fs::path ref = c.dir / "cohort";
     const fs::path out = c.dir / "out";
@@ -677,6 +681,7 @@ int wait_exit(pid_t pid) {
 
 // Slow: runs a batch ~13 times (tens of seconds under the sanitizers).
 SLOW_TEST(CohortKill, SigkillAtRandomMomentsThenRerunGivesTheUninterruptedTables) {
+    SKIP_UNLESS_SHARED("realdata/onh_circle_716_4.vol");
     test::TempDir dir;
     const fs::path in = dir / "in";
     fs::create_directories(in);

@@ -104,7 +104,7 @@ void make_outdir(const fs::path& d) {
           "0d0d0d0d0d0d0d0d,no such file,66\n");
 }
 
-TEST(GalleryBrowser, DetectsConsoleErrorsOnABrokenPage) {
+EXTERNAL_TEST(GalleryBrowser, DetectsConsoleErrorsOnABrokenPage) {
     TempDir dir;
     spit(dir / "bad.html",
           "<!DOCTYPE html><html><head><link rel=\"icon\" href=\"data:,\">"
@@ -115,7 +115,7 @@ TEST(GalleryBrowser, DetectsConsoleErrorsOnABrokenPage) {
 }
 
 // Slow: analyses two phantoms and starts headless Chromium twice (~7 s alone).
-SLOW_TEST(Gallery, PageInHeadlessChromium) {
+EXTERNAL_TEST(Gallery, PageInHeadlessChromium) {
     TempDir dir;
     const fs::path out = dir / "out";
     ASSERT_NO_FATAL_FAILURE(make_outdir(out));

@@ -30,6 +30,7 @@ double valid_percent(const json& j, const std::string& layer) {
 }
 
 TEST(InfoRealFiles, FovealLineScan) {
+    SKIP_UNLESS_SHARED("realdata/fovea_line_716_0.vol");
     const json j = info_json(realdata("fovea_line_716_0.vol").string());
     EXPECT_EQ(j["format_version"], "HSF-OCT-103");
     EXPECT_EQ(j["eye"], "OD");
@@ -52,6 +53,7 @@ TEST(InfoRealFiles, FovealLineScan) {
 }
 
 TEST(InfoRealFiles, CircleScans) {
+    SKIP_UNLESS_SHARED("realdata/onh_circle_valid.vol", "realdata/onh_circle_716_2.vol", "realdata/onh_circle_716_4.vol");
     for (const char* name : {"onh_circle_716_2.vol", "onh_circle_716_4.vol"}) {
         const json j = info_json(realdata(name).string());
         EXPECT_EQ(j["eye"], "OD") << name;
@@ -69,6 +71,7 @@ TEST(InfoRealFiles, CircleScans) {
 }
 
 TEST(InfoRealFiles, XmlExport) {
+    SKIP_UNLESS_SHARED("realdata/heyex_xml_dummy");
     const json j = info_json(realdata("heyex_xml_dummy/test_dummy.xml").string());
     EXPECT_EQ(j["format"], "Heidelberg XML");
     EXPECT_EQ(j["num_bscans"], 10);
@@ -78,6 +81,7 @@ TEST(InfoRealFiles, XmlExport) {
 }
 
 TEST(InfoRealFiles, IdentifiersOnlyWhenAsked) {
+    SKIP_UNLESS_SHARED("realdata/fovea_line_716_0.vol");
     const std::string file = realdata("fovea_line_716_0.vol").string();
     const json with = info_json(file, "--show-identifiers");
     ASSERT_TRUE(with.contains("identifiers"));
@@ -97,6 +101,7 @@ TEST(InfoRealFiles, IdentifiersOnlyWhenAsked) {
 }
 
 TEST(InfoTextOutput, ReadableSummary) {
+    SKIP_UNLESS_SHARED("realdata/fovea_line_716_0.vol");
     const RunResult r = run_octshape("info '" + realdata("fovea_line_716_0.vol").string() + "'");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.out.find("eye:"), std::string::npos);
@@ -115,6 +120,7 @@ void expect_refused(const std::string& file, int code, const std::string& needle
 }
 
 TEST(InfoBadInput, EyepyWrittenFileIsRefused) {
+    SKIP_UNLESS_SHARED("realdata/not_spectralis_eyepy_written.vol");
     expect_refused(realdata("not_spectralis_eyepy_written.vol").string(), 65, "ep-v0.6.8");
 }
 

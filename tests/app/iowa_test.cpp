@@ -34,6 +34,7 @@ json macula_json(const std::string& input, const std::string& extra, test::TempD
 }
 
 TEST(IowaCli, RealSegmentationGivesAnatomicallyPlausibleParameters) {
+    SKIP_UNLESS_SHARED("realdata/T566581_Surfaces_Iowa.xml");
     test::TempDir dir;
     const std::string xml = test::realdata(kIowa).string();
     const json j = macula_json(xml, "--qc '" + (dir / "qc").string() + "'", dir, "eye");
@@ -81,6 +82,7 @@ TEST(IowaCli, RealSegmentationGivesAnatomicallyPlausibleParameters) {
 }
 
 TEST(IowaCli, ResultEqualsTheVolRoundTrip) {
+    SKIP_UNLESS_SHARED("realdata/T566581_Surfaces_Iowa.xml");
     // Written as a .vol with our writer and read back, the same eye must give the same numbers:
     // the .vol stores the rows as float (exact for integers) and the scales as doubles.
     test::TempDir dir;
@@ -98,6 +100,7 @@ TEST(IowaCli, ResultEqualsTheVolRoundTrip) {
 }
 
 TEST(IowaCli, SegmentationOverAnExportReplacesItsLines) {
+    SKIP_UNLESS_SHARED("realdata/T566581_Surfaces_Iowa.xml");
     // An export of the same geometry (a phantom of 19 B-scans x 512 A-scans at the file's
     // voxel size) with the real segmentation laid over it: the result is the real eye's, and
     // the JSON records the segmentation by its SHA-256 only.
@@ -137,6 +140,7 @@ TEST(IowaCli, SegmentationOverAnExportReplacesItsLines) {
 }
 
 TEST(IowaCli, SegmentationOfAnotherScanIsRefused) {
+    SKIP_UNLESS_SHARED("realdata/T566581_Surfaces_Iowa.xml");
     test::TempDir dir;
     const auto vol = (test::source_dir() / "sample_scans/macula_bezier_od.vol").string();
     const std::string xml = test::realdata(kIowa).string();
@@ -209,6 +213,7 @@ TEST(IowaCli, CohortIgnoresSegmentationFilesBesideTheirExports) {
 }
 
 TEST(IowaCli, InfoListsTheSurfaces) {
+    SKIP_UNLESS_SHARED("realdata/T566581_Surfaces_Iowa.xml");
     const auto r = test::run_octshape("info --json '" + test::realdata(kIowa).string() + "'");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const json j = json::parse(r.out);

@@ -175,6 +175,7 @@ namespace {
 // Every refusal of an analysis is one line that names the file (issue: messages that do not
 // say which of a thousand files failed are useless in a batch log).
 TEST(AnalysisCli, EveryRefusalNamesTheFile) {
+    SKIP_UNLESS_SHARED("realdata/onh_circle_716_2.vol");
     test::TempDir dir;
     const std::string circle = test::realdata("onh_circle_716_2.vol").string();
     const std::string macula = (test::source_dir() / "sample_scans/macula_bezier_od.vol").string();

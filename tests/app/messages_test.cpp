@@ -61,6 +61,7 @@ std::string error_line(const std::string& err) {
 }
 
 SLOW_TEST(Messages, EveryErrorPathNamesTheFileAndTheCause) {
+    SKIP_UNLESS_SHARED("realdata/onh_circle_valid.vol", "realdata/fovea_line_716_0.vol", "realdata/not_spectralis_eyepy_written.vol", "realdata/T566581_Surfaces_Iowa.xml");
     TempDir tmp;
     const fs::path macula = tmp / "macula.vol";
     const fs::path onh = tmp / "onh.vol";

@@ -145,6 +145,7 @@ TEST(OnhCli, UserBmoFileReplacesTheDetection) {
 }
 
 TEST(OnhCli, RefusalsHaveTheirExitCodesAndWriteNothing) {
+    SKIP_UNLESS_SHARED("realdata/onh_circle_716_2.vol", "realdata/onh_circle_valid.vol");
     test::TempDir dir;
     for (const char* name : {"onh_circle_716_2.vol", "onh_circle_valid.vol"}) {
         const auto r = test::run_octshape("onh " + test::realdata(name).string() + " -o " +

@@ -28,6 +28,7 @@ std::string read_all(const fs::path& p) {
 // Values below are read by eye from test_dummy.xml (10 OCT images 50x40, Start y from 6.807 to
 // 6.524 mm in 9 equal steps, laterality R, 11 segmentation lines, an ETDRS grid of 9 zones).
 TEST(HeyexXml, DummyExportMetadata) {
+    SKIP_UNLESS_SHARED("realdata/heyex_xml_dummy/test_dummy.xml");
     const Scan s = read_heyex_xml(dummy_xml());
     EXPECT_EQ(s.meta.format, SourceFormat::kHeyexXml);
     EXPECT_EQ(s.meta.laterality, Laterality::kOD);
@@ -53,6 +54,7 @@ TEST(HeyexXml, DummyExportMetadata) {
 }
 
 TEST(HeyexXml, SegmentationByNameWithMissingValues) {
+    SKIP_UNLESS_SHARED("realdata/heyex_xml_dummy/test_dummy.xml");
     const Scan s = read_heyex_xml(dummy_xml());
     // ILM is "3e+038 3e+038 9.6 ..." in B1: the first two A-scans are missing.
     const BScan& b = s.bscans.front();
@@ -72,6 +74,7 @@ TEST(HeyexXml, SegmentationByNameWithMissingValues) {
 }
 
 TEST(HeyexXml, ThicknessGrid) {
+    SKIP_UNLESS_SHARED("realdata/heyex_xml_dummy/test_dummy.xml");
     const Scan s = read_heyex_xml(dummy_xml());
     ASSERT_EQ(s.grids.size(), 1U);
     const ThicknessGrid& g = s.grids.front();
@@ -85,6 +88,7 @@ TEST(HeyexXml, ThicknessGrid) {
 }
 
 TEST(HeyexXml, PixelsOnlyWhenAsked) {
+    SKIP_UNLESS_SHARED("realdata/heyex_xml_dummy/test_dummy.xml");
     const Scan s = read_heyex_xml(dummy_xml(), ReadOptions{.pixels = true});
     EXPECT_TRUE(s.pixels_loaded);
     EXPECT_EQ(s.slo.size(), 50U * 50U);
@@ -101,6 +105,7 @@ TEST(HeyexXml, PixelsOnlyWhenAsked) {
 }
 
 TEST(HeyexXml, DetectedFromContent) {
+    SKIP_UNLESS_SHARED("realdata/heyex_xml_dummy/test_dummy.xml");
     const std::string doc = read_all(dummy_xml());
     EXPECT_TRUE(looks_like_heyex_xml(doc.data(), std::min<std::size_t>(doc.size(), 512)));
     const std::string other = "<?xml version=\"1.0\"?><!-- c --><svg></svg>";
@@ -113,6 +118,7 @@ TEST(HeyexXml, DetectedFromContent) {
 class HostileXml : public ::testing::Test {
 protected:
     void SetUp() override {
+        SKIP_UNLESS_SHARED("realdata/heyex_xml_dummy/test_dummy.xml");
         for (const auto& e : fs::directory_iterator(dummy_dir())) {
             if (e.path().extension() == ".tif") fs::copy_file(e.path(), dir_ / e.path().filename().string());
         }

@@ -44,6 +44,7 @@ std::vector<int> raw_values(const std::string& doc, int label) {
 }
 
 TEST(IowaSurfaces, RealFileReadsWithItsStatedSizesAndSurfaces) {
+    SKIP_UNLESS_SHARED("realdata/T566581_Surfaces_Iowa.xml");
     const auto path = realdata(kReal).string();
     const io::IowaSurfaces s = io::read_iowa_surfaces(path);
     // The sizes the realdata README states for this file.
@@ -100,6 +101,7 @@ TEST(IowaSurfaces, RealFileReadsWithItsStatedSizesAndSurfaces) {
 }
 
 TEST(IowaSurfaces, ReadAloneIsAScanOfSegmentationOnly) {
+    SKIP_UNLESS_SHARED("realdata/T566581_Surfaces_Iowa.xml");
     const auto path = realdata(kReal).string();
     EXPECT_EQ(io::detect_format(path), io::FileFormat::kIowaSurfaces);
     const io::IowaSurfaces s = io::read_iowa_surfaces(path);
@@ -137,6 +139,7 @@ TEST(IowaSurfaces, ReadAloneIsAScanOfSegmentationOnly) {
 }
 
 TEST(IowaSurfaces, VolRoundTripKeepsEverySegmentationValue) {
+    SKIP_UNLESS_SHARED("realdata/T566581_Surfaces_Iowa.xml");
     TempDir dir;
     const io::Scan scan = io::read_scan(realdata(kReal).string());
     const auto vol = (dir / "iowa.vol").string();
@@ -236,6 +239,7 @@ TEST(IowaSurfaces, DamagedDocumentsAreRefusedWithTypedErrors) {
 }
 
 TEST(IowaSurfaces, TruncatedRealFileIsRefusedAtEveryCut) {
+    SKIP_UNLESS_SHARED("realdata/T566581_Surfaces_Iowa.xml");
     // The real document cut at 64 places: a parse error (corrupt, with an offset), never a read.
     TempDir dir;
     const std::string doc = slurp(realdata(kReal));

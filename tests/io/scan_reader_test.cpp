@@ -47,6 +47,7 @@ void expect_same_scan(const io::Scan& a, const io::Scan& b) {
 }
 
 TEST(ReadScanHashed, RealFilesGiveTheSameScanAndHashAsTheSeparateReaders) {
+    SKIP_UNLESS_SHARED("realdata/fovea_line_716_0.vol", "realdata/onh_circle_716_2.vol", "realdata/onh_circle_valid.vol");
     for (const char* name :
          {"fovea_line_716_0.vol", "onh_circle_716_2.vol", "onh_circle_valid.vol"}) {
         const std::string path = realdata(name).string();
@@ -59,6 +60,7 @@ TEST(ReadScanHashed, RealFilesGiveTheSameScanAndHashAsTheSeparateReaders) {
 }
 
 TEST(ReadScanHashed, XmlExportHashesItsXmlFile) {
+    SKIP_UNLESS_SHARED("realdata/heyex_xml_dummy");
     const auto dir = realdata("heyex_xml_dummy");
     std::string xml;
     for (const auto& e : std::filesystem::directory_iterator(dir)) {

@@ -385,6 +385,7 @@ void expect_fast_equals_full(const std::filesystem::path& p) {
 }
 
 TEST(VolRealData, FoveaLineScan) {
+    SKIP_UNLESS_SHARED("realdata/fovea_line_716_0.vol");
     const auto p = realdata("fovea_line_716_0.vol");
     const io::Scan s = read_file(p, false);
     EXPECT_EQ(s.meta.version, "HSF-OCT-103");
@@ -450,6 +451,7 @@ void expect_circle_scan(const io::Scan& s) {
 }
 
 TEST(VolRealData, PeripapillaryCircleScansOfRadius1p8) {
+    SKIP_UNLESS_SHARED("realdata/onh_circle_716_2.vol", "realdata/onh_circle_716_4.vol");
     for (const char* name : {"onh_circle_716_2.vol", "onh_circle_716_4.vol"}) {
         SCOPED_TRACE(name);
         const auto p = realdata(name);
@@ -466,6 +468,7 @@ TEST(VolRealData, PeripapillaryCircleScansOfRadius1p8) {
 }
 
 TEST(VolRealData, CircleScanWithShiftAndInvalidIlm) {
+    SKIP_UNLESS_SHARED("realdata/onh_circle_valid.vol");
     const auto p = realdata("onh_circle_valid.vol");
     const io::Scan s = read_file(p, false);
     expect_circle_scan(s);
@@ -482,6 +485,7 @@ TEST(VolRealData, CircleScanWithShiftAndInvalidIlm) {
 }
 
 TEST(VolRealData, RealFileRoundTripsThroughTheWriter) {
+    SKIP_UNLESS_SHARED("realdata/onh_circle_valid.vol");
     // Read with pixels, write, read again: identical, and byte-identical to the original file
     // for everything the writer does not derive (the file has no ProgID and no BMO fields).
     const auto p = realdata("onh_circle_valid.vol");
@@ -498,6 +502,7 @@ TEST(VolRealData, RealFileRoundTripsThroughTheWriter) {
 }
 
 TEST(VolRealData, EyepyWrittenFileIsRefusedClearly) {
+    SKIP_UNLESS_SHARED("realdata/not_spectralis_eyepy_written.vol");
     const auto p = realdata("not_spectralis_eyepy_written.vol");
     try {
         (void)read_file(p, false);

@@ -703,6 +703,7 @@ TEST(CubeLine, PhantomLineScanGivesTheTwoDimensionalParameters) {
 }
 
 TEST(CubeLine, RealFovealLineScanIsPhysiological) {
+    SKIP_UNLESS_SHARED("realdata/fovea_line_716_0.vol");
     const io::Scan scan = io::read_scan(test::realdata("fovea_line_716_0.vol").string());
     const CubeResult r = analyse_macula(scan);
     ASSERT_TRUE(r.line_scan);

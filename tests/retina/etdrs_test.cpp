@@ -231,6 +231,7 @@ TEST(Etdrs, DeviceGridIsComparedSectorBySector) {
 }
 
 TEST(Etdrs, LineScanHasNoSectorsButTheDeviceCentre) {
+    SKIP_UNLESS_SHARED("realdata/fovea_line_716_0.vol");
     const io::Scan scan = io::read_scan(test::realdata("fovea_line_716_0.vol").string());
     const CubeResult res = analyse_macula(scan);
     const EtdrsReport r = etdrs_report(scan, res);

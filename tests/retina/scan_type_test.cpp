@@ -115,6 +115,7 @@ TEST(ScanType, RadialScansAreClassifiedByTheirBmGaps) {
 }
 
 TEST(ScanType, RealScans) {
+    SKIP_UNLESS_SHARED("realdata/fovea_line_716_0.vol", "realdata/onh_circle_716_2.vol", "realdata/onh_circle_716_4.vol", "realdata/onh_circle_valid.vol");
     for (const char* name :
          {"onh_circle_716_2.vol", "onh_circle_716_4.vol", "onh_circle_valid.vol"}) {
         const auto r = classify_scan(io::read_scan(test::realdata(name).string()));
