@@ -1,12 +1,27 @@
 #include "commands/man_page.h"
 
 #include <CLI/CLI.hpp>
-#include <regex>
 #include <sstream>
 #include <vector>
 
 namespace octshape::app {
 namespace {
+
+// "  CODE  meaning": indentation, decimal digits, spaces, the rest. (No std::regex: GCC 12
+// warns inside <regex> at -O1 with the sanitizers.)
+bool split_code_line(const std::string& line, std::string& code, std::string& meaning) {
+    std::size_t i = line.find_first_not_of(" \t");
+    if (i == 0 || i == std::string::npos) return false;
+    const std::size_t digits = i;
+    while (i < line.size() && line[i] >= '0' && line[i] <= '9') ++i;
+    if (i == digits || i == line.size() || (line[i] != ' ' && line[i] != '\t')) return false;
+    code = line.substr(digits, i - digits);
+    i = line.find_first_not_of(" \t", i);
+    if (i == std::string::npos) return false;
+    meaning = line.substr(i);
+    return true;
+}
+
 
 // Text as roff shows it verbatim: backslashes escaped, a leading '.' or '\'' neutralised.
 std::string roff_escape(const std::string& text) {
@@ -74,14 +89,14 @@ std::string man_page(const CLI::App& app, const std::string& footer, const std::
     }
     // The footer: "  CODE  meaning" lines become the EXIT STATUS list, the rest a paragraph.
     out << ".SH \"EXIT STATUS\"\n";
-    const std::regex code_line(R"(^\s+([0-9]+)\s+(.*)$)");
     std::istringstream in(footer);
     std::string line;
     std::string rest;
     while (std::getline(in, line)) {
-        std::smatch m;
-        if (std::regex_match(line, m, code_line)) {
-            out << ".TP\n.B " << m[1].str() << "\n" << roff_escape(m[2].str());
+        std::string code;
+        std::string meaning;
+        if (split_code_line(line, code, meaning)) {
+            out << ".TP\n.B " << code << "\n" << roff_escape(meaning);
         } else if (line.rfind("Exit codes", 0) != 0) {
             rest += line + '\n';
         }
