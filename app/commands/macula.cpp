@@ -49,8 +49,9 @@ void add_macula_command(CLI::App& app, RunContext& /*ctx*/) {
     cmd->add_option("--csv", opts->csv_out, "Write one CSV row (with header) here");
     cmd->add_option("--qc", opts->eye.qc_dir,
                     "Write QC pictures here: STEM_thickness.png (map, centre, rim/slope/pit-flat "
-                    "disks) and STEM_profiles.png (half-lines with their fitted Beziers); STEM = "
-                    "the -o file's stem, else --csv's, else 'eye'");
+                    "disks), STEM_profiles.png (half-lines with their fitted Beziers) and "
+                    "STEM_bscan.png (the B-scan through the centre, device lines, fitted "
+                    "profile); STEM = the -o file's stem, else --csv's, else 'eye'");
     cmd->add_flag("--record-paths", opts->eye.record_paths,
                   "Also write the input's path into the JSON and CSV (identifying: export and "
                   "folder names often hold the patient's name; by default the SHA-256 "

@@ -45,7 +45,8 @@ void add_onh_command(CLI::App& app, RunContext& /*ctx*/) {
         "onh",
         "Optic nerve head analysis (thesis 8.1): BMO ellipse and area, cup/BMO/total/annular "
         "volumes, CONHT, bending energy, BMO-MRW (mean, clock-hour sectors, area). Needs a "
-        "volume scan, or a radial scan (--ilm device; adds the BMO-MRW in the B-scan planes)");
+        "volume scan or a radial scan (a radial scan also gives the BMO-MRW in the B-scan "
+        "planes; both ILM sources work on both)");
     cmd->add_option("file", opts->file,
                     "A Spectralis .vol or Heidelberg XML volume or radial export")
         ->required();

@@ -151,7 +151,7 @@ TEST(OnhCli, RefusalsHaveTheirExitCodesAndWriteNothing) {
         const auto r = test::run_octshape("onh " + test::realdata(name).string() + " -o " +
                                           (dir / "c.json").string());
         EXPECT_EQ(r.exit_code, 69) << r.err;
-        EXPECT_NE(r.err.find("volume scan is needed"), std::string::npos) << r.err;
+        EXPECT_NE(r.err.find("a volume or radial scan is needed"), std::string::npos) << r.err;
         EXPECT_NE(r.err.find(name), std::string::npos) << r.err;  // names the file
         EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
         EXPECT_FALSE(std::filesystem::exists(dir / "c.json"));

@@ -181,7 +181,8 @@ void require_onh_volume(const io::Scan& scan) {
                         (pat == io::ScanPattern::kUnknown && scan.num_bscans() > 1);
     if (!volume) {
         throw AnalysisError("scan pattern '" + std::string(io::to_string(pat)) +
-                            "' cannot be analysed as an optic nerve head: a volume scan is needed");
+                            "' cannot be analysed as an optic nerve head: a volume or radial scan is "
+                            "needed");
     }
     if (scan.num_bscans() < 3 || scan.meta.size_x < 3) {
         throw AnalysisError("the volume has fewer than 3 B-scans or 3 A-scans");
