@@ -45,7 +45,7 @@ constexpr std::array kSources{
     Source{"realdata/cirrus_macular_cube_512x128_os_Surfaces_Iowa.xml",
            "made from scitran/ophthalmology iowa/zeissimg/"
            "P73304206_MacularCube512x128_OS_Surfaces_Retina-JEI-Final.mat, MIT"},
-    Source{"meshes/", "bldeng/GuidedDenoising models/"},
+    Source{"meshes/", "bldeng/GuidedDenoising models/, LGPL-3.0"},
 };
 
 std::string origin_of(const std::string& relative) {
