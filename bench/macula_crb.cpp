@@ -247,6 +247,21 @@ MaculaPhantomParams phantom_params(int bscans) {
     return p;
 }
 
+// The model of phantom p for the analysis settings topt (half-line directions in the grid).
+Model model_of(const MaculaPhantomParams& p,
+               const MaculaTruthOptions& topt,
+               const phantom::VolumeLayout& layout) {
+    Model m;
+    m.n = topt.num_half_lines;
+    m.radius_mm = topt.radius_mm;
+    m.tau_mm = topt.tau_mm;
+    m.inner_radius_mm = topt.inner_radius_mm;
+    m.frame = phantom::grid_frame(layout);
+    m.centre = macula_centre_mm(p);
+    for (int i = 0; i < m.n; ++i) m.dir.push_back(m.frame.grid_direction(360.0 * i / m.n));
+    return m;
+}
+
 // theta* from the phantom's truth (interior and exterior-to-R control points per half-line).
 Eigen::VectorXd true_theta(const MaculaTruth& t, const Model& m) {
     std::vector<double> th(static_cast<std::size_t>(m.size()), 0.0);
@@ -548,15 +563,8 @@ int bias_table(int realisations) {
     const MaculaPhantomParams p = phantom_params(nb);
     const MaculaTruthOptions topt;
     const MaculaTruth truth = macula_truth(p, topt);
-    Model m;
-    m.n = topt.num_half_lines;
-    m.radius_mm = topt.radius_mm;
-    m.tau_mm = topt.tau_mm;
-    m.inner_radius_mm = topt.inner_radius_mm;
     const phantom::VolumeLayout layout = macula_layout(p);
-    m.frame = phantom::grid_frame(layout);
-    m.centre = macula_centre_mm(p);
-    for (int i = 0; i < m.n; ++i) m.dir.push_back(m.frame.grid_direction(360.0 * i / m.n));
+    const Model m = model_of(p, topt, layout);
     const Eigen::VectorXd th = true_theta(truth, m);
     const std::vector<double> tv = parameter_values(truth);
     const double h = 1e-6;
@@ -647,15 +655,8 @@ int main(int argc, char** argv) {
         const MaculaPhantomParams p = phantom_params(nb);
         const MaculaTruthOptions topt;
         const MaculaTruth truth = macula_truth(p, topt);
-        Model m;
-        m.n = topt.num_half_lines;
-        m.radius_mm = topt.radius_mm;
-        m.tau_mm = topt.tau_mm;
-        m.inner_radius_mm = topt.inner_radius_mm;
         const phantom::VolumeLayout layout = macula_layout(p);
-        m.frame = phantom::grid_frame(layout);
-        m.centre = macula_centre_mm(p);
-        for (int i = 0; i < m.n; ++i) m.dir.push_back(m.frame.grid_direction(360.0 * i / m.n));
+        const Model m = model_of(p, topt, layout);
         const Eigen::VectorXd th = true_theta(truth, m);
         const std::vector<double> tv = parameter_values(truth);
 
