@@ -87,29 +87,6 @@ void half_line_parameters(CubeHalfLine& h, const CubeParams& p) {
     }
 }
 
-// Under noise, the variance of each half-line's fitted rim radius about the eye's smooth rim:
-// the residual variance of the radii about their least-squares Fourier series of order 2 in
-// the half-line angle (the nasal-temporal asymmetry and the ellipse), on n - 5 degrees of
-// freedom; 0 with fewer than 10 half-lines (docs/algorithms/cube.md "Bias under noise at 61
-// B-scans").
-namespace {
-double rim_radius_variance(const std::vector<CubeHalfLine>& lines) {
-    const auto n = static_cast<Eigen::Index>(lines.size());
-    if (n < 10) return 0.0;
-    Eigen::MatrixXd a(n, 5);
-    Eigen::VectorXd w(n);
-    for (Eigen::Index i = 0; i < n; ++i) {
-        const CubeHalfLine& h = lines[static_cast<std::size_t>(i)];
-        const double t = h.angle_deg / kDeg;
-        a.row(i) << 1.0, std::cos(t), std::sin(t), std::cos(2.0 * t), std::sin(2.0 * t);
-        w(i) = h.rim_radius_mm;
-    }
-    const Eigen::VectorXd c = a.colPivHouseholderQr().solve(w);
-    const double v = (w - a * c).squaredNorm() / static_cast<double>(n - 5);
-    return std::isfinite(v) ? v : 0.0;
-}
-}  // namespace
-
 void summarise_macula(CubeResult& res, const CubeParams& params) {
     const int n = static_cast<int>(res.half_lines.size());
     int valid = 0;
@@ -182,14 +159,6 @@ void summarise_macula(CubeResult& res, const CubeParams& params) {
         res.slope = disk(std::move(slope_pts));
         if (flat_count == n) res.pit_flat = disk(std::move(flat_pts));
         res.rim_volume_mm3 = 2.0 * kPi / n * vr;                                         // Eq. 7.27
-        if (res.noise_adaptive_samples) {
-            // Second order in the radii's noise: each half-line's integral to its own rim
-            // radius w_i has d2/dw2 = T(w) + w T'(w) = h_i at the rim (T' = 0), so E[V_r] exceeds
-            // V_r by (pi / n) sum h_i var(w_i), while the shoelace area is bilinear in
-            // neighbouring radii, whose errors are independent, and has no such term: V_p =
-            // A h - V_r took the whole excess. Removed with var(w_i) estimated from the radii.
-            res.rim_volume_mm3 -= kPi / n * rim_sum * rim_radius_variance(res.half_lines);
-        }
         res.inner_rim_volume_mm3 = 2.0 * kPi / n * vir;                                  // Eq. 7.28
         res.pit_volume_mm3 = res.rim.area_mm2 * res.rim_height_mm - res.rim_volume_mm3;  // 7.29
     } else if (!res.line_scan) {
