@@ -372,7 +372,7 @@ void local_fit_samples(const ThicknessMap& m,
                 lines[i].h_mm[k] = *z;
             } else if (floor.holds(g)) {
                 // No local fit here (near the centre its window holds one or two B-scans at
-                // 61 B-scans): the centre's quadratic surface, not the bilinear sample, whose
+                // 61 B-scans): the pit floor's quadratic surface, not the bilinear sample, whose
                 // interpolation across B-scans is biased upward in the convex pit.
                 lines[i].h_mm[k] = floor.at(g);
             }
