@@ -28,6 +28,8 @@
 // estimator's RMS, seeds 7, 8, ... as bench/macula_accuracy; 0 = the bound only. FIT_SEEDS
 // default 0: a joint least-squares fit of the model itself on that many seeds, ~1 s each at 193
 // B-scans, to see whether the bound is attained.)
+//        macula_crb bias [REALISATIONS]   (the bias table at 61 B-scans, 0.5 / 1 / 2 px per
+// surface; see bias_table)
 
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
@@ -243,6 +245,21 @@ MaculaPhantomParams phantom_params(int bscans) {
     p.fovea_dx_mm = 0.0237;
     p.fovea_dy_mm = -0.0311;
     return p;
+}
+
+// The model of phantom p for the analysis settings topt (half-line directions in the grid).
+Model model_of(const MaculaPhantomParams& p,
+               const MaculaTruthOptions& topt,
+               const phantom::VolumeLayout& layout) {
+    Model m;
+    m.n = topt.num_half_lines;
+    m.radius_mm = topt.radius_mm;
+    m.tau_mm = topt.tau_mm;
+    m.inner_radius_mm = topt.inner_radius_mm;
+    m.frame = phantom::grid_frame(layout);
+    m.centre = macula_centre_mm(p);
+    for (int i = 0; i < m.n; ++i) m.dir.push_back(m.frame.grid_direction(360.0 * i / m.n));
+    return m;
 }
 
 // theta* from the phantom's truth (interior and exterior-to-R control points per half-line).
@@ -535,9 +552,98 @@ Eigen::VectorXd joint_fit(const Eigen::VectorXd& th0,
     return th;
 }
 
+// `macula_crb bias [REALISATIONS]`: the bias and RMS of every parameter of analyse_macula on
+// the 61-B-scan Bezier phantom against its CRB (centre estimated, as the analysis estimates
+// it), at 0.5, 1 and 2 axial pixels of segmentation noise on ILM and on BM each (node SD
+// sqrt(2) x that). The CRB scales linearly with the node SD. Seeds 1001, 1002, ... at every
+// noise level (common random numbers). The bias's standard error is SD / sqrt(REALISATIONS):
+// <= 0.1 CRB needs REALISATIONS >= 100 (SD / CRB)^2, i.e. ~300 for SD up to 1.7 CRB.
+int bias_table(int realisations) {
+    const int nb = 61;
+    const MaculaPhantomParams p = phantom_params(nb);
+    const MaculaTruthOptions topt;
+    const MaculaTruth truth = macula_truth(p, topt);
+    const phantom::VolumeLayout layout = macula_layout(p);
+    const Model m = model_of(p, topt, layout);
+    const Eigen::VectorXd th = true_theta(truth, m);
+    const std::vector<double> tv = parameter_values(truth);
+    const double h = 1e-6;
+    const Crb c = crb(fisher(th, m, p, layout, h), th, m, h);
+    std::printf(
+        "CuBe bias and RMS against the CRB (centre estimated): Bezier phantom, %d B-scans, %d "
+        "realisations per noise level (seeds 1001...), noise per surface (ILM and BM each)\n",
+        nb, realisations);
+    {
+        // Noise-free: what the sampling alone leaves, with the noise-adaptive samples (the path
+        // every noisy eye takes) forced on, and with the bilinear samples (the default here).
+        const MaculaPhantom ph = make_macula_phantom(p, topt);
+        CubeParams forced;
+        forced.local_fit_min_noise_um = 0.0;
+        const std::vector<double> rf = parameter_values(analyse_macula(ph.scan, forced));
+        const std::vector<double> rb = parameter_values(analyse_macula(ph.scan));
+        std::printf("\nnoise-free, error in units of the 1 px CRB: %-17s %9s %9s\n", "",
+                    "adaptive", "bilinear");
+        for (std::size_t k = 0; k < kParams.size(); ++k) {
+            const double crb_sd = c.sd_free[k] * std::sqrt(2.0) * 3.8717 / kSigmaUm;
+            std::printf("  %-17s %+9.2f %+9.2f\n", kParams[k].name, (rf[k] - tv[k]) / crb_sd,
+                        (rb[k] - tv[k]) / crb_sd);
+        }
+    }
+    for (const double px : {0.5, 1.0, 2.0}) {
+        const double surface_um = px * 3.8717;
+        const double node_um = std::sqrt(2.0) * surface_um;
+        std::vector<std::vector<double>> err(kParams.size());
+        double cpu_s = 0.0;
+        for (int s = 0; s < realisations; ++s) {
+            MaculaPhantomParams q = p;
+            q.noise_um = surface_um;
+            q.seed = static_cast<std::uint64_t>(1001 + s);
+            const MaculaPhantom ph = make_macula_phantom(q, topt);
+            const auto t0 = std::chrono::steady_clock::now();
+            const CubeResult r = analyse_macula(ph.scan);
+            cpu_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+            const std::vector<double> rv = parameter_values(r);
+            // A disk or volume is omitted (NaN) when a half-line fails: counted, not averaged.
+            for (std::size_t k = 0; k < kParams.size(); ++k) {
+                if (std::isfinite(rv[k])) err[k].push_back(rv[k] - tv[k]);
+            }
+        }
+        std::printf(
+            "\n%.1f px per surface (%.2f um; node SD %.2f um), analysis %.1f ms per eye\n"
+            "%-17s %-4s %11s %10s %8s | %9s %9s %8s %8s %9s %9s %7s\n",
+            px, surface_um, node_um, 1e3 * cpu_s / realisations, "parameter", "unit", "truth",
+            "CRB", "CRB %", "bias %", "RMS %", "bias/CRB", "SE/CRB", "RMS/CRB", "|b|<=0.3?",
+            "omitted");
+        for (std::size_t k = 0; k < kParams.size(); ++k) {
+            const double crb_sd = c.sd_free[k] * node_um / kSigmaUm;
+            double sum = 0.0;
+            double sq = 0.0;
+            for (const double e : err[k]) {
+                sum += e;
+                sq += e * e;
+            }
+            const double n = static_cast<double>(err[k].size());
+            const double mean = sum / n;
+            const double rms = std::sqrt(sq / n);
+            const double sd = std::sqrt(std::max(0.0, sq / n - mean * mean) * n / (n - 1.0));
+            const double t = std::fabs(tv[k]);
+            std::printf("%-17s %-4s %11.5g %10.4g %8.3f | %+9.3f %9.3f %+8.2f %8.2f %9.2f %9s %7zu\n",
+                        kParams[k].name, kParams[k].unit, tv[k] * kParams[k].scale,
+                        crb_sd * kParams[k].scale, 100.0 * crb_sd / t, 100.0 * mean / t,
+                        100.0 * rms / t, mean / crb_sd, sd / std::sqrt(n) / crb_sd, rms / crb_sd,
+                        std::fabs(mean) <= 0.3 * crb_sd ? "yes" : "NO",
+                        static_cast<std::size_t>(realisations) - err[k].size());
+        }
+    }
+    return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+    if (argc > 1 && std::string(argv[1]) == "bias") {
+        return bias_table(argc > 2 ? std::max(2, std::atoi(argv[2])) : 300);
+    }
     const int seeds = argc > 1 ? std::max(0, std::atoi(argv[1])) : 36;
     const int fit_seeds = argc > 2 ? std::max(0, std::atoi(argv[2])) : 0;
     std::printf(
@@ -549,15 +655,8 @@ int main(int argc, char** argv) {
         const MaculaPhantomParams p = phantom_params(nb);
         const MaculaTruthOptions topt;
         const MaculaTruth truth = macula_truth(p, topt);
-        Model m;
-        m.n = topt.num_half_lines;
-        m.radius_mm = topt.radius_mm;
-        m.tau_mm = topt.tau_mm;
-        m.inner_radius_mm = topt.inner_radius_mm;
         const phantom::VolumeLayout layout = macula_layout(p);
-        m.frame = phantom::grid_frame(layout);
-        m.centre = macula_centre_mm(p);
-        for (int i = 0; i < m.n; ++i) m.dir.push_back(m.frame.grid_direction(360.0 * i / m.n));
+        const Model m = model_of(p, topt, layout);
         const Eigen::VectorXd th = true_theta(truth, m);
         const std::vector<double> tv = parameter_values(truth);
 

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <vector>
 
 #include "octshape/error.h"
 #include "octshape/io/scan_reader.h"
@@ -599,6 +600,107 @@ SLOW_TEST(CubePhantom, SegmentationNoiseGivesRmseOfTheNoiseLevel) {
         record("bezier_noise_193_rim_at_maximum_seed" + std::to_string(seed), m);
         EXPECT_LT(c.rim_diameter, 0.5 * m.rim_diameter);
         EXPECT_LT(c.vr_rel, 0.5 * m.vr_rel);
+    }
+}
+
+TEST(CubePhantom, BiasUnderOnePixelOfNoiseIsWithinAThirdOfTheBound) {
+    // Issue 32, item 5: |bias| <= 0.3 CRB at 1 axial pixel of segmentation noise on ILM and on
+    // BM each (3.87 um; thickness node SD 5.48 um) on 61 B-scans. The CRB SDs below are the
+    // Cramer-Rao bounds of the thesis's per-half-line model at this noise and sampling, centre
+    // estimated (`macula_crb bias`, docs/algorithms/cube.md "Bias under noise at 61 B-scans"):
+    // a property of the data, not of the analysis. The bias is estimated by the mean error of
+    // 16 antithetic pairs (below) with its standard error SE measured from the pairs' scatter
+    // (0.06-0.11 CRB here): an estimator whose bias is within 0.3 CRB passes
+    // |mean| <= 0.3 CRB + 3 SE except with probability ~0.1 % per parameter, and the biases
+    // this test guards against (the bilinear pit floor before: CFT +0.82, pit depth -0.88,
+    // alpha_m +0.86, pit-flat diameter +0.90, slope diameter +0.87 CRB over 300 realisations)
+    // exceed 0.3 + 3 SE. Seeds 2001..., not the bench's 1001...
+    // Not asserted (docs: not met): max slope (+0.5 CRB), V_IR (-0.4) and V_p (-1.5); why: the
+    // docs. The RMS over the 32 analyses must stay within the issue's 1.7 CRB (the bench: 0.85-
+    // 1.17 CRB); an RMS over 32 draws is within +-25 % of its expectation at 2 SE.
+    constexpr int kPairs = 16;
+    struct Bound {
+        const char* name;
+        double crb;  // CRB SD (mm, mm2, mm3)
+        double (*value)(const CubeResult&);
+        double (*truth)(const MaculaTruth&);
+    };
+    const std::vector<Bound> bounds{
+        {"cft", 1.113e-3, [](const CubeResult& r) { return r.cft_mm; },
+         [](const MaculaTruth& t) { return t.cft_mm; }},
+        {"rim_height", 0.3081e-3, [](const CubeResult& r) { return r.rim_height_mm; },
+         [](const MaculaTruth& t) { return t.rim_height_mm; }},
+        {"pit_depth", 1.095e-3, [](const CubeResult& r) { return r.pit_depth_mm; },
+         [](const MaculaTruth& t) { return t.pit_depth_mm; }},
+        {"rim_diameter", 24.36e-3, [](const CubeResult& r) { return r.rim.diameter_mm; },
+         [](const MaculaTruth& t) { return t.rim.diameter_mm; }},
+        {"rim_area", 0.08255, [](const CubeResult& r) { return r.rim.area_mm2; },
+         [](const MaculaTruth& t) { return t.rim.area_mm2; }},
+        {"slope_diameter", 19.28e-3, [](const CubeResult& r) { return r.slope.diameter_mm; },
+         [](const MaculaTruth& t) { return t.slope.diameter_mm; }},
+        {"slope_area", 0.0192, [](const CubeResult& r) { return r.slope.area_mm2; },
+         [](const MaculaTruth& t) { return t.slope.area_mm2; }},
+        {"flat_diameter", 9.106e-3, [](const CubeResult& r) { return r.pit_flat_diameter_mm; },
+         [](const MaculaTruth& t) { return t.pit_flat_diameter_mm; }},
+        {"flat_area", 0.00265, [](const CubeResult& r) { return r.pit_flat.area_mm2; },
+         [](const MaculaTruth& t) { return t.pit_flat.area_mm2; }},
+        {"rim_volume", 0.02914, [](const CubeResult& r) { return r.rim_volume_mm3; },
+         [](const MaculaTruth& t) { return t.rim_volume_mm3; }},
+        {"alpha_mean", 15.85e-3, [](const CubeResult& r) { return r.alpha_mean_mm; },
+         [](const MaculaTruth& t) { return *t.alpha_mean_mm; }},
+        {"beta_mean", 23.36e-3, [](const CubeResult& r) { return r.beta_mean_mm; },
+         [](const MaculaTruth& t) { return *t.beta_mean_mm; }},
+    };
+    // Antithetic pairs: each noisy scan and its mirror 2 clean - noisy (the same noise with the
+    // opposite sign, as likely under the phantom's Gaussian noise). The pair's mean error has
+    // the bias as its expectation, exactly, but not the error's first-order (odd) part, which
+    // is most of its variance: their SE is 2-3x below that of 32 independent draws.
+    const MaculaPhantomParams clean_params = volume_params(MaculaFamily::kBezier, 61);
+    const MaculaPhantom clean = make_macula_phantom(clean_params);
+    std::vector<std::vector<double>> err(bounds.size());  // pair means
+    std::vector<std::vector<double>> single(bounds.size());
+    for (int s = 0; s < kPairs; ++s) {
+        MaculaPhantomParams p = clean_params;
+        p.noise_um = 3.8717;
+        p.seed = static_cast<std::uint64_t>(2001 + s);
+        const MaculaPhantom ph = make_macula_phantom(p);
+        io::Scan mirror = ph.scan;
+        for (std::size_t b = 0; b < mirror.bscans.size(); ++b) {
+            auto& seg = mirror.bscans[b].seg;
+            for (std::size_t k = 0; k < seg.size(); ++k) {
+                for (std::size_t a = 0; a < seg[k].size(); ++a) {
+                    seg[k][a] = 2.0F * clean.scan.bscans[b].seg[k][a] - seg[k][a];
+                }
+            }
+        }
+        const CubeResult r = analyse_macula(ph.scan);
+        const CubeResult m = analyse_macula(mirror);
+        for (std::size_t k = 0; k < bounds.size(); ++k) {
+            const double truth = bounds[k].truth(ph.truth);
+            const double e = bounds[k].value(r) - truth;
+            const double f = bounds[k].value(m) - truth;
+            // A disk is omitted (NaN) when a half-line fails: the pair is then left out.
+            if (std::isfinite(e) && std::isfinite(f)) err[k].push_back(0.5 * (e + f));
+            for (const double x : {e, f}) {
+                if (std::isfinite(x)) single[k].push_back(x);
+            }
+        }
+    }
+    for (std::size_t k = 0; k < bounds.size(); ++k) {
+        SCOPED_TRACE(bounds[k].name);
+        const std::vector<double>& e = err[k];
+        ASSERT_GE(e.size(), static_cast<std::size_t>(kPairs - 2));
+        const auto n = static_cast<double>(e.size());
+        double mean = 0.0;
+        for (const double x : e) mean += x / n;
+        double var = 0.0;
+        for (const double x : e) var += (x - mean) * (x - mean) / (n - 1.0);
+        const double se = std::sqrt(var / n);
+        EXPECT_LE(std::fabs(mean), 0.3 * bounds[k].crb + 3.0 * se)
+            << "bias " << mean / bounds[k].crb << " CRB, SE " << se / bounds[k].crb << " CRB";
+        double ms = 0.0;
+        for (const double x : single[k]) ms += x * x / static_cast<double>(single[k].size());
+        EXPECT_LE(std::sqrt(ms), 1.7 * bounds[k].crb) << "RMS " << std::sqrt(ms) / bounds[k].crb;
     }
 }
 

@@ -218,10 +218,11 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
                                  .noisy = noisy,
                                  .noise_sd_mm = noise_sd_mm});
     const double centre_sample_mm = centre.sample_mm;
+    const PitFloor floor = centre.floor;
     take_centre(res, std::move(centre));
 
     RadialSamples samples = radial_samples(res.map, geo, params, res.centre_mm, res.cft_mm,
-                                           scan.meta.scale_x_mm, res.line_scan, noisy);
+                                           scan.meta.scale_x_mm, res.line_scan, noisy, floor);
     res.sample_spacing_mm = samples.spacing_mm;
     res.noise_adaptive_samples = samples.noise_adaptive;
     fit_half_lines(res, samples, centre_sample_mm, params, crest_mm);

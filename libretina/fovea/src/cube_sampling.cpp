@@ -85,12 +85,17 @@ std::vector<double> smoothed_box(const ThicknessMap& m, const NodeBox& bx, doubl
     return out;
 }
 
-// Vertex of the least-squares quadratic surface fitted to the valid nodes of M within the window
-// |x - c.x| <= rx, |y - c.y| <= ry (a parabola in x for a line scan); nullopt when the fit is not
-// a bowl or its vertex leaves the window. `value`, when given, receives the surface's height at
-// the vertex (2-D fits only; the analysis uses it as the centre sample under noise).
-std::optional<V2> quadratic_vertex(
-    const ThicknessMap& m, const V2& c, double rx, double ry, double* value = nullptr) {
+using Quadratic = Eigen::Matrix<double, 6, 1>;
+
+// The normal equations of the least-squares quadratic k0 + k1 u + k2 w + k3 u^2 + k4 u w +
+// k5 w^2, (u, w) = p - c, over the valid nodes p of M with |u| <= rx, |w| <= ry (w = 0 for a
+// line scan); returns the node count.
+int quadratic_normal_equations(const ThicknessMap& m,
+                               const V2& c,
+                               double rx,
+                               double ry,
+                               Eigen::Matrix<double, 6, 6>& N,
+                               Quadratic& rhs) {
     const bool line = m.rows == 1;
     const int a0 = std::max(0, static_cast<int>(std::floor((c.x() - rx) / m.dx_mm)));
     const int a1 = std::min(m.cols - 1, static_cast<int>(std::ceil((c.x() + rx) / m.dx_mm)));
@@ -100,8 +105,8 @@ std::optional<V2> quadratic_vertex(
         b0 = std::max(0, static_cast<int>(std::floor((c.y() - ry) / m.dy_mm)));
         b1 = std::min(m.rows - 1, static_cast<int>(std::ceil((c.y() + ry) / m.dy_mm)));
     }
-    Eigen::Matrix<double, 6, 6> N = Eigen::Matrix<double, 6, 6>::Zero();
-    Eigen::Matrix<double, 6, 1> rhs = Eigen::Matrix<double, 6, 1>::Zero();
+    N.setZero();
+    rhs.setZero();
     int count = 0;
     for (int b = b0; b <= b1; ++b) {
         for (int a = a0; a <= a1; ++a) {
@@ -110,13 +115,47 @@ std::optional<V2> quadratic_vertex(
             const double u = a * m.dx_mm - c.x();
             const double w = line ? 0.0 : b * m.dy_mm - c.y();
             if (std::fabs(u) > rx + 1e-12 || std::fabs(w) > ry + 1e-12) continue;
-            Eigen::Matrix<double, 6, 1> phi;
+            Quadratic phi;
             phi << 1.0, u, w, u * u, u * w, w * w;
             N += phi * phi.transpose();
             rhs += phi * v;
             ++count;
         }
     }
+    return count;
+}
+
+// The pit floor under noise (docs/algorithms/cube.md "Radial samples under noise"): the
+// quadratic surface over the window |u| <= rx, |w| <= ry around c (2-D maps only); nullopt when
+// the design is singular (fewer than 3 B-scans or A-scans in the window, missing nodes).
+std::optional<Quadratic> quadratic_surface(const ThicknessMap& m, const V2& c, double rx,
+                                           double ry) {
+    Eigen::Matrix<double, 6, 6> N;
+    Quadratic rhs;
+    if (m.rows == 1 || quadratic_normal_equations(m, c, rx, ry, N, rhs) < 12) return std::nullopt;
+    // In window units (u / rx, w / ry: unknowns k_j rx^i ry^j) so that the pivots compare.
+    Quadratic s;
+    s << 1.0, 1.0 / rx, 1.0 / ry, 1.0 / (rx * rx), 1.0 / (rx * ry), 1.0 / (ry * ry);
+    const Eigen::Matrix<double, 6, 6> Ns = s.asDiagonal() * N * s.asDiagonal();
+    const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(Ns);
+    const auto d = ldlt.vectorD();
+    if (ldlt.info() != Eigen::Success || !(d.minCoeff() > 1e-9 * d.maxCoeff())) {
+        return std::nullopt;
+    }
+    const Quadratic k = s.asDiagonal() * ldlt.solve(s.asDiagonal() * rhs);
+    return k.allFinite() ? std::optional<Quadratic>(k) : std::nullopt;
+}
+
+// Vertex of the least-squares quadratic surface fitted to the valid nodes of M within the window
+// |x - c.x| <= rx, |y - c.y| <= ry (a parabola in x for a line scan); nullopt when the fit is not
+// a bowl or its vertex leaves the window. `value`, when given, receives the surface's height at
+// the vertex (2-D fits only; the analysis uses it as the centre sample under noise).
+std::optional<V2> quadratic_vertex(
+    const ThicknessMap& m, const V2& c, double rx, double ry, double* value = nullptr) {
+    const bool line = m.rows == 1;
+    Eigen::Matrix<double, 6, 6> N;
+    Quadratic rhs;
+    const int count = quadratic_normal_equations(m, c, rx, ry, N, rhs);
     if (line) {
         // 1-D: unknowns (1, u, u^2).
         const std::array<int, 3> id{0, 1, 3};
@@ -161,6 +200,9 @@ constexpr double kLocalFitTangentialBscans = 2.0;
 // 36 seeds alike within their scatter, 0.06 mm (the noise-free choice) worse.
 constexpr double kNoisyCentreFitRadiusMm = 0.2;
 constexpr double kOnePixelNoiseMm = 0.0038717;
+// The pit floor's window: +-1.51 node spacings holds at least 3 B-scans and 3 A-scans wherever
+// the centre lies between them.
+constexpr double kFloorNodeSpans = 1.51;
 double noisy_centre_fit_radius_mm(double sd_mm) {
     return kNoisyCentreFitRadiusMm * std::cbrt(sd_mm / kOnePixelNoiseMm);
 }
@@ -217,6 +259,30 @@ struct LocalFitSums {
     [[nodiscard]] Eigen::Vector4d rhs() const { return {v, vr1, vr2, vt}; }
 };
 
+// The local fit's value at grid point g from its window's sums, or nullopt when the window has
+// fewer than min_nodes nodes, a singular design, or a value noisier than the bilinear sample's.
+std::optional<double> local_fit_value(const LocalFitSums& q,
+                                      const LocalFitWindow& win,
+                                      const ThicknessMap& m,
+                                      const V2& g) {
+    using V4 = Eigen::Vector4d;
+    if (q.count < win.min_nodes) return std::nullopt;
+    const Eigen::LDLT<Eigen::Matrix4d> ldlt(q.normal());
+    const auto d = ldlt.vectorD();
+    if (ldlt.info() != Eigen::Success || !(d.minCoeff() > 1e-9 * d.maxCoeff())) {
+        return std::nullopt;
+    }
+    // Noise of the fit's value: sigma^2 (N^-1)_00; the bilinear sample's: sigma^2 sum w^2 of its
+    // 4 weights. Keep the less noisy (a window whose nodes barely span rho or tau extrapolates).
+    const double var_fit = ldlt.solve(V4::UnitX())(0);
+    const double u = g.x() / m.dx_mm - std::floor(g.x() / m.dx_mm);
+    const double t = g.y() / m.dy_mm - std::floor(g.y() / m.dy_mm);
+    const double var_bilinear = ((1.0 - u) * (1.0 - u) + u * u) * ((1.0 - t) * (1.0 - t) + t * t);
+    if (!(var_fit < var_bilinear)) return std::nullopt;
+    const double z = ldlt.solve(q.rhs())(0);
+    return std::isfinite(z) ? std::optional<double>(z) : std::nullopt;
+}
+
 // With `sector_nodes` (size n), also hands every valid node within `sector_radius` of the centre
 // to its own sector's list as (radius, thickness): the sector bins of the final fit.
 void local_fit_samples(const ThicknessMap& m,
@@ -225,7 +291,8 @@ void local_fit_samples(const ThicknessMap& m,
                        const LocalFitWindow& win,
                        std::vector<CubeHalfLine>& lines,
                        std::vector<std::vector<V2>>* sector_nodes = nullptr,
-                       double sector_radius = 0.0) {
+                       double sector_radius = 0.0,
+                       const PitFloor& floor = {}) {
     if (lines.empty() || lines.front().r_mm.size() < 2) return;
     const std::vector<double>& radii = lines.front().r_mm;
     const std::size_t n = lines.size();
@@ -236,8 +303,6 @@ void local_fit_samples(const ThicknessMap& m,
     // Uniform radii k s for k < uniform; the last may be R itself (docs: "Radial resampling").
     const std::size_t uniform =
         std::fabs(radii.back() - static_cast<double>(ns - 1) * s) < 1e-9 ? ns : ns - 1;
-    using V4 = Eigen::Vector4d;
-    using M4 = Eigen::Matrix4d;
     std::vector<LocalFitSums> sums(n * ns);
     std::vector<V2> dir(n);
     std::vector<V2> perp(n);
@@ -301,23 +366,16 @@ void local_fit_samples(const ThicknessMap& m,
     }
     for (std::size_t i = 0; i < n; ++i) {
         for (std::size_t k = 1; k < ns; ++k) {
-            const LocalFitSums& q = sums[i * ns + k];
-            if (std::isnan(lines[i].h_mm[k]) || q.count < win.min_nodes) continue;
-            const Eigen::LDLT<M4> ldlt(q.normal());
-            const auto d = ldlt.vectorD();
-            if (ldlt.info() != Eigen::Success || !(d.minCoeff() > 1e-9 * d.maxCoeff())) continue;
-            // Noise of the fit's value: sigma^2 (N^-1)_00; the bilinear sample's: sigma^2 sum w^2
-            // of its 4 weights. Keep the less noisy (a window whose nodes barely span rho or
-            // tau extrapolates).
-            const double var_fit = ldlt.solve(V4::UnitX())(0);
+            if (std::isnan(lines[i].h_mm[k])) continue;
             const V2 g = c + radii[k] * dir[i];
-            const double u = g.x() / m.dx_mm - std::floor(g.x() / m.dx_mm);
-            const double t = g.y() / m.dy_mm - std::floor(g.y() / m.dy_mm);
-            const double var_bilinear =
-                ((1.0 - u) * (1.0 - u) + u * u) * ((1.0 - t) * (1.0 - t) + t * t);
-            if (!(var_fit < var_bilinear)) continue;
-            const V4 z = ldlt.solve(q.rhs());
-            if (std::isfinite(z(0))) lines[i].h_mm[k] = z(0);
+            if (const auto z = local_fit_value(sums[i * ns + k], win, m, g)) {
+                lines[i].h_mm[k] = *z;
+            } else if (floor.holds(g)) {
+                // No local fit here (near the centre its window holds one or two B-scans at
+                // 61 B-scans): the pit floor's quadratic surface, not the bilinear sample, whose
+                // interpolation across B-scans is biased upward in the convex pit.
+                lines[i].h_mm[k] = floor.at(g);
+            }
         }
     }
 }
@@ -471,12 +529,24 @@ Centre find_centre(const CentreInput& in) {
                 out.centre_mm = *v;
                 if (noisy) out.sample_mm = vertex_mm;
             }
+            if (noisy) {
+                // The pit floor for the radial samples the local fits cannot give: the
+                // smallest window centred on the centre that holds 3 A-scans and 3 B-scans (a
+                // quadratic in both directions), at least the noise-free centre window.
+                const double fx = std::max(params.centre_fit_radius_mm, kFloorNodeSpans * m.dx_mm);
+                const double fy = std::max(params.centre_fit_radius_mm, kFloorNodeSpans * m.dy_mm);
+                if (const auto k = quadratic_surface(m, out.centre_mm, fx, fy)) {
+                    out.floor = PitFloor{.origin = out.centre_mm, .k = *k, .half_x_mm = fx,
+                                         .half_y_mm = fy};
+                }
+            }
         }
         double cv = m.sample(out.centre_mm.x(), out.centre_mm.y());
         if (std::isnan(cv) && out.centre_mm != node_centre) {
             // Missing values next to the refined centre: keep the minimum's node centre.
             out.centre_mm = node_centre;
             out.sample_mm = kMissing;
+            out.floor = PitFloor{};
             cv = m.sample(node_centre.x(), node_centre.y());
             out.notes.push_back(
                 "missing thickness next to the refined centre: the centre is the "
@@ -494,6 +564,7 @@ Centre find_centre(const CentreInput& in) {
                 if (!std::isnan(raw) && d < best_d) {
                     best_d = d;
                     out.centre_mm = V2(xs[k], ys[k]);
+                    out.floor = PitFloor{};
                     cv = raw;
                 }
             }
@@ -518,7 +589,8 @@ RadialSamples radial_samples(const ThicknessMap& m,
                              double cft_mm,
                              double scale_x_mm,
                              bool line_scan,
-                             bool noisy) {
+                             bool noisy,
+                             const PitFloor& floor) {
     RadialSamples out;
     const double spacing = params.sample_spacing_mm > 0.0 ? params.sample_spacing_mm : scale_x_mm;
     out.spacing_mm = spacing;
@@ -560,7 +632,7 @@ RadialSamples radial_samples(const ThicknessMap& m,
         win.sector_half_rad = kPi / n;
         win.tangential_min_mm = kLocalFitTangentialBscans * m.dy_mm;
         local_fit_samples(m, centre_mm, geo.grid_to_anatomical(), win, out.half_lines,
-                          &out.sector_nodes, params.radius_mm);
+                          &out.sector_nodes, params.radius_mm, floor);
         out.noise_adaptive = true;
     }
     return out;

@@ -15,6 +15,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <cmath>
 #include <numbers>
 #include <span>
 #include <string>
@@ -72,6 +73,26 @@ struct CentreInput {
     double noise_sd_mm = 0.0;  // thickness_noise_sd of the map
 };
 
+// Under noise, the least-squares quadratic surface of the pit floor around the centre, over the
+// window |u| <= half_x_mm, |w| <= half_y_mm: T = k0 + k1 u + k2 w + k3 u^2 + k4 u w + k5 w^2 with
+// (u, w) = p - origin. The radial samples inside it that no local fit gives take its height
+// (docs/algorithms/cube.md "Radial samples under noise").
+struct PitFloor {
+    V2 origin = V2::Zero();
+    Eigen::Matrix<double, 6, 1> k = Eigen::Matrix<double, 6, 1>::Zero();
+    double half_x_mm = 0.0;  // 0: none
+    double half_y_mm = 0.0;
+    [[nodiscard]] bool holds(const V2& p) const {
+        return half_x_mm > 0.0 && std::fabs(p.x() - origin.x()) <= half_x_mm &&
+               std::fabs(p.y() - origin.y()) <= half_y_mm;
+    }
+    [[nodiscard]] double at(const V2& p) const {
+        const V2 d = p - origin;
+        return k(0) + k(1) * d.x() + k(2) * d.y() + k(3) * d.x() * d.x() + k(4) * d.x() * d.y() +
+               k(5) * d.y() * d.y();
+    }
+};
+
 struct Centre {
     V2 search_centre_mm = V2::Zero();
     std::string source;  // CubeResult::centre_source
@@ -82,6 +103,7 @@ struct Centre {
     // Under noise, the height of the centre's quadratic surface at its vertex: the first sample
     // of the CFT pass (NaN: use cft_mm).
     double sample_mm = kMissing;
+    PitFloor floor;  // under noise, when the quadratic surface was used
     std::vector<std::string> notes;
     std::vector<std::string> qc_flags;
 };
@@ -108,7 +130,8 @@ struct RadialSamples {
                                            double cft_mm,
                                            double scale_x_mm,
                                            bool line_scan,
-                                           bool noisy);
+                                           bool noisy,
+                                           const PitFloor& floor = {});
 
 // Replaces every half-line's samples (but the centre) by its sector bins
 // (docs/algorithms/cube.md "Radial samples under noise") (cube_sampling.cpp).
