@@ -365,7 +365,9 @@ SLOW_TEST(LevelSetPhantom, Overhang) { check_shape(OnhShape::kOverhang); }
 
 // The same at the full 145 × 384 × 496 size (ctest label "slow").
 // Slow: an ONH phantom through the whole level-set pipeline (minutes under the sanitizers).
-SLOW_TEST(LevelSetOverhangFullSize, FollowsTheIlmUnderTheRimLip) {
+// Release only (ACCURACY_TEST); under the sanitizers its code paths run in
+// LevelSetPhantom.Overhang (the same phantom, smaller).
+ACCURACY_TEST(LevelSetOverhangFullSize, FollowsTheIlmUnderTheRimLip) {
     Case c;
     c.params = onh_phantom_preset(OnhShape::kOverhang);
     c.geometry = std::make_unique<OnhPhantomGeometry>(c.params);

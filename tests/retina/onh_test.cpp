@@ -316,7 +316,9 @@ SLOW_TEST(OnhPhantomTruth, CuppedWithDeviceIlm) {
 }
 
 // Slow: a full-size ONH phantom (145 x 384 x 496): seconds, ~10x under the sanitizers.
-SLOW_TEST(OnhPhantomTruth, SwollenWithDeviceIlm) {
+// Release only (ACCURACY_TEST); under the sanitizers its code paths run in
+// OnhPhantomTruth.CuppedWithDeviceIlm.
+ACCURACY_TEST(OnhPhantomTruth, SwollenWithDeviceIlm) {
     const Case c = run_full(OnhShape::kSwollen);
     expect_common(c, "swollen");
     const OnhTruth& t = c.ph.truth;
@@ -329,7 +331,9 @@ SLOW_TEST(OnhPhantomTruth, SwollenWithDeviceIlm) {
 }
 
 // Slow: a full-size ONH phantom (145 x 384 x 496): seconds, ~10x under the sanitizers.
-SLOW_TEST(OnhPhantomTruth, OverhangWithDeviceIlmIsBlindToTheCavity) {
+// Release only (ACCURACY_TEST); under the sanitizers its code paths run in
+// OnhPhantomTruth.CuppedWithDeviceIlm.
+ACCURACY_TEST(OnhPhantomTruth, OverhangWithDeviceIlmIsBlindToTheCavity) {
     const Case c = run_full(OnhShape::kOverhang);
     expect_common(c, "overhang");
     const OnhTruth& t = c.ph.truth;
@@ -422,7 +426,9 @@ SLOW_TEST(OnhPhantomTruth, CuppedWithLevelSetIlm) {
 }
 
 // Slow: a full-size ONH phantom (145 x 384 x 496): seconds, ~10x under the sanitizers.
-SLOW_TEST(OnhPhantomTruth, SwollenWithLevelSetIlm) {
+// Release only (ACCURACY_TEST); under the sanitizers its code paths run in
+// OnhPhantomTruth.CuppedWithLevelSetIlm.
+ACCURACY_TEST(OnhPhantomTruth, SwollenWithLevelSetIlm) {
     const LevelSetCase c = run_both(OnhShape::kSwollen);
     expect_levelset_targets(c, "swollen");
 }
@@ -431,7 +437,9 @@ SLOW_TEST(OnhPhantomTruth, SwollenWithLevelSetIlm) {
 // graph cannot see, so inside the BMO it is closer to the truth in every parameter the cavity
 // touches.
 // Slow: a full-size ONH phantom (145 x 384 x 496): seconds, ~10x under the sanitizers.
-SLOW_TEST(OnhPhantomTruth, OverhangLevelSetIsCloserToTheTruthThanTheDeviceGraph) {
+// Release only (ACCURACY_TEST); under the sanitizers its code paths run in
+// OnhPhantomTruth.CuppedWithLevelSetIlm and LevelSetPhantom.Overhang.
+ACCURACY_TEST(OnhPhantomTruth, OverhangLevelSetIsCloserToTheTruthThanTheDeviceGraph) {
     const LevelSetCase c = run_both(OnhShape::kOverhang);
     expect_levelset_targets(c, "overhang");
     const OnhTruth& t = c.ph.truth;
