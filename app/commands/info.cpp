@@ -153,7 +153,10 @@ void add_info_command(CLI::App& app, RunContext& /*ctx*/) {
     CLI::App* cmd = app.add_subcommand(
         "info", "Show what an export holds: eye, scan pattern, sizes, scales, B-scan spacing, "
                 "layers and their valid values, thickness-grid centre");
-    cmd->add_option("file", opts->file, "A Spectralis .vol or Heidelberg XML export")->required();
+    cmd->add_option("file", opts->file,
+                    "A Spectralis .vol, Heidelberg XML export, Topcon .fda/.fds or Iowa "
+                    "surfaces XML")
+        ->required();
     cmd->add_flag("--json", opts->json, "Print JSON instead of text");
     cmd->add_flag("--show-identifiers", opts->identifiers,
                   "Also print patient/visit identifiers, date of birth and exam dates "
