@@ -29,6 +29,7 @@ constexpr std::size_t kMaxChunks = 1U << 16;
 constexpr std::uint32_t kMaxSide = 1U << 15;
 constexpr double kMaxScanMm = 50.0;    // scan width / height on the fundus
 constexpr double kMaxPixelUm = 100.0;  // axial pixel size
+constexpr double kMinSize = 1e-3;      // mm of a scan side, um of a pixel
 
 struct Chunk {
     std::string name;
@@ -238,8 +239,10 @@ ScanParams read_scan_params(std::string_view d,
     const ChunkReader r(d, *c, path);
     ScanParams p{r.get<double>(at, "scan width"), r.get<double>(at + 8, "scan height"),
                  r.get<double>(at + 16, "axial pixel size")};
+    // A lower bound too: a denormal size would divide down to 0. The bounds are widened by a
+    // rounding's width so that what write_topcon writes from a read scan reads back.
     auto check = [&](double v, double max, std::size_t off, const char* what) {
-        if (!std::isfinite(v) || v <= 0.0 || v > max) {
+        if (!std::isfinite(v) || v < kMinSize * (1.0 - 1e-9) || v > max * (1.0 + 1e-9)) {
             throw InputError::corrupt(
                 path, r.name() + " " + what + " " + std::to_string(v) + " is not a size",
                 r.offset(off));

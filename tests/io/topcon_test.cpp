@@ -189,6 +189,17 @@ TEST(Topcon, DamagedStructuresNameTheProblemAndItsOffset) {
         EXPECT_EQ(e.kind(), InputError::Kind::kCorrupt);
         EXPECT_EQ(e.offset(), std::optional<std::uint64_t>(param + 12));
     }
+    // A denormal axial pixel size (found by the fuzzer: it divided down to a zero scale).
+    std::string tiny = base;
+    const double denormal = 1e-320;
+    std::memcpy(tiny.data() + param + 28, &denormal, 8);
+    try {
+        (void)io::parse_topcon(tiny, "x.fda");
+        ADD_FAILURE() << "read";
+    } catch (const InputError& e) {
+        EXPECT_EQ(e.kind(), InputError::Kind::kCorrupt);
+        EXPECT_EQ(e.offset(), std::optional<std::uint64_t>(param + 28));
+    }
     // A contour whose stated data size disagrees with its sides.
     const std::size_t contour = base.find("RETINA_1");
     std::string wrong = base;
