@@ -29,7 +29,7 @@ fuzz() {
 }
 
 # max_len: the .vol seeds are 1.5-4 kB (16 kB leaves room to grow every structure); the Iowa
-# seeds 1-3 kB of XML; the Topcon seeds 0.5-1.1 kB.
+# seeds 1-3 kB of XML; the Topcon seeds 0.7-0.9 kB.
 fuzz vol ".vol reader" "$((secs * 2 / 3))" 16384
 fuzz iowa "Iowa surfaces reader" "$((secs / 3))" 8192
 fuzz topcon "Topcon .fda reader" "$((secs / 2))" 8192
