@@ -1,5 +1,7 @@
 #include "octshape/io/topcon.h"
 
+#include <openjpeg.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -143,6 +145,9 @@ struct ImageInfo {
     std::uint32_t width = 0;
     std::uint32_t height = 0;
     std::uint32_t frames = 0;
+    // @IMG_JPEG: each frame's codestream (views into the file's bytes).
+    std::vector<std::string_view> codestreams;
+    std::vector<std::uint64_t> frame_offsets;
 };
 
 void check_side(const ChunkReader& r,
@@ -159,8 +164,13 @@ void check_side(const ChunkReader& r,
 }
 
 ImageInfo read_jpeg_header(const ChunkReader& r, const std::string& path) {
-    ImageInfo im{r.name(), r.get<std::uint8_t>(0, "scan type"), r.get<std::uint32_t>(9, "width"),
-                 r.get<std::uint32_t>(13, "height"), r.get<std::uint32_t>(17, "frame count")};
+    ImageInfo im{r.name(),
+                 r.get<std::uint8_t>(0, "scan type"),
+                 r.get<std::uint32_t>(9, "width"),
+                 r.get<std::uint32_t>(13, "height"),
+                 r.get<std::uint32_t>(17, "frame count"),
+                 {},
+                 {}};
     check_side(r, 9, im.width, "width", path);
     check_side(r, 13, im.height, "height", path);
     if (im.frames > kMaxSide) {
@@ -180,14 +190,21 @@ ImageInfo read_jpeg_header(const ChunkReader& r, const std::string& path) {
                 path, "B-scan frame " + std::to_string(f) + " is not a JPEG 2000 codestream",
                 r.offset(p + 4));
         }
+        im.codestreams.emplace_back(r.bytes(p + 4), n);
+        im.frame_offsets.push_back(r.offset(p + 4));
         p += 4U + n;
     }
     return im;
 }
 
 ImageInfo read_raw_header(const ChunkReader& r, const std::string& path) {
-    ImageInfo im{r.name(), -1, r.get<std::uint32_t>(1, "width"), r.get<std::uint32_t>(5, "height"),
-                 r.get<std::uint32_t>(13, "frame count")};
+    ImageInfo im{r.name(),
+                 -1,
+                 r.get<std::uint32_t>(1, "width"),
+                 r.get<std::uint32_t>(5, "height"),
+                 r.get<std::uint32_t>(13, "frame count"),
+                 {},
+                 {}};
     check_side(r, 1, im.width, "width", path);
     check_side(r, 5, im.height, "height", path);
     check_side(r, 13, im.frames, "frame count", path);
@@ -472,6 +489,128 @@ void set_geometry(Scan& scan, const ImageInfo& im, const ScanParams& p, std::siz
     }
 }
 
+// ---- JPEG 2000 B-scans (OpenJPEG) ------------------------------------------------------------
+
+// A codestream in memory as an OpenJPEG stream.
+struct MemoryStream {
+    std::string_view bytes;
+    std::size_t at = 0;
+};
+
+OPJ_SIZE_T stream_read(void* buffer, OPJ_SIZE_T n, void* user) {
+    auto* m = static_cast<MemoryStream*>(user);
+    if (m->at >= m->bytes.size()) return static_cast<OPJ_SIZE_T>(-1);
+    const std::size_t k = std::min<std::size_t>(n, m->bytes.size() - m->at);
+    std::memcpy(buffer, m->bytes.data() + m->at, k);
+    m->at += k;
+    return k;
+}
+
+OPJ_OFF_T stream_skip(OPJ_OFF_T n, void* user) {
+    auto* m = static_cast<MemoryStream*>(user);
+    if (n < 0 || static_cast<std::size_t>(n) > m->bytes.size() - m->at) return -1;
+    m->at += static_cast<std::size_t>(n);
+    return n;
+}
+
+OPJ_BOOL stream_seek(OPJ_OFF_T n, void* user) {
+    auto* m = static_cast<MemoryStream*>(user);
+    if (n < 0 || static_cast<std::size_t>(n) > m->bytes.size()) return OPJ_FALSE;
+    m->at = static_cast<std::size_t>(n);
+    return OPJ_TRUE;
+}
+
+void quiet(const char*, void*) {}  // OpenJPEG's messages: the error says what matters
+
+// Owns OpenJPEG's objects for one frame.
+struct J2kFrame {
+    opj_stream_t* stream = nullptr;
+    opj_codec_t* codec = nullptr;
+    opj_image_t* image = nullptr;
+    J2kFrame() = default;
+    J2kFrame(const J2kFrame&) = delete;
+    J2kFrame& operator=(const J2kFrame&) = delete;
+    ~J2kFrame() {
+        if (image != nullptr) opj_image_destroy(image);
+        if (codec != nullptr) opj_destroy_codec(codec);
+        if (stream != nullptr) opj_stream_destroy(stream);
+    }
+};
+
+// Decodes frame `f` into `out` (height x width, row 0 at the top as the codestream stores it),
+// grey values g of p bits as (g / (2^p - 1))^4: the device stores display values, and the QC
+// pictures show v^0.25 of a linear reflectance. The sides are checked against the chunk's
+// before anything is decoded, so OpenJPEG allocates no more than one B-scan.
+void decode_frame(const ImageInfo& im,
+                  std::size_t f,
+                  const std::string& path,
+                  std::vector<float>& out) {
+    const auto fail = [&](const std::string& what) {
+        throw InputError::corrupt(path, "B-scan frame " + std::to_string(f) + ": " + what,
+                                  im.frame_offsets[f]);
+    };
+    MemoryStream mem{im.codestreams[f], 0};
+    J2kFrame j;
+    j.stream = opj_stream_default_create(OPJ_TRUE);
+    j.codec = opj_create_decompress(OPJ_CODEC_J2K);
+    if (j.stream == nullptr || j.codec == nullptr) fail("the JPEG 2000 decoder cannot start");
+    opj_stream_set_read_function(j.stream, stream_read);
+    opj_stream_set_skip_function(j.stream, stream_skip);
+    opj_stream_set_seek_function(j.stream, stream_seek);
+    opj_stream_set_user_data(j.stream, &mem, nullptr);
+    opj_stream_set_user_data_length(j.stream, mem.bytes.size());
+    opj_set_error_handler(j.codec, quiet, nullptr);
+    opj_set_warning_handler(j.codec, quiet, nullptr);
+    opj_set_info_handler(j.codec, quiet, nullptr);
+    opj_dparameters_t params;
+    opj_set_default_decoder_parameters(&params);
+    if (!opj_setup_decoder(j.codec, &params) || !opj_read_header(j.stream, j.codec, &j.image) ||
+        j.image == nullptr) {
+        fail("damaged JPEG 2000 header");
+    }
+    const opj_image_t& h = *j.image;
+    if (h.numcomps < 1 || h.x1 - h.x0 != im.width || h.y1 - h.y0 != im.height) {
+        fail("JPEG 2000 image of " + std::to_string(h.x1 - h.x0) + " x " +
+             std::to_string(h.y1 - h.y0) + " px, the chunk says " + std::to_string(im.width) +
+             " x " + std::to_string(im.height));
+    }
+    if (!opj_decode(j.codec, j.stream, j.image) || !opj_end_decompress(j.codec, j.stream)) {
+        fail("damaged JPEG 2000 codestream");
+    }
+    const opj_image_comp_t& c = j.image->comps[0];
+    if (c.data == nullptr || c.w != im.width || c.h != im.height || c.prec < 1 || c.prec > 16) {
+        fail("unexpected JPEG 2000 component");
+    }
+    const double max = std::ldexp(1.0, static_cast<int>(c.prec)) - 1.0;
+    const std::size_t n = std::size_t{im.width} * im.height;
+    out.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        const double v = std::clamp(static_cast<double>(c.data[i]) / max, 0.0, 1.0);
+        out[i] = static_cast<float>(v * v * v * v);
+    }
+}
+
+// Pixels when asked and the file holds a frame for every B-scan (frame k is B-scan k: checked
+// on the real file, docs/formats.md); otherwise a note says why there are none.
+void load_pixels(Scan& scan, const ImageInfo& im, const std::string& path) {
+    if (im.codestreams.empty() && im.frames > 0) {
+        scan.notes.push_back("raw B-scans (" + im.chunk +
+                             ") not decoded: their row order is "
+                             "unverified");
+        return;
+    }
+    if (im.codestreams.size() != scan.bscans.size()) {
+        scan.notes.push_back("B-scan pixels not loaded: the file holds " +
+                             std::to_string(im.codestreams.size()) + " of " +
+                             std::to_string(scan.bscans.size()) + " B-scan images");
+        return;
+    }
+    for (std::size_t b = 0; b < scan.bscans.size(); ++b) {
+        decode_frame(im, b, path, scan.bscans[b].pixels);
+    }
+    scan.pixels_loaded = true;
+}
+
 }  // namespace
 
 bool looks_like_topcon(const char* head, std::size_t n) {
@@ -521,7 +660,7 @@ Scan parse_topcon(std::string_view d, const std::string& path, const ReadOptions
                          std::string(options.iowa_bm == IowaBm::kOuterRpe
                                          ? "RETINA_4 (outer boundary of the RPE)"
                                          : "RETINA_3 (inner boundary of the RPE)"));
-    scan.notes.push_back("B-scan pixels not decoded (" + im.chunk + ")");
+    if (options.pixels) load_pixels(scan, im, path);
     if (scan.meta.laterality == Laterality::kUnknown) scan.notes.push_back("laterality not stated");
     return scan;
 }

@@ -25,7 +25,6 @@ namespace {
 
 const std::string kReal = "topcon_ukb_example_min.fda";
 
-
 // A small volume with known lines: 16 A-scans x 64 px x 8 B-scans, ILM at 20 + b, BM at 40 + a/4.
 io::Scan small_scan() {
     io::Scan s;
@@ -244,6 +243,77 @@ TEST(Topcon, RandomMutationsOfASmallFileNeverCrash) {
               << " read cleanly, " << errors << " gave InputError, 0 crashes\n";
     EXPECT_GT(ok, 1000U);
     EXPECT_GT(errors, 1000U);
+}
+
+// The real file's JPEG 2000 frame (B-scan 0), twice, under a two-B-scan file of our writer:
+// (frames, contours) = (B-scan 0 of the real file, its ILM and BM rows 0 and 1).
+std::string two_frame_file(const std::string& real, std::string_view frame) {
+    const io::Scan r = io::parse_topcon(real, "real.fda");
+    io::Scan s;
+    s.meta = r.meta;
+    s.meta.distance_mm = 0.05;
+    s.bscans = {r.bscans[0], r.bscans[0]};
+    std::ostringstream out(std::ios::binary);
+    io::write_topcon(s, out);
+    std::string f = out.str();
+    const std::size_t at = f.find("@IMG_JPEG");
+    std::string chunk = f.substr(at + 9 + 4, 25);
+    const std::uint32_t two = 2;
+    std::memcpy(chunk.data() + 17, &two, 4);
+    const auto n = static_cast<std::uint32_t>(frame.size());
+    for (int k = 0; k < 2; ++k) {
+        chunk.append(reinterpret_cast<const char*>(&n), 4);
+        chunk.append(frame);
+    }
+    const auto size = static_cast<std::uint32_t>(chunk.size());
+    std::string sized(reinterpret_cast<const char*>(&size), 4);
+    return f.substr(0, at + 9) + sized + chunk + f.substr(at + 9 + 4 + 25);
+}
+
+TEST(Topcon, JpegFramesDecodedWhenEveryBScanHasOneAndDamagedFramesRefused) {
+    SKIP_UNLESS_SHARED("realdata/topcon_ukb_example_min.fda");
+    const std::string real = slurp(realdata(kReal));
+    // @IMG_JPEG is the real file's 4th chunk: data at 920, frame size at 945, codestream at 949.
+    std::uint32_t n = 0;
+    std::memcpy(&n, real.data() + 945, 4);
+    const std::string_view frame(real.data() + 949, n);
+    ASSERT_EQ(static_cast<unsigned char>(frame[0]), 0xFF);
+    io::ReadOptions px;
+    px.pixels = true;
+    // The real file holds 1 frame for 128 B-scans: no pixels, said.
+    const io::Scan partial = io::parse_topcon(real, "real.fda", px);
+    EXPECT_FALSE(partial.pixels_loaded);
+    const io::Scan s = io::parse_topcon(two_frame_file(real, frame), "two.fda", px);
+    ASSERT_TRUE(s.pixels_loaded);
+    ASSERT_EQ(s.bscans[1].pixels.size(), 512U * 650U);
+    // The decoded frame lies under its contours: dark above the ILM, bright below it, bright
+    // above BM and darker below (mean over the B-scan, 3 px away; display values^4).
+    double above = 0, below = 0, rpe = 0, choroid = 0;
+    for (int a = 0; a < 512; ++a) {
+        const auto px_at = [&](float depth, int dz) {
+            return s.bscans[1].pixels[static_cast<std::size_t>(std::lround(depth) + dz) * 512 +
+                                      static_cast<std::size_t>(a)];
+        };
+        above += px_at(s.depth_px(0, 1, a), -3);
+        below += px_at(s.depth_px(0, 1, a), 3);
+        rpe += px_at(s.depth_px(1, 1, a), -3);
+        choroid += px_at(s.depth_px(1, 1, a), 3);
+    }
+    EXPECT_GT(below, 10 * above);
+    EXPECT_GT(rpe, 2 * choroid);
+    // A frame cut to half its codestream, or with its header garbled: refused with the offset.
+    for (const std::string& bad :
+         {std::string(frame.substr(0, n / 2)), std::string(frame.substr(0, 2)) + "garbage"}) {
+        try {
+            (void)io::parse_topcon(two_frame_file(real, bad), "bad.fda", px);
+            ADD_FAILURE() << "read";
+        } catch (const InputError& e) {
+            EXPECT_EQ(e.kind(), InputError::Kind::kCorrupt) << e.what();
+            EXPECT_NE(e.reason().find("B-scan frame 0"), std::string::npos) << e.what();
+        }
+        // Without pixels the frames are only framed, not decoded: the file reads.
+        EXPECT_NO_THROW((void)io::parse_topcon(two_frame_file(real, bad), "bad.fda"));
+    }
 }
 
 TEST(Topcon, RealFileTruncatedAtAndAroundEveryChunkIsAnInputError) {

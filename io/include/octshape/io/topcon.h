@@ -2,8 +2,8 @@
 // Topcon 3D OCT exports (.fda, and .fds with raw B-scans), as the 3D OCT-1000 / 2000 write them
 // and as UK Biobank stores its macular cubes: a 15-byte header ("FOCT" + "FDA"/"FDS"/"FAA") and
 // named chunks. Read: the scan geometry, the eye, the exam date and patient fields (private),
-// and the device's layer contours (@CONTOUR_INFO) as segmentation lines; B-scan pixels are not
-// decoded (JPEG 2000 in .fda). Layout, which contour is which boundary and how that was
+// and the device's layer contours (@CONTOUR_INFO) as segmentation lines; B-scan pixels when asked
+// (JPEG 2000 frames of .fda, decoded with OpenJPEG; raw .fds B-scans are not decoded). Layout, which contour is which boundary and how that was
 // established, orientation and B-scan order: docs/formats.md "Topcon .fda / .fds".
 
 #include <cstddef>
