@@ -599,6 +599,17 @@ void load_pixels(Scan& scan, const ImageInfo& im, const std::string& path) {
                              "unverified");
         return;
     }
+    // Compressed frames can claim far more pixels than the file has bytes: at most 2^24 px a
+    // B-scan and 2^28 px (1 GiB of floats) a scan. A UK Biobank cube is 512 x 650 x 128 =
+    // 2^25.3 px; 512 x 885 x 256 = 2^26.8.
+    const std::uint64_t per_frame = std::uint64_t{im.width} * im.height;
+    if (per_frame > (std::uint64_t{1} << 24) ||
+        per_frame * scan.bscans.size() > (std::uint64_t{1} << 28)) {
+        throw InputError::unsupported(path, "B-scan images of " + std::to_string(im.width) + " x " +
+                                                std::to_string(im.height) + " px x " +
+                                                std::to_string(scan.bscans.size()) +
+                                                " B-scans: more pixels than this reader decodes");
+    }
     if (im.codestreams.size() != scan.bscans.size()) {
         scan.notes.push_back("B-scan pixels not loaded: the file holds " +
                              std::to_string(im.codestreams.size()) + " of " +

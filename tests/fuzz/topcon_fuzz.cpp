@@ -2,7 +2,8 @@
 // parse_topcon; a file it accepts must give a scan whose sizes agree with its lines, whose
 // depths are NaN or inside the B-scan and whose scales are finite and positive, and that scan
 // must go through write_topcon and parse_topcon with its ILM and BM unchanged (a differential
-// check of the reader against the writer).
+// check of the reader against the writer). Each input is also read with pixels (the JPEG 2000
+// frames through OpenJPEG).
 
 #include <cmath>
 #include <cstddef>
@@ -24,6 +25,19 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         s = octshape::io::parse_topcon(bytes, "fuzz.fda");
     } catch (const octshape::InputError&) {
         return 0;  // the expected outcome for damaged input
+    }
+    // With pixels: the JPEG 2000 frames through OpenJPEG (only InputError may come out).
+    try {
+        octshape::io::ReadOptions px;
+        px.pixels = true;
+        const octshape::io::Scan p = octshape::io::parse_topcon(bytes, "fuzz.fda", px);
+        if (p.pixels_loaded) {
+            for (const auto& b : p.bscans) {
+                check(b.pixels.size() == static_cast<std::size_t>(p.meta.size_x) *
+                                             static_cast<std::size_t>(p.meta.size_z));
+            }
+        }
+    } catch (const octshape::InputError&) {
     }
     const auto& m = s.meta;
     check(std::isfinite(m.scale_x_mm) && m.scale_x_mm > 0.0);
