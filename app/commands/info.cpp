@@ -113,10 +113,14 @@ void print_text(const json& j, std::ostream& out) {
         row("orientation", text);
     }
     const json& slo = j["slo"];
-    row("SLO", std::to_string(slo["width_px"].get<int>()) + " x " +
-                   std::to_string(slo["height_px"].get<int>()) + " px, " +
-                   num(slo["scale_x_mm"], " mm/px") + ", " +
-                   std::to_string(slo["field_size_deg"].get<unsigned>()) + " deg");
+    if (slo["width_px"].get<int>() == 0) {
+        row("SLO", "none in this file");
+    } else {
+        row("SLO", std::to_string(slo["width_px"].get<int>()) + " x " +
+                       std::to_string(slo["height_px"].get<int>()) + " px, " +
+                       num(slo["scale_x_mm"], " mm/px") + ", " +
+                       std::to_string(slo["field_size_deg"].get<unsigned>()) + " deg");
+    }
     std::string layers;
     for (const json& l : j["layers"]) {
         if (!layers.empty()) layers += ", ";
