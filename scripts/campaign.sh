@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # The long form of the hostile-input campaigns: every pair of the scan campaign's mutations on
-# five phantom bases (macula OD/OS, ONH cupped/swollen/overhang) through info, macula and onh
-# (both ILM sources), then the mesh campaign; each run under a time limit. Prints the tables
-# (inputs x commands: crashes, hangs, internal errors, impossible successes, clean errors,
-# successes). Run it on a sanitizer build for the sanitizers' verdict too:
+# six phantom bases (macula OD/OS, ONH cupped/swollen/overhang, and the macula written as a
+# Topcon .fda) through info, macula and onh (both ILM sources), then the mesh campaign; each run
+# under a time limit. OCTSHAPE_CAMPAIGN_BASES=macula_fda (a comma list) runs only those bases.
+# Prints the tables (inputs x commands: crashes, hangs, internal errors, impossible successes,
+# clean errors, successes). Run it on a sanitizer build for the sanitizers' verdict too:
 #   scripts/campaign.sh [PRESET]      (default: release; e.g. asan)
 set -euo pipefail
 cd "$(dirname "$0")/.."

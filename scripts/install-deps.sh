@@ -12,6 +12,7 @@ PKGS=(
   libvtk9-dev
   libopencv-dev
   libtiff-dev zlib1g-dev              # the Heyex XML export's TIFF B-scans; PNG QC pictures
+  libopenjp2-7-dev                    # the Topcon .fda's JPEG 2000 B-scans
   libssl-dev                          # libcrypto: SHA-256 (CPU SHA extensions), HMAC
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev

@@ -90,11 +90,11 @@ bool has_export_extension(const fs::path& p) {
     std::string ext = p.extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return ext == ".vol" || ext == ".xml";
+    return ext == ".vol" || ext == ".xml" || ext == ".fda" || ext == ".fds";
 }
 
 // Every regular file under the inputs whose content is a supported export, sorted, unique.
-// A .vol/.xml file of unknown content and an unreadable file go to `skipped`; other files
+// A .vol/.xml/.fda/.fds file of unknown content and an unreadable file go to `skipped`; other files
 // (TIFF B-scans of an XML export, notes, ...) are ignored.
 std::vector<std::string> discover(const std::vector<std::string>& inputs, const fs::path& out,
                                   std::vector<Skipped>& skipped) {

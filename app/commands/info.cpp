@@ -113,10 +113,14 @@ void print_text(const json& j, std::ostream& out) {
         row("orientation", text);
     }
     const json& slo = j["slo"];
-    row("SLO", std::to_string(slo["width_px"].get<int>()) + " x " +
-                   std::to_string(slo["height_px"].get<int>()) + " px, " +
-                   num(slo["scale_x_mm"], " mm/px") + ", " +
-                   std::to_string(slo["field_size_deg"].get<unsigned>()) + " deg");
+    if (slo["width_px"].get<int>() == 0) {
+        row("SLO", "none in this file");
+    } else {
+        row("SLO", std::to_string(slo["width_px"].get<int>()) + " x " +
+                       std::to_string(slo["height_px"].get<int>()) + " px, " +
+                       num(slo["scale_x_mm"], " mm/px") + ", " +
+                       std::to_string(slo["field_size_deg"].get<unsigned>()) + " deg");
+    }
     std::string layers;
     for (const json& l : j["layers"]) {
         if (!layers.empty()) layers += ", ";
@@ -153,7 +157,10 @@ void add_info_command(CLI::App& app, RunContext& /*ctx*/) {
     CLI::App* cmd = app.add_subcommand(
         "info", "Show what an export holds: eye, scan pattern, sizes, scales, B-scan spacing, "
                 "layers and their valid values, thickness-grid centre");
-    cmd->add_option("file", opts->file, "A Spectralis .vol or Heidelberg XML export")->required();
+    cmd->add_option("file", opts->file,
+                    "A Spectralis .vol, Heidelberg XML export, Topcon .fda/.fds or Iowa "
+                    "surfaces XML")
+        ->required();
     cmd->add_flag("--json", opts->json, "Print JSON instead of text");
     cmd->add_flag("--show-identifiers", opts->identifiers,
                   "Also print patient/visit identifiers, date of birth and exam dates "

@@ -43,7 +43,10 @@ void add_macula_command(CLI::App& app, RunContext& /*ctx*/) {
         "macula",
         "CuBe fovea analysis (cubic Bezier model, thesis 7.1-7.3): CFT, rim, pit, slope, disks, "
         "volumes. A volume scan gives the 3-D analysis, a line through the fovea the 2-D one");
-    cmd->add_option("file", opts->file, "A Spectralis .vol or Heidelberg XML export")->required();
+    cmd->add_option("file", opts->file,
+                    "A Spectralis .vol, Heidelberg XML export, Topcon .fda/.fds or Iowa "
+                    "surfaces XML")
+        ->required();
     cmd->add_option("-o,--output", opts->json_out,
                     "Write the per-eye JSON here (default: print it on stdout)");
     cmd->add_option("--csv", opts->csv_out, "Write one CSV row (with header) here");

@@ -509,7 +509,8 @@ cv::Mat macula_bscan_picture(const retina::CubeResult& r, const io::Scan& scan,
     cv::rectangle(framed, a.plot, cv::Scalar(60, 60, 60), 1);
     cv::Mat legend(40, framed.cols, CV_8UC3, kPanel);
     // Whose lines they are: the device's, or a segmentation laid over or read alone.
-    const bool own = scan.line_names.empty();
+    // The export's own lines (a Topcon file names its contours, and they are the device's).
+    const bool own = scan.line_names.empty() || scan.meta.format == io::SourceFormat::kTopcon;
     draw_legend(legend, {8, 26},
                 {{LegendItem::kLine, kIlm, own ? "ILM (device)" : "ILM (segmentation file)"},
                  {LegendItem::kLine, kBm, own ? "BM (device)" : "BM (segmentation file)"},

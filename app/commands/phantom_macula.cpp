@@ -11,6 +11,7 @@
 #include "commands/command.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/error.h"
+#include "octshape/io/topcon.h"
 #include "octshape/io/vol.h"
 #include "octshape/retina/phantom_macula.h"
 
@@ -24,6 +25,7 @@ struct MaculaOptions {
     std::string family = "bezier";
     std::string eye = "OD";
     std::string pattern = "volume";
+    std::string format = "vol";  // vol | fda
     bool no_pixels = false;
     double tau_um = 5.0;
     double crossing_offset_um = 0.0;
@@ -38,8 +40,13 @@ std::string truth_path(const std::string& vol_path) {
 }
 
 void run(MaculaOptions& o) {
-    if (std::filesystem::path(o.output).extension() != ".vol") {
-        throw UsageError(o.output + ": the output of phantom macula must end in .vol");
+    if (std::filesystem::path(o.output).extension() != "." + o.format) {
+        throw UsageError(o.output + ": the output of phantom macula --format " + o.format +
+                         " must end in ." + o.format);
+    }
+    if (o.format == "fda" && o.pattern != "volume") {
+        throw UsageError("phantom macula --format fda writes volumes only (a Topcon .fda holds "
+                         "no radial or single-line pattern octshape reads)");
     }
     retina::MaculaPhantomParams& p = o.params;
     p.family = o.family == "scheibe" ? retina::MaculaFamily::kScheibe
@@ -55,12 +62,16 @@ void run(MaculaOptions& o) {
         p.fovea_dx_mm = 1e-3 * o.crossing_offset_um * std::cos(th) * nasal_x;
         p.fovea_dy_mm = 1e-3 * o.crossing_offset_um * std::sin(th);
     }
-    p.pixels = !o.no_pixels;
+    p.pixels = !o.no_pixels && o.format != "fda";  // a .fda written here holds no pixels
     o.truth.tau_mm = o.tau_um * 1e-3;
     const retina::MaculaPhantom ph = retina::make_macula_phantom(p, o.truth);
     const std::string json = retina::macula_truth_json(ph.truth, p, o.truth).dump(2) + "\n";
     const std::string truth = truth_path(o.output);
-    io::write_vol_file(ph.scan, o.output);
+    if (o.format == "fda") {
+        io::write_topcon_file(ph.scan, o.output);
+    } else {
+        io::write_vol_file(ph.scan, o.output);
+    }
     try {
         io::write_text_atomically(truth, json);
     } catch (...) {
@@ -82,8 +93,14 @@ void add_phantom_macula_command(CLI::App& parent, RunContext& /*ctx*/) {
         "Spectralis-style macula export (.vol) plus FILE.truth.json with the true CuBe "
         "parameters (docs/algorithms/cube.md) computed from the generating surface");
     auto& p = opts->params;
-    cmd->add_option("-o,--output", opts->output, "Output FILE.vol (FILE.truth.json beside it)")
+    cmd->add_option("-o,--output", opts->output,
+                    "Output FILE.vol or FILE.fda (FILE.truth.json beside it)")
         ->required();
+    cmd->add_option("--format", opts->format,
+                    "vol (Spectralis .vol with pixels) or fda (Topcon .fda: the ILM and BM as "
+                    "the device's contours, whole pixels, no pixels; volumes only)")
+        ->check(CLI::IsMember({"vol", "fda"}))
+        ->capture_default_str();
     cmd->add_option("--family", opts->family,
                     "Thickness profiles: bezier (exactly CuBe) or scheibe (not representable)")
         ->check(CLI::IsMember({"bezier", "scheibe"}))

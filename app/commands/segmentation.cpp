@@ -15,8 +15,9 @@ void add_segmentation_options(CLI::App* cmd, SegmentationOptions& o, bool per_ey
                         "a segmentation of this scan (same sizes and eye)");
     }
     cmd->add_option("--bm-surface", o.bm_surface,
-                    "Iowa surface used as BM: ob_rpe (outer boundary of the RPE, label 150, "
-                    "where Heidelberg's BM line runs) or ib_rpe (inner boundary, label 140)")
+                    "Surface used as BM for an Iowa surfaces XML or a Topcon .fda/.fds: ob_rpe "
+                    "(outer boundary of the RPE: Iowa label 150, where Heidelberg's BM line runs; "
+                    "Topcon RETINA_4) or ib_rpe (inner boundary: Iowa label 140, Topcon RETINA_3)")
         ->check(CLI::IsMember({"ob_rpe", "ib_rpe"}))
         ->capture_default_str();
 }

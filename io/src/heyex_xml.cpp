@@ -23,15 +23,6 @@ constexpr std::uintmax_t kMaxXmlBytes = 1ULL << 30;
 constexpr int kMaxImageSide = 8192;
 constexpr std::size_t kMaxBScans = 4096;
 
-long long days_from_civil(long long y, unsigned m, unsigned d) {
-    y -= m <= 2 ? 1 : 0;
-    const long long era = (y >= 0 ? y : y - 399) / 400;
-    const auto yoe = static_cast<unsigned>(y - era * 400);
-    const unsigned doy = (153 * (m > 2 ? m - 3 : m + 9) + 2) / 5 + d - 1;
-    const unsigned doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    return era * 146097 + static_cast<long long>(doe) - 719468;
-}
-
 class XmlScanReader {
 public:
     XmlScanReader(std::string path, const ReadOptions& options)

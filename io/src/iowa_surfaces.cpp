@@ -1,6 +1,8 @@
 #include "octshape/io/iowa_surfaces.h"
 
 #include <algorithm>
+#include <optional>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
@@ -298,6 +300,37 @@ void set_lines(Scan& scan, const IowaSurfaces& s, IowaBm bm) {
     }
 }
 
+// A Zeiss Cirrus cube protocol OCTExplorer segments, from the file's manufacturer, sizes and
+// centre type; nullopt for anything else.
+std::optional<std::string_view> cirrus_protocol(const IowaSurfaces& s) {
+    std::string maker = s.manufacturer;
+    std::transform(maker.begin(), maker.end(), maker.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    if (maker.find("zeiss") == std::string::npos) return std::nullopt;
+    const bool onh = s.center_type == "onh" || s.center_type == "optic disc";
+    if (s.size_x == 512 && s.size_z == 128 && !onh) return "512 x 128 macular cube";
+    if (s.size_x == 200 && s.size_z == 200) {
+        return onh ? std::string_view("200 x 200 optic disc cube")
+                   : std::string_view("200 x 200 macular cube");
+    }
+    return std::nullopt;
+}
+
+// B-scan positions of a Cirrus cube on a fundus frame (mm, x right, y down): B-scan 0 at the
+// inferior edge, A-scan 0 at the right (each B-scan runs right to left as OCTExplorer stores
+// Cirrus cubes). Established on the real cube's thickness asymmetry: docs/formats.md.
+void place_cirrus_bscans(Scan& scan) {
+    const ScanMeta& m = scan.meta;
+    const double width = (m.size_x - 1) * m.scale_x_mm;
+    const std::size_t n = scan.bscans.size();
+    for (std::size_t b = 0; b < n; ++b) {
+        BScan& bs = scan.bscans[b];
+        bs.start_x_mm = width;
+        bs.end_x_mm = 0.0;
+        bs.start_y_mm = bs.end_y_mm = static_cast<double>(n - 1 - b) * m.distance_mm;
+    }
+}
+
 std::string source_note(const IowaSurfaces& s, IowaBm bm) {
     return "segmentation: " + s.describe() + ", BM = " + std::string(to_string(bm)) +
            " (label " + std::to_string(label_of(bm)) + ")" +
@@ -362,9 +395,16 @@ Scan iowa_scan(const IowaSurfaces& s, const std::string& path, IowaBm bm) {
     scan.bscans.resize(static_cast<std::size_t>(s.size_z));
     set_lines(scan, s, bm);
     scan.notes.push_back(source_note(s, bm));
-    scan.notes.push_back(
-        "no B-scan positions (a segmentation without its export): a regular grid is assumed, "
-        "B-scans " + std::to_string(s.voxel_z_mm) + " mm apart");
+    if (const auto protocol = cirrus_protocol(s)) {
+        place_cirrus_bscans(scan);
+        scan.notes.push_back("Zeiss Cirrus " + std::string(*protocol) +
+                             ": B-scans placed in the protocol's orientation as OCTExplorer "
+                             "stores it (docs/formats.md)");
+    } else {
+        scan.notes.push_back(
+            "no B-scan positions (a segmentation without its export): a regular grid is "
+            "assumed, B-scans " + std::to_string(s.voxel_z_mm) + " mm apart");
+    }
     if (s.laterality == Laterality::kUnknown) scan.notes.push_back("laterality not stated");
     return scan;
 }

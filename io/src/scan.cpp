@@ -35,6 +35,16 @@ void civil_from_days(long long z, int& y, unsigned& m, unsigned& d) {
 
 }  // namespace
 
+// Days since 1970-01-01 of a proleptic Gregorian date (H. Hinnant's days_from_civil).
+long long days_from_civil(long long y, unsigned m, unsigned d) {
+    y -= m <= 2 ? 1 : 0;
+    const long long era = (y >= 0 ? y : y - 399) / 400;
+    const auto yoe = static_cast<unsigned>(y - era * 400);
+    const unsigned doy = (153 * (m > 2 ? m - 3 : m + 9) + 2) / 5 + d - 1;
+    const unsigned doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    return era * 146097 + static_cast<long long>(doe) - 719468;
+}
+
 std::string layer_name(int index) {
     if (index >= 0 && index < kNumKnownLayers) return std::string(kLayerNames[index]);
     return "LINE" + std::to_string(index);
@@ -76,6 +86,7 @@ std::string_view to_string(SourceFormat f) {
         case SourceFormat::kVol: return "Heidelberg .vol";
         case SourceFormat::kHeyexXml: return "Heidelberg XML";
         case SourceFormat::kIowaSurfaces: return "Iowa surfaces XML";
+        case SourceFormat::kTopcon: return "Topcon .fda/.fds";
     }
     return "unknown";
 }

@@ -14,6 +14,7 @@
 #include "octshape/io/heyex_xml.h"
 #include "octshape/io/iowa_surfaces.h"
 #include "octshape/io/sha256.h"
+#include "octshape/io/topcon.h"
 #include "octshape/io/vol.h"
 
 namespace octshape::io {
@@ -85,6 +86,7 @@ FileFormat detect_format(const std::string& path) {
     if (looks_like_vol(head.data(), n)) return FileFormat::kVol;
     if (looks_like_heyex_xml(head.data(), n)) return FileFormat::kHeyexXml;
     if (looks_like_iowa_surfaces(head.data(), n)) return FileFormat::kIowaSurfaces;
+    if (looks_like_topcon(head.data(), n)) return FileFormat::kTopcon;
     return FileFormat::kUnknown;
 }
 
@@ -104,6 +106,8 @@ Scan read_scan(const std::string& path, const ReadOptions& options) {
             return read_heyex_xml(path, options);
         case FileFormat::kIowaSurfaces:
             return iowa_scan(read_iowa_surfaces(path), path, options.iowa_bm);
+        case FileFormat::kTopcon:
+            return read_topcon(path, options);
         case FileFormat::kUnknown:
             break;
     }
@@ -112,7 +116,8 @@ Scan read_scan(const std::string& path, const ReadOptions& options) {
     in.read(head.data(), head.size());
     throw InputError::unsupported(
         path,
-        "not a Spectralis .vol, Heidelberg XML export or Iowa surfaces XML (starts with \"" +
+        "not a Spectralis .vol, Heidelberg XML export, Iowa surfaces XML or Topcon .fda/.fds "
+        "(starts with \"" +
             describe_head(head.data(), static_cast<std::size_t>(in.gcount())) + "\")",
         0);
 }

@@ -131,7 +131,7 @@ TEST(InfoBadInput, MissingDirectoryEmptyAndUnknown) {
     std::ofstream(dir / "empty.vol").flush();
     expect_refused((dir / "empty.vol").string(), 65, "empty");
     std::ofstream(dir / "text.vol") << "hello, not a scan\n";
-    expect_refused((dir / "text.vol").string(), 65, "not a Spectralis .vol, Heidelberg XML export or Iowa surfaces XML");
+    expect_refused((dir / "text.vol").string(), 65, "not a Spectralis .vol, Heidelberg XML export, Iowa surfaces XML or Topcon .fda/.fds");
 }
 
 TEST(InfoRadial, DescribesTheStarAsItIs) {

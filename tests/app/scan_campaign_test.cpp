@@ -3,7 +3,9 @@
 // through `info`, `macula`, `onh --ilm device` and `onh` (level set) with a time limit. Each run
 // must end in a success whose CSV holds only finite numbers (or NA), or a clean error: exit
 // 65/69, one line on stderr naming the file, no output. Never a crash, a hang or an internal
-// error. Prints the table (inputs x commands). The long form with the mesh campaign's inputs is
+// error. Prints the table (inputs x commands). The long form (scripts/campaign.sh) adds every
+// pair of mutations, left-eye/swollen/overhanging bases and the macula base written as a Topcon
+// .fda. The long form with the mesh campaign's inputs is
 // tests/mesh/mesh_campaign_test.cpp; the readers' own damage is tests/io.
 
 #include <gtest/gtest.h>
@@ -21,6 +23,7 @@
 #include "octshape/error.h"
 #include "octshape/io/csv.h"
 #include "octshape/io/scan_reader.h"
+#include "octshape/io/topcon.h"
 #include "octshape/io/vol.h"
 #include "slow_test.h"
 #include "test_paths.h"
@@ -147,6 +150,7 @@ SLOW_TEST(ScanCampaign, HostileExportsGiveCleanErrorsOrFiniteResults) {
         std::string name;
         io::Scan scan;
         std::vector<std::string> commands;
+        bool fda = false;  // written as a Topcon .fda (contours only) instead of a .vol
     };
     std::vector<Base> bases = {
         {"macula", io::read_scan(macula_vol.string(), {.pixels = true}),
@@ -184,6 +188,15 @@ SLOW_TEST(ScanCampaign, HostileExportsGiveCleanErrorsOrFiniteResults) {
                              io::read_scan(vol.string(), {.pixels = true}),
                              bases[kind == "macula" ? 0 : 1].commands});
         }
+        // The macula base through the Topcon reader: the same mutations written as .fda.
+        bases.push_back({"macula_fda", bases[0].scan, {"info", "macula"}, true});
+    }
+    // OCTSHAPE_CAMPAIGN_BASES=name,name: only these bases (e.g. macula_fda), to rerun a part.
+    if (const char* only = std::getenv("OCTSHAPE_CAMPAIGN_BASES")) {
+        const std::string list = "," + std::string(only) + ",";
+        std::erase_if(bases, [&](const Base& b) {
+            return list.find("," + b.name + ",") == std::string::npos;
+        });
     }
     std::map<std::string, std::map<std::string, int>> table;
     int runs = 0;
@@ -191,11 +204,16 @@ SLOW_TEST(ScanCampaign, HostileExportsGiveCleanErrorsOrFiniteResults) {
         for (const Mutation& m : cases) {
             io::Scan s = base.scan;
             m.apply(s);
-            const auto path = tmp / (base.name + "_" + m.name + ".vol");
+            const auto path = tmp / (base.name + "_" + m.name + (base.fda ? ".fda" : ".vol"));
             try {
-                io::write_vol_file(s, path.string());
+                if (base.fda) {
+                    io::write_topcon_file(s, path.string());
+                } else {
+                    io::write_vol_file(s, path.string());
+                }
             } catch (const UsageError& e) {
-                // The writer refuses what no .vol can hold; the readers' tests cover such files.
+                // The writers refuse what no .vol (.fda) can hold; the readers' tests cover such
+                // files.
                 std::cout << path.filename().string() << ": not writable (" << e.what() << ")\n";
                 continue;
             }
@@ -233,7 +251,7 @@ SLOW_TEST(ScanCampaign, HostileExportsGiveCleanErrorsOrFiniteResults) {
                     EXPECT_NE(line.find(path.string()), std::string::npos) << where;
                     EXPECT_EQ(o.err.find('\n', at) + 1, o.err.size()) << where;
                 }
-                ++table[command][kind];
+                ++table[command + (base.fda ? " [.fda]" : "")][kind];
                 EXPECT_NE(kind, "hang") << where;
                 EXPECT_NE(kind, "crash") << where;
                 EXPECT_NE(kind, "internal error") << where;

@@ -33,7 +33,7 @@ inline constexpr float kInvalidThreshold = 1e30F;
 [[nodiscard]] inline bool is_valid(float v) { return !std::isnan(v); }
 
 enum class Laterality { kUnknown, kOD, kOS };
-enum class SourceFormat { kVol, kHeyexXml, kIowaSurfaces };
+enum class SourceFormat { kVol, kHeyexXml, kIowaSurfaces, kTopcon };
 
 // .vol ScanPattern codes.
 enum class ScanPattern : std::int32_t {
@@ -192,6 +192,8 @@ struct Scan {
 // Calendar conversions for the two date encodings used by the exports; ISO 8601 text (UTC).
 [[nodiscard]] std::string filetime_to_iso(std::uint64_t filetime);
 [[nodiscard]] std::string ole_date_to_iso_date(double ole_days);
+// Days since 1970-01-01 of a proleptic Gregorian date (month 1..12, day 1..31).
+[[nodiscard]] long long days_from_civil(long long y, unsigned m, unsigned d);
 
 }  // namespace octshape::io
 

@@ -7,7 +7,7 @@
 
 namespace octshape::io {
 
-enum class FileFormat { kUnknown, kVol, kHeyexXml, kIowaSurfaces };
+enum class FileFormat { kUnknown, kVol, kHeyexXml, kIowaSurfaces, kTopcon };
 
 // Checks that `path` is an existing, readable regular file and detects its format from its
 // first bytes. Throws InputError (missing / not regular / unreadable).
