@@ -165,3 +165,60 @@ std::string ole_date_to_iso_date(double ole_days) {
 }
 
 }  // namespace octshape::io
+
+namespace octshape::io {
+
+namespace {
+
+// out[i] = in(i - shift) by linear interpolation, indices clamped to [0, n - 1] (edges repeated).
+template <typename Get, typename Put>
+void shift_samples(int n, double shift, Get&& get, Put&& put) {
+    const double last = static_cast<double>(n - 1);
+    for (int i = 0; i < n; ++i) {
+        const double src = std::clamp(static_cast<double>(i) - shift, 0.0, last);
+        const auto i0 = static_cast<int>(std::floor(src));
+        const int i1 = std::min(i0 + 1, n - 1);
+        const double f = src - i0;
+        put(i, (1.0 - f) * get(i0) + f * get(i1));
+    }
+}
+
+}  // namespace
+
+void shift_bscan(BScan& bscan, int size_x, int size_z, double dz_px, double dx_px) {
+    if (size_x <= 0 || size_z <= 0 || !std::isfinite(dz_px) || !std::isfinite(dx_px)) return;
+    const auto nx = static_cast<std::size_t>(size_x);
+    const auto nz = static_cast<std::size_t>(size_z);
+    if (bscan.pixels.size() == nx * nz) {
+        std::vector<float> tmp(bscan.pixels.size());
+        if (dz_px != 0.0) {
+            for (std::size_t a = 0; a < nx; ++a) {
+                shift_samples(
+                    size_z, dz_px,
+                    [&](int z) { return double{bscan.pixels[static_cast<std::size_t>(z) * nx + a]}; },
+                    [&](int z, double v) { tmp[static_cast<std::size_t>(z) * nx + a] = static_cast<float>(v); });
+            }
+            bscan.pixels.swap(tmp);
+        }
+        if (dx_px != 0.0) {
+            for (std::size_t z = 0; z < nz; ++z) {
+                const float* row = bscan.pixels.data() + z * nx;
+                shift_samples(
+                    size_x, dx_px, [&](int a) { return double{row[a]}; },
+                    [&](int a, double v) { tmp[z * nx + static_cast<std::size_t>(a)] = static_cast<float>(v); });
+            }
+            bscan.pixels.swap(tmp);
+        }
+    }
+    for (auto& line : bscan.seg) {
+        if (dx_px != 0.0 && line.size() == nx) {
+            const std::vector<float> in = line;
+            shift_samples(
+                size_x, dx_px, [&](int a) { return double{in[static_cast<std::size_t>(a)]}; },
+                [&](int a, double v) { line[static_cast<std::size_t>(a)] = static_cast<float>(v); });
+        }
+        for (float& v : line) v = static_cast<float>(v + dz_px);  // NaN stays NaN
+    }
+}
+
+}  // namespace octshape::io

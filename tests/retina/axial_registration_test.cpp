@@ -1,0 +1,169 @@
+// Acquisition artefacts of the ONH phantom and the axial registration that undoes the motion
+// (issue 32; docs/phantoms.md "Acquisition artefacts", docs/algorithms/onh.md "Axial
+// registration").
+
+#include "octshape/retina/axial_registration.h"
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+
+#include "octshape/error.h"
+#include "octshape/retina/onh.h"
+#include "octshape/retina/phantom_onh.h"
+#include "slow_test.h"
+
+namespace octshape::retina {
+namespace {
+
+OnhPhantomParams moving(bool radial, double motion_um, int bscans, int ascans) {
+    OnhPhantomParams p = onh_phantom_preset(OnhShape::kCupped);
+    p.radial = radial;
+    p.num_bscans = bscans;
+    p.radial_lines = radial ? bscans : p.radial_lines;
+    p.num_ascans = ascans;
+    p.artefacts.motion_sd_um = motion_um;
+    p.artefacts.vessel_shadows = motion_um > 0.0;
+    p.artefacts.segmentation_faults = motion_um > 0.0;
+    return p;
+}
+
+// The part of (estimated - true) shifts that the data can tell (um, RMS): a volume's B-scans
+// each have one y, so a cubic in y of the motion is the eye's as far as the BM can say (the
+// registration leaves it: docs/algorithms/onh.md); a radial scan's common offset likewise.
+double identifiable_error_um(const AxialRegistration& reg, const OnhPhantomParams& p) {
+    const std::vector<double> t = onh_acquisition_shifts(p).axial_px;
+    const double um = p.scale_z_mm * 1000.0;
+    const auto n = static_cast<Eigen::Index>(t.size());
+    const int k = p.radial ? 1 : 4;
+    Eigen::MatrixXd X(n, k);
+    Eigen::VectorXd d(n);
+    for (Eigen::Index b = 0; b < n; ++b) {
+        const double y = -1.0 + 2.0 * static_cast<double>(b) / static_cast<double>(n - 1);
+        for (int j = 0; j < k; ++j) X(b, j) = std::pow(y, j);
+        d(b) = reg.shift_um[static_cast<std::size_t>(b)] - t[static_cast<std::size_t>(b)] * um;
+    }
+    const Eigen::VectorXd r = d - X * X.colPivHouseholderQr().solve(d);
+    return std::sqrt(r.squaredNorm() / static_cast<double>(n));
+}
+
+TEST(ShiftBscan, MovesPixelsAndLinesTogether) {
+    io::BScan b;
+    const int nx = 3;
+    const int nz = 6;
+    b.pixels.assign(static_cast<std::size_t>(nx * nz), 0.0F);
+    for (int z = 0; z < nz; ++z) {
+        for (int a = 0; a < nx; ++a) b.pixels[static_cast<std::size_t>(z * nx + a)] = static_cast<float>(z);
+    }
+    b.seg = {{1.0F, 2.0F, std::numeric_limits<float>::quiet_NaN()}};
+    io::shift_bscan(b, nx, nz, 1.5);
+    // Row z holds what was at z - 1.5 (linear), the top rows repeat row 0.
+    EXPECT_FLOAT_EQ(b.pixels[static_cast<std::size_t>(3 * nx)], 1.5F);
+    EXPECT_FLOAT_EQ(b.pixels[static_cast<std::size_t>(5 * nx + 2)], 3.5F);
+    EXPECT_FLOAT_EQ(b.pixels[0], 0.0F);
+    EXPECT_FLOAT_EQ(b.seg[0][0], 2.5F);
+    EXPECT_FLOAT_EQ(b.seg[0][1], 3.5F);
+    EXPECT_TRUE(std::isnan(b.seg[0][2]));
+}
+
+TEST(OnhPhantomAcquisition, MotionMovesTheDeviceLinesNotTheTruth) {
+    const OnhPhantomParams still = moving(false, 0.0, 25, 64);
+    OnhPhantomParams moved = still;
+    moved.artefacts.motion_sd_um = 40.0;
+    const auto shifts = onh_acquisition_shifts(moved).axial_px;
+    // Exactly the asked SD (rescaled), zero mean, and the same for the same seed.
+    double sum = 0.0;
+    double ss = 0.0;
+    for (double s : shifts) {
+        sum += s;
+        ss += s * s;
+    }
+    const double um = still.scale_z_mm * 1000.0;
+    EXPECT_NEAR(sum, 0.0, 1e-9);
+    EXPECT_NEAR(std::sqrt(ss / static_cast<double>(shifts.size())) * um, 40.0, 1e-9);
+    EXPECT_EQ(shifts, onh_acquisition_shifts(moved).axial_px);
+    const io::Scan a = render_onh_scan(still);
+    const io::Scan b = render_onh_scan(moved);
+    const int bm = static_cast<int>(io::Layer::kBM);
+    for (int k = 0; k < a.num_bscans(); ++k) {
+        for (int i = 0; i < a.meta.size_x; i += 7) {
+            const float va = a.depth_px(bm, k, i);
+            if (!io::is_valid(va)) continue;
+            // float32 depths of ~300 px: 3e-5 px of rounding on each side.
+            EXPECT_NEAR(b.depth_px(bm, k, i), va + shifts[static_cast<std::size_t>(k)], 1e-3);
+        }
+    }
+    // The truth is the still eye's: the truth object of the file does not move.
+    OnhTruthOptions fast;
+    fast.phi_steps = 64;
+    fast.mrw_points = 24;
+    const OnhTruth t = compute_onh_truth(still, fast);
+    EXPECT_EQ(onh_truth_to_json(still, fast, t)["truth"], onh_truth_to_json(moved, fast, t)["truth"]);
+    EXPECT_FALSE(onh_truth_to_json(still, fast, t).contains("acquisition"));
+    EXPECT_EQ(onh_truth_to_json(moved, fast, t)["acquisition"]["axial_shift_um"].size(), 25U);
+    OnhPhantomParams bad = still;
+    bad.artefacts.motion_sd_um = 150.0;
+    EXPECT_THROW(bad.validate(), UsageError);
+}
+
+// A still eye with a curved (R = 12 mm), tilted (0.03, -0.02) wall: nothing to remove. The
+// device BM is the phantom's exact quadratic in float32 (rounding 2e-5 px = 1e-4 um), inside
+// the cubic model: every shift within 0.01 um of zero.
+TEST(AxialRegistration, StillCurvedTiltedEyeIsNotFlattened) {
+    const io::Scan scan = render_onh_scan(moving(false, 0.0, 25, 96));
+    const AxialRegistration r = estimate_axial_motion(scan);
+    ASSERT_EQ(r.shift_um.size(), 25U);
+    EXPECT_LT(r.max_abs_shift_um, 0.01);
+    EXPECT_LT(r.residual_rms_um, 0.01);
+    EXPECT_TRUE(r.qc_flags.empty());
+}
+
+// 60 um of motion with vessel shadows, an ILM spike and a BM gap: the identifiable motion is
+// recovered to the float32 rounding of the lines (< 0.01 um); the large-motion flag is raised.
+TEST(AxialRegistration, RecoversTheMotionOfAVolume) {
+    const OnhPhantomParams p = moving(false, 60.0, 25, 96);
+    io::Scan scan = render_onh_scan(p);
+    const AxialRegistration r = register_axially(scan);
+    EXPECT_TRUE(r.applied);
+    EXPECT_LT(identifiable_error_um(r, p), 0.01);
+    EXPECT_LT(r.residual_rms_um, 0.01);
+    EXPECT_EQ(r.bscans_not_estimated, 0);
+    ASSERT_EQ(r.qc_flags.size(), 1U);
+    EXPECT_EQ(r.qc_flags[0], "large axial motion between B-scans (registered)");
+}
+
+// Radial lines share the crossing: every shift is identifiable but the common one.
+TEST(AxialRegistration, RecoversTheMotionOfRadialLines) {
+    const OnhPhantomParams p = moving(true, 60.0, 12, 128);
+    io::Scan scan = render_onh_scan(p);
+    const AxialRegistration r = register_axially(scan);
+    EXPECT_LT(identifiable_error_um(r, p), 0.01);
+    // Registered, the BM of every line lies on one smooth surface again: a second estimate
+    // finds nothing left to remove.
+    const AxialRegistration again = estimate_axial_motion(scan);
+    EXPECT_LT(again.max_abs_shift_um, 0.01);
+}
+
+TEST(AxialRegistration, WithoutBmNothingMovesAndAFlagSaysSo) {
+    io::Scan scan = render_onh_scan(moving(false, 30.0, 25, 64));
+    for (auto& b : scan.bscans) {
+        for (float& v : b.seg[static_cast<std::size_t>(io::Layer::kBM)]) {
+            v = std::numeric_limits<float>::quiet_NaN();
+        }
+    }
+    const io::Scan before = scan;
+    const AxialRegistration r = register_axially(scan);
+    EXPECT_FALSE(r.applied);
+    ASSERT_EQ(r.qc_flags.size(), 1U);
+    EXPECT_EQ(r.qc_flags[0], "axial motion not estimated (too little BM)");
+    EXPECT_EQ(scan.bscans[3].pixels, before.bscans[3].pixels);
+    AxialRegistrationParams bad;
+    bad.surface_degree = 0;
+    EXPECT_THROW(bad.validate(), UsageError);
+}
+
+}  // namespace
+}  // namespace octshape::retina
