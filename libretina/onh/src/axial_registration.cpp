@@ -289,7 +289,8 @@ void apply_axial_registration(io::Scan& scan, const AxialRegistration& registrat
     const double um_per_px = scan.meta.scale_z_mm * 1000.0;
     for (int b = 0; b < scan.num_bscans(); ++b) {
         const double dz = -registration.shift_um[static_cast<std::size_t>(b)] / um_per_px;
-        if (dz != 0.0) {
+        // Below 1e-3 px (4 nm) a shift is numerically zero: the pixels stay as read.
+        if (std::fabs(dz) >= 1e-3) {
             io::shift_bscan(scan.bscans[static_cast<std::size_t>(b)], scan.meta.size_x,
                             scan.meta.size_z, dz);
         }
