@@ -192,11 +192,18 @@ void shift_bscan(BScan& bscan, int size_x, int size_z, double dz_px, double dx_p
     if (bscan.pixels.size() == nx * nz) {
         std::vector<float> tmp(bscan.pixels.size());
         if (dz_px != 0.0) {
-            for (std::size_t a = 0; a < nx; ++a) {
-                shift_samples(
-                    size_z, dz_px,
-                    [&](int z) { return double{bscan.pixels[static_cast<std::size_t>(z) * nx + a]}; },
-                    [&](int z, double v) { tmp[static_cast<std::size_t>(z) * nx + a] = static_cast<float>(v); });
+            // One source position per output row (the shift is the same for every A-scan):
+            // whole rows blended, in memory order.
+            const double last = static_cast<double>(size_z - 1);
+            for (int z = 0; z < size_z; ++z) {
+                const double src = std::clamp(static_cast<double>(z) - dz_px, 0.0, last);
+                const auto z0 = static_cast<std::size_t>(std::floor(src));
+                const std::size_t z1 = std::min(z0 + 1, nz - 1);
+                const auto f = static_cast<float>(src - static_cast<double>(z0));
+                const float* r0 = bscan.pixels.data() + z0 * nx;
+                const float* r1 = bscan.pixels.data() + z1 * nx;
+                float* out = tmp.data() + static_cast<std::size_t>(z) * nx;
+                for (std::size_t a = 0; a < nx; ++a) out[a] = (1.0F - f) * r0[a] + f * r1[a];
             }
             bscan.pixels.swap(tmp);
         }

@@ -86,18 +86,20 @@ double monomial(const std::pair<int, int>& m, double x, double y) {
 // B-scan's samples centred on their weighted mean). Returns the offsets (NaN where a B-scan has
 // no weight) and fills the surface coefficients.
 std::vector<double> fit_offsets(const std::vector<BmSample>& s, const std::vector<double>& w,
-                                const std::vector<std::pair<int, int>>& terms,
+                                const Eigen::MatrixXd& Phi,  // samples x terms
                                 const std::vector<char>& use_bscan, int nb,
                                 Eigen::VectorXd& beta) {
-    const auto k = static_cast<Eigen::Index>(terms.size());
+    const Eigen::Index k = Phi.cols();
     std::vector<double> sw(static_cast<std::size_t>(nb), 0.0);
     std::vector<double> sd(static_cast<std::size_t>(nb), 0.0);
     Eigen::MatrixXd sphi = Eigen::MatrixXd::Zero(k, nb);
-    Eigen::VectorXd phi(k);
+    // At most 14 terms (degree 4): fixed-capacity vectors, no allocation per sample.
+    using VecK = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, 16, 1>;
+    VecK phi(k);
     for (std::size_t i = 0; i < s.size(); ++i) {
         const auto b = static_cast<std::size_t>(s[i].bscan);
         if (!use_bscan[b] || w[i] <= 0.0) continue;
-        for (Eigen::Index t = 0; t < k; ++t) phi(t) = monomial(terms[static_cast<std::size_t>(t)], s[i].x, s[i].y);
+        phi = Phi.row(static_cast<Eigen::Index>(i)).transpose();
         sw[b] += w[i];
         sd[b] += w[i] * s[i].depth;
         sphi.col(static_cast<Eigen::Index>(b)) += w[i] * phi;
@@ -107,8 +109,8 @@ std::vector<double> fit_offsets(const std::vector<BmSample>& s, const std::vecto
     for (std::size_t i = 0; i < s.size(); ++i) {
         const auto b = static_cast<std::size_t>(s[i].bscan);
         if (!use_bscan[b] || w[i] <= 0.0 || sw[b] <= 0.0) continue;
-        for (Eigen::Index t = 0; t < k; ++t) phi(t) = monomial(terms[static_cast<std::size_t>(t)], s[i].x, s[i].y);
-        const Eigen::VectorXd c = phi - sphi.col(static_cast<Eigen::Index>(b)) / sw[b];
+        phi = Phi.row(static_cast<Eigen::Index>(i)).transpose();
+        const VecK c = phi - sphi.col(static_cast<Eigen::Index>(b)) / sw[b];
         A.noalias() += w[i] * c * c.transpose();
         r += w[i] * (s[i].depth - sd[b] / sw[b]) * c;
     }
@@ -216,14 +218,19 @@ AxialRegistration estimate_axial_motion(const io::Scan& scan, const AxialRegistr
     std::vector<double> offset;
     Eigen::VectorXd beta;
     std::vector<double> res(s.size(), 0.0);
+    Eigen::MatrixXd Phi(static_cast<Eigen::Index>(s.size()), static_cast<Eigen::Index>(terms.size()));
+    for (std::size_t i = 0; i < s.size(); ++i) {
+        for (std::size_t t = 0; t < terms.size(); ++t) {
+            Phi(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(t)) = monomial(terms[t], s[i].x, s[i].y);
+        }
+    }
     for (int iter = 0; iter < 8; ++iter) {
-        offset = fit_offsets(s, w, terms, use, nb, beta);
+        offset = fit_offsets(s, w, Phi, use, nb, beta);
         std::vector<double> absr;
         absr.reserve(s.size());
         for (std::size_t i = 0; i < s.size(); ++i) {
             const double o = offset[static_cast<std::size_t>(s[i].bscan)];
-            double f = o;
-            for (std::size_t t = 0; t < terms.size(); ++t) f += beta(static_cast<Eigen::Index>(t)) * monomial(terms[t], s[i].x, s[i].y);
+            const double f = o + Phi.row(static_cast<Eigen::Index>(i)).dot(beta);
             res[i] = std::isfinite(o) ? s[i].depth - f : std::numeric_limits<double>::quiet_NaN();
             if (std::isfinite(res[i])) absr.push_back(std::fabs(res[i]));
         }
