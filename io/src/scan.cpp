@@ -219,10 +219,23 @@ void shift_bscan(BScan& bscan, int size_x, int size_z, double dz_px, double dx_p
     }
     for (auto& line : bscan.seg) {
         if (dx_px != 0.0 && line.size() == nx) {
+            // Linear between two present values; next to a missing one, the nearer sample (so
+            // the edge of a gap, e.g. the BMO, moves with the content, not always outward).
             const std::vector<float> in = line;
-            shift_samples(
-                size_x, dx_px, [&](int a) { return double{in[static_cast<std::size_t>(a)]}; },
-                [&](int a, double v) { line[static_cast<std::size_t>(a)] = static_cast<float>(v); });
+            const double last = static_cast<double>(size_x - 1);
+            for (std::size_t a = 0; a < nx; ++a) {
+                const double src = std::clamp(static_cast<double>(a) - dx_px, 0.0, last);
+                const auto a0 = static_cast<std::size_t>(std::floor(src));
+                const std::size_t a1 = std::min(a0 + 1, nx - 1);
+                const double f = src - static_cast<double>(a0);
+                const float v0 = in[a0];
+                const float v1 = in[a1];
+                if (std::isfinite(v0) && std::isfinite(v1)) {
+                    line[a] = static_cast<float>((1.0 - f) * v0 + f * v1);
+                } else {
+                    line[a] = f < 0.5 ? v0 : v1;
+                }
+            }
         }
         for (float& v : line) v = static_cast<float>(v + dz_px);  // NaN stays NaN
     }

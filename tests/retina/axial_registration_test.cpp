@@ -68,6 +68,17 @@ TEST(ShiftBscan, MovesPixelsAndLinesTogether) {
     EXPECT_FLOAT_EQ(b.seg[0][0], 2.5F);
     EXPECT_FLOAT_EQ(b.seg[0][1], 3.5F);
     EXPECT_TRUE(std::isnan(b.seg[0][2]));
+    // Laterally: linear between present values, the nearer sample next to a missing one (a
+    // gap's edge moves with the content instead of always growing).
+    io::BScan c;
+    c.seg = {{1.0F, 2.0F, std::numeric_limits<float>::quiet_NaN()}};
+    io::BScan d = c;
+    io::shift_bscan(c, nx, nz, 0.0, 0.3);
+    EXPECT_FLOAT_EQ(c.seg[0][1], 1.7F);
+    EXPECT_TRUE(std::isnan(c.seg[0][2]));  // 2 - 0.3 = 1.7: nearer to the missing sample 2
+    io::shift_bscan(d, nx, nz, 0.0, -0.3);
+    EXPECT_FLOAT_EQ(d.seg[0][1], 2.0F);  // 1.3: nearer to the present sample 1
+    EXPECT_TRUE(std::isnan(d.seg[0][2]));
 }
 
 TEST(OnhPhantomAcquisition, MotionMovesTheDeviceLinesNotTheTruth) {
