@@ -121,6 +121,46 @@ TEST(OnhPhantomAcquisition, MotionMovesTheDeviceLinesNotTheTruth) {
     EXPECT_THROW(bad.validate(), UsageError);
 }
 
+// Vessels shadow the tissue below them; the device lines and the vitreous stay as they were.
+TEST(OnhPhantomAcquisition, VesselShadowsDarkenTheTissueNotTheLines) {
+    const OnhPhantomParams still = moving(false, 0.0, 25, 64);
+    OnhPhantomParams shaded = still;
+    shaded.artefacts.vessel_shadows = true;
+    const io::Scan a = render_onh_scan(still);
+    const io::Scan b = render_onh_scan(shaded);
+    const int nx = a.meta.size_x;
+    const int ilm = static_cast<int>(io::Layer::kILM);
+    int shadowed = 0;
+    for (int k = 0; k < a.num_bscans(); ++k) {
+        const auto& pa = a.bscans[static_cast<std::size_t>(k)].pixels;
+        const auto& pb = b.bscans[static_cast<std::size_t>(k)].pixels;
+        for (int line : {ilm, static_cast<int>(io::Layer::kBM)}) {
+            for (int i = 0; i < nx; ++i) {
+                const float va = a.depth_px(line, k, i);
+                const float vb = b.depth_px(line, k, i);
+                EXPECT_TRUE(va == vb || (std::isnan(va) && std::isnan(vb))) << k << " " << i;
+            }
+        }
+        for (int i = 0; i < nx; ++i) {
+            const int top = static_cast<int>(std::floor(a.depth_px(ilm, k, i)));
+            for (int z = 0; z < top; ++z) {  // the vitreous: untouched (same speckle seed)
+                const auto at = static_cast<std::size_t>(z * nx + i);
+                ASSERT_EQ(pa[at], pb[at]) << k << " " << i << " " << z;
+            }
+            // 0.15 mm below the ILM: at most 15 % left on a vessel's axis.
+            double sa = 0.0;
+            double sb = 0.0;
+            for (int z = top + 40; z < top + 60; ++z) {
+                const auto at = static_cast<std::size_t>(z * nx + i);
+                sa += pa[at];
+                sb += pb[at];
+            }
+            if (sb < 0.5 * sa) ++shadowed;
+        }
+    }
+    EXPECT_GT(shadowed, 10);  // eight vessels, 60-150 um wide, cross the 25 B-scans
+}
+
 // A still eye with a curved (R = 12 mm), tilted (0.03, -0.02) wall: nothing to remove. The
 // device BM is the phantom's exact quadratic in float32 (rounding 2e-5 px = 1e-4 um), inside
 // the cubic model: every shift within 0.01 um of zero.
