@@ -220,6 +220,30 @@ TEST(AxialRegistration, RecoversTheMotionOfRadialLines) {
     EXPECT_LT(again.max_abs_shift_um, 0.01);
 }
 
+// A user's BMO points move with their B-scan (a point of an x_mm,y_mm,z_mm file: the B-scan
+// nearest its y); nothing moves when the registration was not applied.
+TEST(AxialRegistration, BmoPointsMoveWithTheirBscan) {
+    io::Scan scan;
+    scan.meta.distance_mm = 0.1;
+    AxialRegistration r;
+    r.applied = true;
+    r.shift_um = {0.0, 20.0, -10.0};
+    std::vector<BmoPoint> pts(3);
+    pts[0].bscan = 1;
+    pts[0].mm = {1.0, 0.1, -1.0};
+    pts[1].bscan = -1;  // from a file: y = 0.21 mm is nearest B-scan 2
+    pts[1].mm = {1.0, 0.21, -1.0};
+    pts[2].bscan = 7;  // not a B-scan of the scan: left alone
+    pts[2].mm = {1.0, 0.0, -1.0};
+    register_bmo_points(pts, scan, r);
+    EXPECT_DOUBLE_EQ(pts[0].mm.z(), -1.0 + 0.020);  // 20 um deeper before: 20 um up now
+    EXPECT_DOUBLE_EQ(pts[1].mm.z(), -1.0 - 0.010);
+    EXPECT_DOUBLE_EQ(pts[2].mm.z(), -1.0);
+    r.applied = false;
+    register_bmo_points(pts, scan, r);
+    EXPECT_DOUBLE_EQ(pts[0].mm.z(), -1.0 + 0.020);
+}
+
 TEST(AxialRegistration, WithoutBmNothingMovesAndAFlagSaysSo) {
     io::Scan scan = render_onh_scan(moving(false, 30.0, 25, 64));
     for (auto& b : scan.bscans) {

@@ -192,7 +192,7 @@ void apply_acquisition_artefacts(io::Scan& scan,
                 "moves the retina of B-scan " + std::to_string(b) +
                     " out of the image: use a larger depth or less motion");
     }
-    if (artefacts.vessel_shadows || artefacts.cleft) {
+    if ((artefacts.vessel_shadows || artefacts.cleft) && !vessels.empty()) {
         draw_vessels(scan, points, artefacts.vessel_shadows ? vessels
                                                              : std::vector<VesselPath>{vessels.front()},
                      artefacts.cleft, ilm_line);
