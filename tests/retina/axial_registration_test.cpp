@@ -287,29 +287,43 @@ void expect_still_tolerances(const OnhResult& r, const OnhTruth& t, const std::s
     }
 }
 
-// Slow: a full-size 24-line radial phantom (render ~1 s) analysed three times (device ILM
-// without and with registration, level set with it: ~0.5 + 0.5 + 3 s).
-SLOW_TEST(OnhMovingPhantom, RadialSixtyMicronsWithShadowsMeetsTheStillTolerances) {
-    const OnhPhantomParams p = moving(true, 60.0, 24, 384);
+// Slow: full-size 24-line radial phantoms (render ~1 s each) at 30 and 60 um: device ILM
+// without and with registration, and the level set with it at 60 um (~0.3 + 0.3 + 3 s).
+SLOW_TEST(OnhMovingPhantom, RadialThirtyAndSixtyMicronsWithShadowsMeetTheStillTolerances) {
+    for (const double sd : {30.0, 60.0}) {
+        const OnhPhantomParams p = moving(true, sd, 24, 384);
+        const OnhTruth t = compute_onh_truth(p);
+        const io::Scan raw = render_onh_scan(p);
+        const std::string name = "radial " + std::to_string(static_cast<int>(sd)) + " um ";
+        {
+            // Unregistered, the 3-D quantities break (the failure): the MRW area by
+            // more than twice its tolerance (bench onh_motion: +4.9 % at 30 um, +14.8 % at 60).
+            const OnhResult r = analyse_onh(raw, device_ilm_surface(raw));
+            EXPECT_GT(std::fabs(r.mrw_area_mm2 / t.mrw_area_mm2 - 1.0), 0.04) << name;
+        }
+        io::Scan scan = raw;
+        const AxialRegistration reg = register_axially(scan);
+        EXPECT_LT(identifiable_error_um(reg, p), 0.01) << name;
+        expect_still_tolerances(analyse_onh(scan, device_ilm_surface(scan)), t, name + "device");
+        if (sd == 60.0) {
+            expect_still_tolerances(analyse_onh(scan, levelset_ilm_surface(scan)), t,
+                                    name + "levelset");
+        }
+    }
+}
+
+// Slow: a full-size volume (145 x 384 x 496, render ~3 s), 60 um of motion, device ILM without
+// and with registration (~0.3 s each).
+SLOW_TEST(OnhMovingPhantom, VolumeSixtyMicronsWithShadowsMeetsTheStillTolerances) {
+    const OnhPhantomParams p = moving(false, 60.0, 145, 384);
     const OnhTruth t = compute_onh_truth(p);
     const io::Scan raw = render_onh_scan(p);
     {
-        // Unregistered, the 3-D quantities break (the failure): the MRW area by > 5 %.
+        // Unregistered: the MRW area off by more than its 2 % (bench: +5.1 %).
         const OnhResult r = analyse_onh(raw, device_ilm_surface(raw));
-        EXPECT_GT(std::fabs(r.mrw_area_mm2 / t.mrw_area_mm2 - 1.0), 0.05);
+        EXPECT_GT(std::fabs(r.mrw_area_mm2 / t.mrw_area_mm2 - 1.0), 0.04);
     }
     io::Scan scan = raw;
-    const AxialRegistration reg = register_axially(scan);
-    EXPECT_LT(identifiable_error_um(reg, p), 0.01);
-    expect_still_tolerances(analyse_onh(scan, device_ilm_surface(scan)), t, "radial device");
-    expect_still_tolerances(analyse_onh(scan, levelset_ilm_surface(scan)), t, "radial levelset");
-}
-
-// Slow: a full-size volume (145 x 384 x 496, render ~3 s), 30 um of motion, device ILM.
-SLOW_TEST(OnhMovingPhantom, VolumeThirtyMicronsWithShadowsMeetsTheStillTolerances) {
-    const OnhPhantomParams p = moving(false, 30.0, 145, 384);
-    const OnhTruth t = compute_onh_truth(p);
-    io::Scan scan = render_onh_scan(p);
     const AxialRegistration reg = register_axially(scan);
     EXPECT_LT(identifiable_error_um(reg, p), 0.01);
     expect_still_tolerances(analyse_onh(scan, device_ilm_surface(scan)), t, "volume device");
