@@ -73,6 +73,8 @@ std::string onh_options_text(const OnhEyeOptions& o) {
       << " disc_radius_mm=" << p.disc_radius_mm
       << " min_gap_area_mm2=" << p.detection.min_gap_area_mm2
       << " local_features=" << p.local_features
+      << " axial_registration=" << p.axial_registration.enabled
+      << " axial_registration_degree=" << p.axial_registration.surface_degree
       << " mesh=" << (o.mesh_dir.empty() ? std::string("none") : o.mesh_format);
     s << " levelset(lateral_radius_mm=" << ls.lateral_radius_mm << " margin_mm=" << ls.margin_mm
       << " despeckle_passes=" << ls.despeckle_passes << " mu_mm=" << ls.mu_mm
@@ -113,6 +115,9 @@ void add_onh_analysis_options(CLI::App* cmd, OnhEyeOptions& o, bool per_eye_file
     cmd->add_option("--disc-radius-mm", p.disc_radius_mm,
                     "Radius of the total-volume disc around the BMO centre (mm)")
         ->capture_default_str();
+    cmd->add_flag("!--no-axial-registration", p.axial_registration.enabled,
+                  "Do not remove the axial eye motion between B-scans (estimated from the BM and "
+                  "reported either way; docs/algorithms/onh.md)");
     cmd->add_option("--min-gap-area-mm2", p.detection.min_gap_area_mm2,
                     "Smallest BM gap accepted as the disc by the automatic BMO detection (mm2)")
         ->capture_default_str();
@@ -146,6 +151,12 @@ EyeResult analyse_onh_eye(const std::string& file,
                   ? with_file_named(file, [&] { return retina::read_radial_bmo_csv(o.bmo_file, scan); })
                   : retina::read_bmo_csv(o.bmo_file, scan.meta, scan.num_bscans());
     }
+    // Axial registration before any surface (docs/algorithms/onh.md): the pixels and lines of
+    // every B-scan, and the user's BMO points with their B-scan.
+    const retina::AxialRegistration registration = with_file_named(
+        file, [&] { return retina::register_axially(scan, o.params.axial_registration); });
+    if (bmo && registration.applied) retina::register_bmo_points(*bmo, scan, registration);
+    prov.mark("axial_registration");
     // The scan's record as read (pixels_loaded included), before the level set may free them.
     nlohmann::ordered_json preamble = eye_json_preamble("onh", file, sha, scan, o.record_paths);
     if (!segmentation.is_null()) preamble["input"]["segmentation"] = segmentation;
@@ -156,8 +167,11 @@ EyeResult analyse_onh_eye(const std::string& file,
                                 : retina::build_ilm_surface(scan, source);
     });
     prov.mark("ilm_surface");
-    const retina::OnhResult r =
+    retina::OnhResult r =
         with_file_named(file, [&] { return retina::analyse_onh(scan, ilm, o.params, bmo); });
+    r.axial_registration = registration;
+    r.qc_flags.insert(r.qc_flags.end(), registration.qc_flags.begin(), registration.qc_flags.end());
+    r.notes.insert(r.notes.end(), registration.notes.begin(), registration.notes.end());
     prov.mark("analysis");
     const std::string who = log_name(file);
     for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", who, f);

@@ -338,7 +338,8 @@ cv::Mat radial_bscans_picture(const io::Scan& scan,
         }
         // Which way the line runs: the anatomical angle of its Start (left) and End (right).
         const double ang = geo.lines[static_cast<std::size_t>(k)].angle_deg;
-        outlined_text(img, "B-scan " + std::to_string(k + 1) + printf_number(", %.0f deg", ang),
+        outlined_text(img, "B-scan " + std::to_string(k + 1) + printf_number(", %.0f deg", ang) +
+                               registration_title(r, k),
                       {6, 16}, 0.45, palette::kWhite);
         outlined_text(img, printf_number("%.0f", std::fmod(ang + 180.0, 360.0)), {4, L.panel_h - 8},
                       0.4, palette::kWhite);

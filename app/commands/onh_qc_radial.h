@@ -5,6 +5,7 @@
 // MRW added. Each picture comes with its layout (where a grid mm point, or a B-scan pixel, is
 // drawn) so that the tests can check marks at their pixels.
 
+#include <cmath>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -26,6 +27,16 @@ inline const cv::Scalar& kUsedIlm = palette::kRed;  // was (40, 40, 240): the on
 inline const cv::Scalar& kBm = palette::kBlue;
 inline const cv::Scalar& kMrw = palette::kPink;
 }  // namespace onh_colours
+
+// ", moved 12 um up" when the axial registration moved B-scan `b` (|shift| >= 0.5 um), else "":
+// the B-scan titles of both patterns' pictures show what the registration did.
+inline std::string registration_title(const retina::OnhResult& r, int b) {
+    const auto& s = r.axial_registration.shift_um;
+    if (!r.axial_registration.applied || b < 0 || static_cast<std::size_t>(b) >= s.size()) return {};
+    const double v = s[static_cast<std::size_t>(b)];
+    if (std::fabs(v) < 0.5) return {};
+    return printf_number(v > 0.0 ? ", moved %.0f um up" : ", moved %.0f um down", std::fabs(v));
+}
 
 // En-face picture: the (n - 1) x (n - 1) cells of the radial grid, `ppm` pixels per mm, inside
 // a margin (for the lines' labels) under the title strip.

@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include "commands/command.h"
+#include "commands/phantom_options.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/error.h"
 #include "octshape/io/topcon.h"
@@ -163,6 +164,7 @@ void add_phantom_macula_command(CLI::App& parent, RunContext& /*ctx*/) {
         ->capture_default_str();
     cmd->add_option("--vessels", p.vessels, "Vessel-like bands raising the ILM by 3-8 um")
         ->capture_default_str();
+    add_acquisition_options(cmd, p.artefacts);
     cmd->add_flag("--no-pixels", opts->no_pixels,
                   "Write B-scan pixels as 'no data' (FLT_MAX): faster, for analysis-only tests");
     cmd->add_option("--seed", p.seed, "Seed of every random choice")->capture_default_str();

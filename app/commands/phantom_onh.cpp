@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include "commands/command.h"
+#include "commands/phantom_options.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/error.h"
 #include "octshape/io/vol.h"
@@ -59,6 +60,7 @@ void run(PhantomOnhState& st, const CLI::App& cmd) {
     p.radial_lines = given.radial_lines;
     p.line_length_mm = given.line_length_mm;
     p.crossing_offset_um = given.crossing_offset_um;
+    p.artefacts = given.artefacts;
     if (!st.bmo_offset_mm.empty()) {
         p.bmo_offset_x_mm = st.bmo_offset_mm[0];
         p.bmo_offset_y_mm = st.bmo_offset_mm[1];
@@ -174,6 +176,7 @@ void add_phantom_onh_command(CLI::App& phantom, RunContext& /*ctx*/) {
                     "Amplitude of the swelling term (preset of the shape)");
     cmd->add_option("--undercut", st->profile.undercut,
                     "Outward push of the cup wall in BMO radii, 0 = none (preset of the shape)");
+    add_acquisition_options(cmd, st->params.artefacts);
     cmd->add_option("--mrw-points", st->truth.mrw_points,
                     "BMO points for the MRW truth (uniform in the ellipse parameter angle)")
         ->capture_default_str();

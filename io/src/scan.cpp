@@ -176,3 +176,80 @@ std::string ole_date_to_iso_date(double ole_days) {
 }
 
 }  // namespace octshape::io
+
+namespace octshape::io {
+
+namespace {
+
+// out[i] = in(i - shift) by linear interpolation, indices clamped to [0, n - 1] (edges repeated).
+template <typename Get, typename Put>
+void shift_samples(int n, double shift, Get&& get, Put&& put) {
+    const double last = static_cast<double>(n - 1);
+    for (int i = 0; i < n; ++i) {
+        const double src = std::clamp(static_cast<double>(i) - shift, 0.0, last);
+        const auto i0 = static_cast<int>(std::floor(src));
+        const int i1 = std::min(i0 + 1, n - 1);
+        const double f = src - i0;
+        put(i, (1.0 - f) * get(i0) + f * get(i1));
+    }
+}
+
+}  // namespace
+
+void shift_bscan(BScan& bscan, int size_x, int size_z, double dz_px, double dx_px) {
+    if (size_x <= 0 || size_z <= 0 || !std::isfinite(dz_px) || !std::isfinite(dx_px)) return;
+    const auto nx = static_cast<std::size_t>(size_x);
+    const auto nz = static_cast<std::size_t>(size_z);
+    if (bscan.pixels.size() == nx * nz) {
+        std::vector<float> tmp(bscan.pixels.size());
+        if (dz_px != 0.0) {
+            // One source position per output row (the shift is the same for every A-scan):
+            // whole rows blended, in memory order.
+            const double last = static_cast<double>(size_z - 1);
+            for (int z = 0; z < size_z; ++z) {
+                const double src = std::clamp(static_cast<double>(z) - dz_px, 0.0, last);
+                const auto z0 = static_cast<std::size_t>(std::floor(src));
+                const std::size_t z1 = std::min(z0 + 1, nz - 1);
+                const auto f = static_cast<float>(src - static_cast<double>(z0));
+                const float* r0 = bscan.pixels.data() + z0 * nx;
+                const float* r1 = bscan.pixels.data() + z1 * nx;
+                float* out = tmp.data() + static_cast<std::size_t>(z) * nx;
+                for (std::size_t a = 0; a < nx; ++a) out[a] = (1.0F - f) * r0[a] + f * r1[a];
+            }
+            bscan.pixels.swap(tmp);
+        }
+        if (dx_px != 0.0) {
+            for (std::size_t z = 0; z < nz; ++z) {
+                const float* row = bscan.pixels.data() + z * nx;
+                shift_samples(
+                    size_x, dx_px, [&](int a) { return double{row[a]}; },
+                    [&](int a, double v) { tmp[z * nx + static_cast<std::size_t>(a)] = static_cast<float>(v); });
+            }
+            bscan.pixels.swap(tmp);
+        }
+    }
+    for (auto& line : bscan.seg) {
+        if (dx_px != 0.0 && line.size() == nx) {
+            // Linear between two present values; next to a missing one, the nearer sample (so
+            // the edge of a gap, e.g. the BMO, moves with the content, not always outward).
+            const std::vector<float> in = line;
+            const double last = static_cast<double>(size_x - 1);
+            for (std::size_t a = 0; a < nx; ++a) {
+                const double src = std::clamp(static_cast<double>(a) - dx_px, 0.0, last);
+                const auto a0 = static_cast<std::size_t>(std::floor(src));
+                const std::size_t a1 = std::min(a0 + 1, nx - 1);
+                const double f = src - static_cast<double>(a0);
+                const float v0 = in[a0];
+                const float v1 = in[a1];
+                if (std::isfinite(v0) && std::isfinite(v1)) {
+                    line[a] = static_cast<float>((1.0 - f) * v0 + f * v1);
+                } else {
+                    line[a] = f < 0.5 ? v0 : v1;
+                }
+            }
+        }
+        for (float& v : line) v = static_cast<float>(v + dz_px);  // NaN stays NaN
+    }
+}
+
+}  // namespace octshape::io

@@ -36,6 +36,52 @@ std::filesystem::path make_phantom(const test::TempDir& dir) {
     return vol;
 }
 
+// Axial registration end to end: on by default and recorded; off on request (the estimate is
+// still reported, the large-motion flag says it was not removed); the truth file's shifts are
+// what the JSON reports up to the cubic across the B-scans that a volume cannot tell from the
+// eye's wall (docs/algorithms/onh.md): fourth differences remove any cubic exactly, and the
+// estimate is exact to < 0.01 um on these lines (tests/retina/axial_registration_test.cpp),
+// which a fourth difference amplifies at most 16-fold: 0.2 um.
+TEST(OnhCli, AxialRegistrationIsOnByDefaultAndRecorded) {
+    test::TempDir dir;
+    const auto vol = dir / "moving.vol";
+    ASSERT_EQ(test::run_octshape("phantom onh --bscans 25 --ascans 64 --motion-um 60 "
+                                 "--vessel-shadows -o " + vol.string())
+                  .exit_code,
+              0);
+    const json truth = json::parse(slurp(dir / "moving.truth.json"));
+    const auto on = test::run_octshape("onh " + vol.string() + " --ilm device -o " +
+                                       (dir / "on.json").string());
+    ASSERT_EQ(on.exit_code, 0) << on.err;
+    const auto off = test::run_octshape("onh " + vol.string() + " --ilm device " +
+                                        "--no-axial-registration -o " + (dir / "off.json").string());
+    ASSERT_EQ(off.exit_code, 0) << off.err;
+    const json a = json::parse(slurp(dir / "on.json"));
+    const json b = json::parse(slurp(dir / "off.json"));
+    EXPECT_EQ(a["options"]["axial_registration"], true);
+    EXPECT_EQ(b["options"]["axial_registration"], false);
+    EXPECT_EQ(a["axial_registration"]["applied"], true);
+    EXPECT_EQ(b["axial_registration"]["applied"], false);
+    EXPECT_EQ(a["provenance"]["options"]["axial_registration"], 1);
+    EXPECT_EQ(b["provenance"]["options"]["axial_registration"], 0);
+    const auto& t = truth["acquisition"]["axial_shift_um"];
+    const auto& e = a["axial_registration"]["shift_um"];
+    ASSERT_EQ(e.size(), t.size());
+    auto fourth = [](const json& v, std::size_t k) {
+        return v[k].get<double>() - 4 * v[k + 1].get<double>() + 6 * v[k + 2].get<double>() -
+               4 * v[k + 3].get<double>() + v[k + 4].get<double>();
+    };
+    for (std::size_t k = 0; k + 4 < t.size(); ++k) EXPECT_NEAR(fourth(e, k), fourth(t, k), 0.2) << k;
+    auto has = [](const json& j, const std::string& flag) {
+        for (const auto& f : j["qc_flags"]) {
+            if (f.get<std::string>() == flag) return true;
+        }
+        return false;
+    };
+    EXPECT_TRUE(has(a, "large axial motion between B-scans (registered)"));
+    EXPECT_TRUE(has(b, "large axial motion between B-scans (not registered)"));
+}
+
 TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
     test::TempDir dir;
     const auto vol = make_phantom(dir);

@@ -76,7 +76,35 @@ J onh_json(const OnhResult& r, const OnhParams& p) {
     o["disc_radius_mm"] = p.disc_radius_mm;
     o["min_gap_area_mm2"] = p.detection.min_gap_area_mm2;
     o["local_features"] = p.local_features;
+    o["axial_registration"] = p.axial_registration.enabled;
+    o["axial_registration_surface_degree"] = p.axial_registration.surface_degree;
     j["options"] = o;
+    {
+        // Per B-scan (index = B-scan, from 0): the axial motion estimated (+ = the B-scan lay
+        // deeper than the eye) and removed when applied.
+        const AxialRegistration& a = r.axial_registration;
+        J reg;
+        reg["applied"] = a.applied;
+        reg["model"] =
+            "BM depth = per-B-scan offset + smooth polynomial surface (robust least squares); "
+            "the offsets a polynomial of the same degree across B-scans explains belong to the "
+            "eye (volumes), the rest is motion (docs/algorithms/onh.md)";
+        reg["rms_shift_um"] = a.rms_shift_um;
+        reg["max_abs_shift_um"] = a.max_abs_shift_um;
+        reg["residual_rms_um"] = a.residual_rms_um;
+        reg["bm_values_used"] = a.bm_values_used;
+        reg["bm_values_rejected"] = a.bm_values_rejected;
+        reg["bscans_not_estimated"] = a.bscans_not_estimated;
+        J shifts = J::array();
+        J est = J::array();
+        for (std::size_t b = 0; b < a.shift_um.size(); ++b) {
+            shifts.push_back(a.shift_um[b]);
+            est.push_back(static_cast<bool>(a.estimated[b]));
+        }
+        reg["shift_um"] = std::move(shifts);
+        reg["estimated"] = std::move(est);
+        j["axial_registration"] = std::move(reg);
+    }
 
     J v;
     v["has_cup"] = r.has_cup;

@@ -189,6 +189,7 @@ void OnhPhantomParams::validate() const {
         shape == OnhShape::kCupped || shape == OnhShape::kSwollen || shape == OnhShape::kOverhang,
         "shape", "is unknown");
     require(eye == io::Laterality::kOD || eye == io::Laterality::kOS, "eye", "must be OD or OS");
+    artefacts.validate();
     require(num_bscans >= 5 && num_bscans <= 1024, "bscans", "must be in 5..1024");
     require(num_ascans >= 16 && num_ascans <= 4096, "ascans", "must be in 16..4096");
     require(depth_px >= 64 && depth_px <= 4096, "depth", "must be in 64..4096");
@@ -1294,6 +1295,15 @@ io::Scan radial_scan_frame(const OnhPhantomParams& p, const phantom::VolumeLayou
 
 }  // namespace
 
+phantom::AcquisitionShifts onh_acquisition_shifts(const OnhPhantomParams& params) {
+    const OnhPhantomGeometry g(params);
+    const int nb = params.radial ? params.radial_lines : params.num_bscans;
+    const double sx =
+        params.radial ? params.line_length_mm / (params.num_ascans - 1) : g.scale_x_mm();
+    return phantom::acquisition_shifts(params.artefacts, nb, g.scale_z_mm(), sx, params.radial,
+                                       params.seed);
+}
+
 io::Scan render_onh_scan(const OnhPhantomParams& params) {
     const OnhPhantomGeometry g(params);
     const phantom::VolumeLayout layout = layout_of(params);
@@ -1363,6 +1373,20 @@ io::Scan render_onh_scan(const OnhPhantomParams& params) {
 
     const phantom::GridFrame gf = phantom::grid_frame(layout);
     const auto vessels = vessel_lines(g, gf);
+    if (params.artefacts.any()) {
+        // The SLO's vessels in the B-scans, 150 um (the arcades) down to 60 um wide; faults
+        // farther than 1.6 mm from the BMO centre (outside every volume's disc).
+        constexpr std::array<double, 8> kWidthMm = {0.150, 0.140, 0.110, 0.100,
+                                                    0.090, 0.080, 0.070, 0.060};
+        std::vector<phantom::VesselPath> paths;
+        for (std::size_t v = 0; v < vessels.size(); ++v) {
+            paths.push_back({vessels[v].line, kWidthMm[v % kWidthMm.size()]});
+        }
+        phantom::apply_acquisition_artefacts(
+            scan, points, paths, params.artefacts, onh_acquisition_shifts(params),
+            static_cast<int>(io::Layer::kILM), static_cast<int>(io::Layer::kBM), g.bmo_centre(),
+            1.6);
+    }
     const Eigen::Matrix2d slo_to_grid = gf.grid_to_slo.inverse();
     phantom::render_slo(
         scan,
@@ -1459,6 +1483,29 @@ nlohmann::json onh_truth_to_json(const OnhPhantomParams& params,
         // itself has no grid: the lines' crossing places it.
         j["options"]["crossing_mm"] = {c.x(), c.y()};
         j["options"]["line_ascan_spacing_mm"] = params.line_length_mm / (params.num_ascans - 1);
+    }
+    if (params.artefacts.any()) {  // only then (a still phantom's truth file is unchanged)
+        const phantom::AcquisitionArtefacts& a = params.artefacts;
+        const phantom::AcquisitionShifts sh = onh_acquisition_shifts(params);
+        json axial_um = json::array();
+        json lateral_um = json::array();
+        for (std::size_t b = 0; b < sh.axial_px.size(); ++b) {
+            axial_um.push_back(sh.axial_px[b] * g.scale_z_mm() * 1000.0);
+            lateral_um.push_back(sh.lateral_px[b] * (params.radial ? 0.0 : g.scale_x_mm()) *
+                                 1000.0);
+        }
+        j["acquisition"] = {
+            {"motion_sd_um", a.motion_sd_um},
+            {"lateral_jitter_um", a.lateral_jitter_um},
+            {"vessel_shadows", a.vessel_shadows},
+            {"cleft", a.cleft},
+            {"segmentation_faults", a.segmentation_faults},
+            {"axial_shift_um", axial_um},
+            {"lateral_shift_um", lateral_um},
+            {"note",
+             "the acquisition's artefacts, not the eye's: B-scan b's pixels and device lines lie "
+             "axial_shift_um[b] deeper (and lateral_shift_um[b] towards higher A-scans) than the "
+             "eye; the truth is that of the still eye"}};
     }
     j["truth_options"] = {{"s_step", options.s_step},
                           {"phi_steps", options.phi_steps},

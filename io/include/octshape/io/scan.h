@@ -189,6 +189,14 @@ struct Scan {
     [[nodiscard]] std::optional<int> find_line(std::string_view name) const;
 };
 
+// Moves the content of a B-scan by `dz_px` pixels deeper and `dx_px` A-scans towards higher
+// A-scan indices (both may be fractional or negative): the pixels (size_z rows x size_x columns,
+// if loaded) by linear interpolation with the edge rows and columns repeated, and every
+// segmentation line with them (depths + dz_px, values resampled along the A-scans: linearly
+// between present values, the nearer sample next to a missing one). What an eye's axial
+// motion does to a B-scan (acquisition phantoms) and what axial registration undoes.
+void shift_bscan(BScan& bscan, int size_x, int size_z, double dz_px, double dx_px = 0.0);
+
 // Calendar conversions for the two date encodings used by the exports; ISO 8601 text (UTC).
 [[nodiscard]] std::string filetime_to_iso(std::uint64_t filetime);
 [[nodiscard]] std::string ole_date_to_iso_date(double ole_days);

@@ -17,6 +17,7 @@
 
 #include "octshape/io/scan.h"
 #include "octshape/mesh/mesh.h"
+#include "octshape/retina/axial_registration.h"
 #include "octshape/retina/bmo.h"
 #include "octshape/retina/onh_surfaces.h"
 
@@ -78,6 +79,9 @@ struct OnhParams {
     bool local_features = false;   // per-face local ENVT feature strength (a mesh scalar for
                                    // pictures; ~0.5 s on a full-size graph, so only on request)
     BmoDetectionParams detection;  // automatic BMO detection
+    // Axial registration of the B-scans before any surface is built (the caller applies it to
+    // the scan: register_axially; analyse_onh only reports it).
+    AxialRegistrationParams axial_registration;
 
     void validate() const;  // throws UsageError naming the field
 };
@@ -188,6 +192,9 @@ struct OnhResult {
                                                  kMissing, kMissing, kMissing, kMissing,
                                                  kMissing, kMissing, kMissing, kMissing};
     std::array<int, 12> mrw_inplane_sector_points{};
+
+    // Axial registration of the B-scans (set by the caller that registered the scan).
+    AxialRegistration axial_registration;
 
     // QC.
     int rpe_filled_vertices = 0;

@@ -154,4 +154,59 @@ void render_slo(io::Scan& scan,
                 const std::function<double(double x_slo_mm, double y_slo_mm)>& brightness,
                 std::uint64_t seed);
 
+// What the acquisition adds to a phantom (docs/phantoms.md, "Acquisition artefacts"): the eye,
+// and so the truth, stay the same; only the B-scans and the device lines change.
+struct AcquisitionArtefacts {
+    // Axial eye motion: one depth shift per B-scan, a random walk with occasional jumps,
+    // rescaled to zero mean and exactly this standard deviation (um); 0 = still.
+    double motion_sd_um = 0.0;
+    // Lateral jitter of volume B-scans along their A-scans (SD, um; radial scans: ignored).
+    double lateral_jitter_um = 0.0;
+    bool vessel_shadows = false;  // vessels: bright lumen under the ILM, a shadow below it
+    bool cleft = false;           // a dark cleft from the ILM into the tissue under one vessel
+    bool segmentation_faults = false;  // device ILM spike and a BM gap, both off the disc/fovea
+
+    [[nodiscard]] bool any() const {
+        return motion_sd_um > 0.0 || lateral_jitter_um > 0.0 || vessel_shadows || cleft ||
+               segmentation_faults;
+    }
+    // Throws UsageError naming the bad field.
+    void validate() const;
+};
+
+// The per-B-scan shifts of an acquisition (pixels: depth, and A-scans along the B-scan), a pure
+// function of (artefacts, seed, sizes), so the truth file can state them without the pixels.
+struct AcquisitionShifts {
+    std::vector<double> axial_px;    // + = the B-scan's content lies deeper
+    std::vector<double> lateral_px;  // + = towards higher A-scan indices (volumes only)
+};
+[[nodiscard]] AcquisitionShifts acquisition_shifts(const AcquisitionArtefacts& artefacts,
+                                                   int num_bscans,
+                                                   double scale_z_mm,
+                                                   double scale_x_mm,
+                                                   bool radial,
+                                                   std::uint64_t seed);
+
+// A vessel path on the grid (mm) and its lumen width (mm).
+struct VesselPath {
+    std::vector<Eigen::Vector2d> line;
+    double width_mm = 0.1;
+};
+
+// Applies `artefacts` to a rendered scan, in acquisition order: vessel lumen and shadow (drawn
+// under the device ILM line `ilm_line` at every A-scan whose grid position, `points` B-scan
+// major, lies within half a width of a vessel), the cleft, the device-line faults (at A-scans
+// whose grid position is farther than `spare_radius_mm` from `spare_centre_mm`: off the disc or
+// the fovea), then the shifts (pixels and every line together, shift_bscan). Throws
+// UsageError when the shifted retina leaves the image (a larger depth is needed).
+void apply_acquisition_artefacts(io::Scan& scan,
+                                 const std::vector<Eigen::Vector2d>& points,
+                                 const std::vector<VesselPath>& vessels,
+                                 const AcquisitionArtefacts& artefacts,
+                                 const AcquisitionShifts& shifts,
+                                 int ilm_line,
+                                 int bm_line,
+                                 const Eigen::Vector2d& spare_centre_mm,
+                                 double spare_radius_mm);
+
 }  // namespace octshape::retina::phantom

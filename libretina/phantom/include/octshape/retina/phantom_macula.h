@@ -84,6 +84,10 @@ struct MaculaPhantomParams {
     // still ends at 7 mm; Scheibe: mu / k^gamma). In [0.7, 1.3].
     double radial_scale = 1.0;
     double pit_depth_scale = 1.0;      // in [0.5, 1.5]
+    // What the acquisition adds (docs/phantoms.md, "Acquisition artefacts"); the truth is the
+    // still eye's. Its vessel shadows are three 60-150 um vessels of their own (the `vessels`
+    // bands above belong to the eye: they raise the ILM).
+    phantom::AcquisitionArtefacts artefacts;
     bool pixels = true;     // false: B-scan pixels are io::kNoPixelData
     std::uint64_t seed = 1;
     phantom::SpeckleParams speckle;
@@ -148,6 +152,8 @@ inline constexpr double kBezierEndRadiusMm = 7.0;
 
 // Layout (sizes, scales) the phantom uses, with the defaults of `p` resolved.
 [[nodiscard]] phantom::VolumeLayout macula_layout(const MaculaPhantomParams& p);
+// The per-B-scan shifts the acquisition artefacts of `p` apply (zero when still).
+[[nodiscard]] phantom::AcquisitionShifts macula_acquisition_shifts(const MaculaPhantomParams& p);
 // True fovea centre in grid mm.
 [[nodiscard]] Eigen::Vector2d macula_centre_mm(const MaculaPhantomParams& p);
 

@@ -25,6 +25,7 @@
 #include <nlohmann/json.hpp>
 
 #include "octshape/io/scan.h"
+#include "octshape/retina/phantom_common.h"
 
 namespace octshape::retina {
 
@@ -93,6 +94,9 @@ struct OnhPhantomParams {
     double line_length_mm = 4.35;
     double crossing_offset_um = 0.0;    // along grid +x
     double crossing_offset_y_um = 0.0;  // along grid +y (re-scan benches: any direction)
+    // What the acquisition adds (axial motion, jitter, vessel shadows, a cleft, device-line
+    // faults; docs/phantoms.md): the pixels and device lines change, the truth does not.
+    phantom::AcquisitionArtefacts artefacts;
 
     // Throws UsageError naming the bad field (geometry that does not fit the image is
     // reported by make_onh_phantom, which knows every column).
@@ -263,6 +267,8 @@ struct OnhPhantom {
 // truth. Throws UsageError when the geometry does not fit the image.
 [[nodiscard]] OnhPhantom make_onh_phantom(const OnhPhantomParams& params,
                                           const OnhTruthOptions& truth_options = {});
+// The per-B-scan shifts the acquisition artefacts of `params` apply (zero when still).
+[[nodiscard]] phantom::AcquisitionShifts onh_acquisition_shifts(const OnhPhantomParams& params);
 // Only the scan (no truth).
 [[nodiscard]] io::Scan render_onh_scan(const OnhPhantomParams& params);
 

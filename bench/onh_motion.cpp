@@ -1,0 +1,141 @@
+// ONH parameters on phantoms that move (issue 32): the realistic-acquisition table. For each
+// pattern (a full-size volume, 145 x 384; a 24-line radial scan, 384 A-scans per line) of the
+// cupped disc, each axial motion SD (default 0, 30, 60, 100 um; a seeded random walk with jumps,
+// docs/phantoms.md), with vessel shadows and device-line faults (or without: --no-shadows),
+// each ILM source (device, levelset) and registration off / on (docs/algorithms/onh.md, "Axial
+// registration"): every parameter's error against the still eye's truth, the estimated shift's
+// RMS error against the true shift (the identifiable part: a volume's true shifts minus their
+// best cubic in the B-scan position, a radial scan's minus their mean) and the time of the
+// registration and of the whole analysis.
+// Usage: onh_motion [--motion 0,30,60,100] [--ilm device,levelset] [--pattern volume,radial]
+//                   [--no-shadows] [--seed N]
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <exception>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "octshape/retina/axial_registration.h"
+#include "octshape/retina/onh.h"
+#include "octshape/retina/phantom_onh.h"
+
+namespace {
+
+using namespace octshape::retina;
+using Clock = std::chrono::steady_clock;
+
+std::vector<std::string> split(const std::string& s) {
+    std::vector<std::string> out;
+    std::stringstream ss(s);
+    std::string item;
+    while (std::getline(ss, item, ',')) out.push_back(item);
+    return out;
+}
+
+double pct(double v, double t) { return 100.0 * (v - t) / t; }
+
+// RMS of (estimated - identifiable true) shifts, um.
+double shift_error_um(const AxialRegistration& reg, const std::vector<double>& true_px,
+                      double um_per_px, bool radial) {
+    const auto n = static_cast<Eigen::Index>(true_px.size());
+    const int k = radial ? 1 : 4;
+    Eigen::MatrixXd X(n, k);
+    Eigen::VectorXd t(n);
+    for (Eigen::Index b = 0; b < n; ++b) {
+        const double y = n > 1 ? -1.0 + 2.0 * static_cast<double>(b) / static_cast<double>(n - 1) : 0.0;
+        for (int j = 0; j < k; ++j) X(b, j) = std::pow(y, j);
+        t(b) = true_px[static_cast<std::size_t>(b)] * um_per_px;
+    }
+    // The difference est - true must be unidentifiable (in the span of X) when the estimate is
+    // right: its residual off that span is the error.
+    Eigen::VectorXd d(n);
+    for (Eigen::Index b = 0; b < n; ++b) d(b) = reg.shift_um[static_cast<std::size_t>(b)] - t(b);
+    const Eigen::VectorXd c = X.colPivHouseholderQr().solve(d);
+    const Eigen::VectorXd r = d - X * c;
+    return std::sqrt(r.squaredNorm() / static_cast<double>(n));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    try {
+        std::vector<std::string> motions = {"0", "30", "60", "100"};
+        std::vector<std::string> ilms = {"device", "levelset"};
+        std::vector<std::string> patterns = {"volume", "radial"};
+        bool shadows = true;
+        std::uint64_t seed = 1;
+        for (int i = 1; i < argc; ++i) {
+            const std::string a = argv[i];
+            const bool more = i + 1 < argc;
+            if (a == "--motion" && more) motions = split(argv[++i]);
+            else if (a == "--ilm" && more) ilms = split(argv[++i]);
+            else if (a == "--pattern" && more) patterns = split(argv[++i]);
+            else if (a == "--no-shadows") shadows = false;
+            else if (a == "--seed" && more) seed = std::stoull(argv[++i]);
+            else throw std::runtime_error("unknown argument " + a);
+        }
+        std::printf("# errors against the still eye's truth: volumes, MRW area, bending energy in %%; "
+                    "CONHT, MRW (3-D, in-plane) in um; shift err = RMS of estimated - true "
+                    "identifiable shift (um)\n");
+        std::printf("%-7s %6s %-8s %-4s %8s %8s %8s %8s %8s %8s %7s %8s %8s %8s %9s %7s %7s  %s\n",
+                    "pattern", "SD_um", "ilm", "reg", "cup%", "conht", "bmoV%", "totV%", "annV%",
+                    "bmoA%", "mrw", "mrwA%", "bend%", "mrw_ip", "shift_err", "reg_s", "total_s",
+                    "flags");
+        for (const std::string& pattern : patterns) {
+            OnhPhantomParams p = onh_phantom_preset(OnhShape::kCupped);
+            p.radial = pattern == "radial";
+            p.seed = seed;
+            const OnhTruth truth = compute_onh_truth(p);
+            for (const std::string& m : motions) {
+                OnhPhantomParams pm = p;
+                pm.artefacts.motion_sd_um = std::stod(m);
+                pm.artefacts.vessel_shadows = shadows;
+                pm.artefacts.segmentation_faults = shadows;
+                const octshape::io::Scan scan0 = render_onh_scan(pm);
+                const auto true_shifts = onh_acquisition_shifts(pm).axial_px;
+                for (const std::string& ilm_name : ilms) {
+                    for (const bool reg_on : {false, true}) {
+                        octshape::io::Scan scan = scan0;
+                        const auto t0 = Clock::now();
+                        AxialRegistrationParams rp;
+                        rp.enabled = reg_on;
+                        const AxialRegistration reg = register_axially(scan, rp);
+                        const double reg_s = std::chrono::duration<double>(Clock::now() - t0).count();
+                        const IlmSurface ilm = build_ilm_surface(scan, ilm_source_from_string(ilm_name));
+                        OnhResult r = analyse_onh(scan, ilm);
+                        const double total_s = std::chrono::duration<double>(Clock::now() - t0).count();
+                        std::string flags;
+                        for (const auto& f : reg.qc_flags) flags += "[" + f + "] ";
+                        for (const auto& f : r.qc_flags) flags += "[" + f + "] ";
+                        const double err = shift_error_um(reg, true_shifts, scan.meta.scale_z_mm * 1000.0, p.radial);
+                        std::printf("%-7s %6s %-8s %-4s %+8.2f %+8.1f %+8.2f %+8.2f %+8.2f %+8.2f %+7.1f "
+                                    "%+8.2f %+8.2f %+8.1f %9.2f %7.3f %7.2f  %s\n",
+                                    pattern.c_str(), m.c_str(), ilm_name.c_str(), reg_on ? "on" : "off",
+                                    pct(r.cup_volume_mm3, truth.cup_volume_mm3),
+                                    1e3 * (r.conht_mm - truth.conht_mm),
+                                    pct(r.bmo_volume_mm3, truth.bmo_volume_mm3),
+                                    pct(r.total_volume_mm3, truth.total_volume_mm3),
+                                    pct(r.annular_volume_mm3, truth.annular_volume_mm3),
+                                    pct(r.ellipse.area_mm2, truth.bmo_area_mm2),
+                                    1e3 * (r.mrw_mean_mm - truth.mrw_mean_mm),
+                                    pct(r.mrw_area_mm2, truth.mrw_area_mm2),
+                                    pct(r.bending_energy, truth.bending_energy),
+                                    p.radial ? 1e3 * (r.mrw_inplane_mean_mm - truth.inplane.mean_mm) : 0.0,
+                                    err, reg_s, total_s, flags.c_str());
+                        std::fflush(stdout);
+                    }
+                }
+            }
+        }
+        return 0;
+    } catch (const std::exception& ex) {
+        std::fprintf(stderr, "onh_motion: %s\n", ex.what());
+        return 1;
+    }
+}

@@ -1,0 +1,66 @@
+#pragma once
+// Axial registration of the B-scans of an ONH scan (volume or radial) before any surface is
+// built (docs/algorithms/onh.md, "Axial registration").
+//
+// The eye moves along the beam between B-scans, so each B-scan's content lies a little deeper or
+// shallower than its neighbours'. Bruch's membrane outside the opening is one smooth surface of
+// the eye: its device line, at every A-scan's grid position p in B-scan b, is modelled as
+//     depth(b, p) = o_b + S(p) + noise,   S a polynomial of degree `surface_degree` without a
+// constant term, fitted with the offsets o_b by robust (Tukey) least squares; a missing BM
+// value (the opening, a shadow, a gap) is simply absent. What a smooth surface can explain is
+// the eye's: for a volume every B-scan has one y, so o_b absorbs any function of y, and the
+// polynomial of the same degree in y fitted to the o_b is given back to the eye (a tilted,
+// curved eye wall is not "registered" flat); the motion is what remains. Radial lines all pass
+// through the crossing, so every function of the position is seen by several lines: only the
+// mean offset is the eye's. The motion is removed from the pixels and every segmentation line
+// of each B-scan together (io::shift_bscan).
+
+#include <string>
+#include <vector>
+
+#include "octshape/io/scan.h"
+#include "octshape/retina/bmo.h"
+
+namespace octshape::retina {
+
+struct AxialRegistrationParams {
+    bool enabled = true;
+    int surface_degree = 3;           // polynomial degree of the smooth BM surface (1..4)
+    double large_motion_um = 20.0;    // flag when the RMS of the removed shifts exceeds this
+    double max_residual_um = 15.0;    // flag when the BM is not one smooth surface
+    double min_bm_fraction = 0.1;     // a B-scan with fewer BM values is not estimated
+
+    void validate() const;  // throws UsageError naming the field
+};
+
+struct AxialRegistration {
+    bool enabled = false;   // asked for
+    bool applied = false;   // estimated and removed
+    std::vector<double> shift_um;     // per B-scan: the motion removed (+ = the B-scan lay deeper)
+    std::vector<bool> estimated;      // false: interpolated from the estimated neighbours
+    double rms_shift_um = 0.0;        // of shift_um
+    double max_abs_shift_um = 0.0;
+    double residual_rms_um = 0.0;     // BM about the fitted model (inliers)
+    int bscans_not_estimated = 0;
+    int bm_values_used = 0;           // inliers of the robust fit
+    int bm_values_rejected = 0;       // outliers (Tukey weight 0)
+    int surface_degree = 0;
+    std::vector<std::string> qc_flags;
+    std::vector<std::string> notes;
+};
+
+// Estimates the motion from the scan's BM line (AxialRegistration::applied false, with a
+// flag, when there is too little BM). Needs a volume or a radial scan.
+[[nodiscard]] AxialRegistration estimate_axial_motion(const io::Scan& scan,
+                                                      const AxialRegistrationParams& params = {});
+// Removes the estimated motion from every B-scan (pixels and lines). No-op unless applied.
+void apply_axial_registration(io::Scan& scan, const AxialRegistration& registration);
+// Moves BMO points given in the unregistered scan with it: each point by its B-scan's shift
+// (a point from an x_mm,y_mm,z_mm file: the B-scan nearest its y).
+void register_bmo_points(std::vector<BmoPoint>& points, const io::Scan& scan,
+                         const AxialRegistration& registration);
+// Both: estimate, then apply when params.enabled.
+[[nodiscard]] AxialRegistration register_axially(io::Scan& scan,
+                                                 const AxialRegistrationParams& params = {});
+
+}  // namespace octshape::retina

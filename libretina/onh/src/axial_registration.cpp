@@ -1,0 +1,328 @@
+// Axial registration of an ONH scan's B-scans (docs/algorithms/onh.md, "Axial registration").
+
+#include "octshape/retina/axial_registration.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include <Eigen/Dense>
+
+#include "octshape/error.h"
+#include "octshape/retina/radial_geometry.h"
+
+namespace octshape::retina {
+namespace {
+
+std::string fmt1(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.1f", v);
+    return buf;
+}
+
+// One BM value: its B-scan, grid position (normalised) and depth (px).
+struct BmSample {
+    int bscan = 0;
+    double x = 0.0;
+    double y = 0.0;
+    double depth = 0.0;
+};
+
+// Monomials x^i y^j, 1 <= i + j <= degree; `skip_pure_y`: without i = 0 (a volume's offsets
+// already hold every function of y).
+std::vector<std::pair<int, int>> monomials(int degree, bool skip_pure_y) {
+    std::vector<std::pair<int, int>> m;
+    for (int d = 1; d <= degree; ++d) {
+        for (int i = d; i >= 0; --i) {
+            if (skip_pure_y && i == 0) continue;
+            m.emplace_back(i, d - i);
+        }
+    }
+    return m;
+}
+
+// The BM values of the scan at normalised grid positions (centred on the field, unit = half
+// its extent, so the polynomial is well conditioned). Volumes: x = A-scan * ScaleX, y = B-scan
+// * Distance; radial scans: the lines' A-scans about their crossing.
+std::vector<BmSample> bm_samples(const io::Scan& scan, bool radial, std::vector<double>& y_of_bscan) {
+    const int nb = scan.num_bscans();
+    const int nx = scan.meta.size_x;
+    const int bm = static_cast<int>(io::Layer::kBM);
+    std::vector<BmSample> out;
+    y_of_bscan.assign(static_cast<std::size_t>(nb), 0.0);
+    if (radial) {
+        const RadialGeometry g = radial_geometry(scan);
+        const double half = std::max(1e-6, 0.5 * g.mean_length_mm);
+        for (int b = 0; b < nb; ++b) {
+            for (int a = 0; a < nx; ++a) {
+                const float d = scan.depth_px(bm, b, a);
+                if (!io::is_valid(d)) continue;
+                const Eigen::Vector2d p = g.ascan_mm(b, a, nx);
+                out.push_back({b, p.x() / half, p.y() / half, d});
+            }
+        }
+        return out;
+    }
+    const double w = 0.5 * std::max(1e-6, (nx - 1) * scan.meta.scale_x_mm);
+    const double h = 0.5 * std::max(1e-6, (nb - 1) * scan.meta.distance_mm);
+    for (int b = 0; b < nb; ++b) {
+        y_of_bscan[static_cast<std::size_t>(b)] = (b * scan.meta.distance_mm - h) / h;
+        for (int a = 0; a < nx; ++a) {
+            const float d = scan.depth_px(bm, b, a);
+            if (!io::is_valid(d)) continue;
+            out.push_back({b, (a * scan.meta.scale_x_mm - w) / w,
+                           y_of_bscan[static_cast<std::size_t>(b)], d});
+        }
+    }
+    return out;
+}
+
+double monomial(const std::pair<int, int>& m, double x, double y) {
+    return std::pow(x, m.first) * std::pow(y, m.second);
+}
+
+// Weighted fit of per-B-scan offsets plus the surface terms (the offsets eliminated: every
+// B-scan's samples centred on their weighted mean). Returns the offsets (NaN where a B-scan has
+// no weight) and fills the surface coefficients.
+std::vector<double> fit_offsets(const std::vector<BmSample>& s, const std::vector<double>& w,
+                                const Eigen::MatrixXd& Phi,  // samples x terms
+                                const std::vector<char>& use_bscan, int nb,
+                                Eigen::VectorXd& beta) {
+    const Eigen::Index k = Phi.cols();
+    std::vector<double> sw(static_cast<std::size_t>(nb), 0.0);
+    std::vector<double> sd(static_cast<std::size_t>(nb), 0.0);
+    Eigen::MatrixXd sphi = Eigen::MatrixXd::Zero(k, nb);
+    // At most 14 terms (degree 4): fixed-capacity vectors, no allocation per sample.
+    using VecK = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, 16, 1>;
+    VecK phi(k);
+    for (std::size_t i = 0; i < s.size(); ++i) {
+        const auto b = static_cast<std::size_t>(s[i].bscan);
+        if (!use_bscan[b] || w[i] <= 0.0) continue;
+        phi = Phi.row(static_cast<Eigen::Index>(i)).transpose();
+        sw[b] += w[i];
+        sd[b] += w[i] * s[i].depth;
+        sphi.col(static_cast<Eigen::Index>(b)) += w[i] * phi;
+    }
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(k, k);
+    Eigen::VectorXd r = Eigen::VectorXd::Zero(k);
+    for (std::size_t i = 0; i < s.size(); ++i) {
+        const auto b = static_cast<std::size_t>(s[i].bscan);
+        if (!use_bscan[b] || w[i] <= 0.0 || sw[b] <= 0.0) continue;
+        phi = Phi.row(static_cast<Eigen::Index>(i)).transpose();
+        const VecK c = phi - sphi.col(static_cast<Eigen::Index>(b)) / sw[b];
+        A.noalias() += w[i] * c * c.transpose();
+        r += w[i] * (s[i].depth - sd[b] / sw[b]) * c;
+    }
+    beta = k > 0 ? Eigen::VectorXd(A.ldlt().solve(r)) : Eigen::VectorXd();
+    if (k > 0 && !beta.allFinite()) beta = A.completeOrthogonalDecomposition().solve(r);
+    std::vector<double> offset(static_cast<std::size_t>(nb), std::numeric_limits<double>::quiet_NaN());
+    for (int b = 0; b < nb; ++b) {
+        const auto bi = static_cast<std::size_t>(b);
+        if (sw[bi] > 0.0) offset[bi] = (sd[bi] - sphi.col(b).dot(beta)) / sw[bi];
+    }
+    return offset;
+}
+
+// The part of the offsets a polynomial of `degree` in y cannot explain (volumes), or the
+// offsets about their mean (radial scans); weighted by each B-scan's sample count.
+std::vector<double> motion_of(const std::vector<double>& offset, const std::vector<double>& y,
+                              const std::vector<double>& count, int degree, bool radial) {
+    const std::size_t nb = offset.size();
+    const int k = radial ? 1 : degree + 1;
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(k, k);
+    Eigen::VectorXd r = Eigen::VectorXd::Zero(k);
+    Eigen::VectorXd phi(k);
+    for (std::size_t b = 0; b < nb; ++b) {
+        if (!std::isfinite(offset[b])) continue;
+        for (int t = 0; t < k; ++t) phi(t) = std::pow(y[b], t);
+        A.noalias() += count[b] * phi * phi.transpose();
+        r += count[b] * offset[b] * phi;
+    }
+    const Eigen::VectorXd c = A.completeOrthogonalDecomposition().solve(r);
+    std::vector<double> m(nb, std::numeric_limits<double>::quiet_NaN());
+    for (std::size_t b = 0; b < nb; ++b) {
+        if (!std::isfinite(offset[b])) continue;
+        for (int t = 0; t < k; ++t) phi(t) = std::pow(y[b], t);
+        m[b] = offset[b] - phi.dot(c);
+    }
+    return m;
+}
+
+// Fills the NaN entries linearly from the nearest finite neighbours in B-scan order (the end
+// ones from the nearest); all NaN stays all NaN.
+void interpolate_gaps(std::vector<double>& v) {
+    const int n = static_cast<int>(v.size());
+    for (int i = 0; i < n; ++i) {
+        if (std::isfinite(v[static_cast<std::size_t>(i)])) continue;
+        int lo = i - 1;
+        while (lo >= 0 && !std::isfinite(v[static_cast<std::size_t>(lo)])) --lo;
+        int hi = i + 1;
+        while (hi < n && !std::isfinite(v[static_cast<std::size_t>(hi)])) ++hi;
+        if (lo < 0 && hi >= n) return;
+        if (lo < 0) v[static_cast<std::size_t>(i)] = v[static_cast<std::size_t>(hi)];
+        else if (hi >= n) v[static_cast<std::size_t>(i)] = v[static_cast<std::size_t>(lo)];
+        else {
+            const double f = static_cast<double>(i - lo) / (hi - lo);
+            v[static_cast<std::size_t>(i)] = (1.0 - f) * v[static_cast<std::size_t>(lo)] +
+                                             f * v[static_cast<std::size_t>(hi)];
+        }
+    }
+}
+
+}  // namespace
+
+void AxialRegistrationParams::validate() const {
+    auto require = [](bool ok, const char* field, const char* why) {
+        if (!ok) throw UsageError(std::string("axial registration: ") + field + " " + why);
+    };
+    require(surface_degree >= 1 && surface_degree <= 4, "surface_degree", "must be in 1..4");
+    require(std::isfinite(large_motion_um) && large_motion_um > 0.0, "large_motion_um",
+            "must be positive");
+    require(std::isfinite(max_residual_um) && max_residual_um > 0.0, "max_residual_um",
+            "must be positive");
+    require(min_bm_fraction > 0.0 && min_bm_fraction < 1.0, "min_bm_fraction", "must be in (0, 1)");
+}
+
+AxialRegistration estimate_axial_motion(const io::Scan& scan, const AxialRegistrationParams& params) {
+    params.validate();
+    AxialRegistration R;
+    R.enabled = params.enabled;
+    R.surface_degree = params.surface_degree;
+    const int nb = scan.num_bscans();
+    const int nx = scan.meta.size_x;
+    const double um_per_px = scan.meta.scale_z_mm * 1000.0;
+    const bool radial = is_radial_scan(scan);
+    std::vector<double> y;
+    const std::vector<BmSample> s = bm_samples(scan, radial, y);
+    std::vector<double> count(static_cast<std::size_t>(nb), 0.0);
+    for (const BmSample& p : s) count[static_cast<std::size_t>(p.bscan)] += 1.0;
+    const double need = std::max(10.0, params.min_bm_fraction * nx);
+    std::vector<char> use(static_cast<std::size_t>(nb), 0);
+    int usable = 0;
+    for (int b = 0; b < nb; ++b) {
+        use[static_cast<std::size_t>(b)] = count[static_cast<std::size_t>(b)] >= need ? 1 : 0;
+        usable += use[static_cast<std::size_t>(b)];
+    }
+    R.shift_um.assign(static_cast<std::size_t>(nb), 0.0);
+    R.estimated.assign(static_cast<std::size_t>(nb), false);
+    const auto terms = monomials(params.surface_degree, !radial);
+    if (usable < std::max(3, radial ? 3 : params.surface_degree + 2)) {
+        R.qc_flags.push_back("axial motion not estimated (too little BM)");
+        R.notes.push_back("axial registration: " + std::to_string(usable) + " of " +
+                          std::to_string(nb) + " B-scans hold enough BM; nothing was shifted");
+        return R;
+    }
+    // Robust fit: Tukey's biweight, the scale from the median absolute residual.
+    std::vector<double> w(s.size(), 1.0);
+    std::vector<double> offset;
+    Eigen::VectorXd beta;
+    std::vector<double> res(s.size(), 0.0);
+    Eigen::MatrixXd Phi(static_cast<Eigen::Index>(s.size()), static_cast<Eigen::Index>(terms.size()));
+    for (std::size_t i = 0; i < s.size(); ++i) {
+        for (std::size_t t = 0; t < terms.size(); ++t) {
+            Phi(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(t)) = monomial(terms[t], s[i].x, s[i].y);
+        }
+    }
+    for (int iter = 0; iter < 8; ++iter) {
+        offset = fit_offsets(s, w, Phi, use, nb, beta);
+        std::vector<double> absr;
+        absr.reserve(s.size());
+        for (std::size_t i = 0; i < s.size(); ++i) {
+            const double o = offset[static_cast<std::size_t>(s[i].bscan)];
+            const double f = o + Phi.row(static_cast<Eigen::Index>(i)).dot(beta);
+            res[i] = std::isfinite(o) ? s[i].depth - f : std::numeric_limits<double>::quiet_NaN();
+            if (std::isfinite(res[i])) absr.push_back(std::fabs(res[i]));
+        }
+        if (absr.empty()) break;
+        std::nth_element(absr.begin(), absr.begin() + static_cast<std::ptrdiff_t>(absr.size() / 2), absr.end());
+        // Scale floor 0.5 px: segmentation lines are quantised near a pixel.
+        const double c = 4.685 * std::max(0.5, 1.4826 * absr[absr.size() / 2]);
+        for (std::size_t i = 0; i < s.size(); ++i) {
+            const double u = std::isfinite(res[i]) ? res[i] / c : 1.0;
+            w[i] = std::fabs(u) < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
+        }
+    }
+    double ss = 0.0;
+    double sw = 0.0;
+    for (std::size_t i = 0; i < s.size(); ++i) {
+        if (w[i] > 0.0) {
+            ++R.bm_values_used;
+            ss += res[i] * res[i];
+            sw += 1.0;
+        } else {
+            ++R.bm_values_rejected;
+        }
+    }
+    R.residual_rms_um = sw > 0.0 ? std::sqrt(ss / sw) * um_per_px : 0.0;
+    std::vector<double> m = motion_of(offset, y, count, params.surface_degree, radial);
+    for (int b = 0; b < nb; ++b) {
+        const auto bi = static_cast<std::size_t>(b);
+        R.estimated[bi] = std::isfinite(m[bi]);
+        if (!R.estimated[bi]) ++R.bscans_not_estimated;
+    }
+    interpolate_gaps(m);
+    double sum2 = 0.0;
+    for (int b = 0; b < nb; ++b) {
+        const auto bi = static_cast<std::size_t>(b);
+        R.shift_um[bi] = m[bi] * um_per_px;
+        sum2 += R.shift_um[bi] * R.shift_um[bi];
+        R.max_abs_shift_um = std::max(R.max_abs_shift_um, std::fabs(R.shift_um[bi]));
+    }
+    R.rms_shift_um = std::sqrt(sum2 / std::max(1, nb));
+    R.applied = params.enabled;
+    const std::string what = params.enabled ? "removed" : "not removed (registration off)";
+    R.notes.push_back("axial motion between B-scans " + what + ": RMS " + fmt1(R.rms_shift_um) +
+                      " um, largest " + fmt1(R.max_abs_shift_um) + " um; BM about its smooth "
+                      "surface " + fmt1(R.residual_rms_um) + " um RMS (" +
+                      std::to_string(R.bm_values_rejected) + " BM values rejected)");
+    if (R.rms_shift_um > params.large_motion_um) {
+        R.qc_flags.push_back(params.enabled ? "large axial motion between B-scans (registered)"
+                                            : "large axial motion between B-scans (not registered)");
+    }
+    if (R.bscans_not_estimated > 0) {
+        R.qc_flags.push_back("axial motion not estimated in some B-scans (too little BM)");
+        R.notes.push_back("axial registration: " + std::to_string(R.bscans_not_estimated) +
+                          " B-scans without enough BM took their neighbours' shift");
+    }
+    if (R.residual_rms_um > params.max_residual_um) {
+        R.qc_flags.push_back("BM is not one smooth surface: axial registration uncertain");
+    }
+    return R;
+}
+
+void apply_axial_registration(io::Scan& scan, const AxialRegistration& registration) {
+    if (!registration.applied) return;
+    const double um_per_px = scan.meta.scale_z_mm * 1000.0;
+    for (int b = 0; b < scan.num_bscans(); ++b) {
+        const double dz = -registration.shift_um[static_cast<std::size_t>(b)] / um_per_px;
+        // Below 1e-3 px (4 nm) a shift is numerically zero: the pixels stay as read.
+        if (std::fabs(dz) >= 1e-3) {
+            io::shift_bscan(scan.bscans[static_cast<std::size_t>(b)], scan.meta.size_x,
+                            scan.meta.size_z, dz);
+        }
+    }
+}
+
+void register_bmo_points(std::vector<BmoPoint>& points, const io::Scan& scan,
+                         const AxialRegistration& registration) {
+    if (!registration.applied || registration.shift_um.empty()) return;
+    const int nb = static_cast<int>(registration.shift_um.size());
+    for (BmoPoint& p : points) {
+        int b = p.bscan;
+        if (b < 0 && scan.meta.distance_mm > 0.0) {
+            b = static_cast<int>(std::lround(p.mm.y() / scan.meta.distance_mm));
+        }
+        if (b < 0 || b >= nb) continue;
+        // The B-scan's content moves up by its shift: heights (z = -depth) rise by it.
+        p.mm.z() += registration.shift_um[static_cast<std::size_t>(b)] * 1e-3;
+    }
+}
+
+AxialRegistration register_axially(io::Scan& scan, const AxialRegistrationParams& params) {
+    AxialRegistration r = estimate_axial_motion(scan, params);
+    apply_axial_registration(scan, r);
+    return r;
+}
+
+}  // namespace octshape::retina
