@@ -180,6 +180,9 @@ Setup prepare(CohortOptions& o) {
     // OUTDIR/private/subject.key: made by the first command on OUTDIR that needs it (`cohort`,
     // `cohort --list` before a workflow's jobs, or a `cohort-eye` job), reused by the others.
     s.subjects = SubjectSource::from_options(cohort_subject_options(o));
+    // The eye keys: HMAC of each path under the cohort's own secret, OUTDIR/private/eye.key
+    // (made here by the first command on OUTDIR, like the subject key; reused by the others).
+    set_eye_key_secret(own_eye_key(make_private_dir(o.out)));
     if (!o.groups.empty()) s.groups = GroupMap::load(o.groups, s.subjects);
     // The eye record's options, and the failure record's (which also depend on --type).
     s.sig = cohort_signatures(o, s.subjects);
@@ -377,8 +380,8 @@ void add_cohort_command(CLI::App& app, RunContext& ctx) {
         "Analyse every supported export under the folders (recursive), N at a time in N worker "
         "processes (a crashed or hung eye is recorded, its worker replaced); resumable and crash "
         "safe. Writes OUTDIR/eyes/*.json, OUTDIR/eyes.csv, OUTDIR/failures.csv, and under "
-        "OUTDIR/private/ all that names an input (paths; the subject key it makes when no subject "
-        "option is given): the rest can be handed over (docs/cohort.md). "
+        "OUTDIR/private/ all that names an input (paths; eye.key, the secret of the eye keys; the "
+        "subject key it makes when no subject option is given): the rest can be handed over (docs/cohort.md). "
         "Exit 0: all eyes done; 1: some inputs failed (listed in failures.csv)");
     cmd->add_option("inputs", opts->inputs, "Folders (searched recursively) or files")
         ->required();

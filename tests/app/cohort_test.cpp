@@ -88,6 +88,15 @@ std::vector<std::string> expected_header() {
     return h;
 }
 
+// The eye key of `path` in the cohort folder `out`: HMAC-SHA256 under OUTDIR/private/eye.key
+// (its one line, without the newline), 16 hex digits (docs/cohort.md).
+std::string keyed(const fs::path& out, const std::string& path) {
+    std::string k = slurp(out / "private" / "eye.key");
+    EXPECT_EQ(k.size(), 65U);
+    if (!k.empty()) k.pop_back();
+    return io::hmac_sha256_hex(k, path).substr(0, 16);
+}
+
 // Eye key -> file name, from OUTDIR/private/inputs.csv (the only map from keys to files).
 std::map<std::string, std::string> names_by_key(const fs::path& out) {
     std::map<std::string, std::string> m;
@@ -96,7 +105,7 @@ std::map<std::string, std::string> names_by_key(const fs::path& out) {
     if (rows.empty()) return m;
     EXPECT_EQ(rows[0], (std::vector<std::string>{"eye_key", "file", "sha256", "result"}));
     for (std::size_t i = 1; i < rows.size(); ++i) {
-        EXPECT_EQ(rows[i][0], io::sha256_hex(rows[i][1]).substr(0, 16));
+        EXPECT_EQ(rows[i][0], keyed(out, rows[i][1]));
         m[rows[i][0]] = fs::path(rows[i][1]).filename().string();
     }
     return m;
@@ -244,7 +253,7 @@ TEST(CohortCli, ResumeRedoesNothingUnlessFileOptionOrVersionChanged) {
     const auto r3 = test::run_octshape(cmd);
     EXPECT_NE(r3.err.find("1 to do"), std::string::npos) << r3.err;
     const auto eyes3 = json_mtimes(out / "eyes");
-    const std::string key_a = io::sha256_hex((c.in / "a_od.vol").string()).substr(0, 16);
+    const std::string key_a = keyed(out, (c.in / "a_od.vol").string());
     for (const auto& [name, t] : eyes1) {
         if (name == key_a + ".json") {
             EXPECT_NE(eyes3.at(name), t);
@@ -315,7 +324,8 @@ TEST(CohortCli, MergeAndPerScanMaculaGiveTheCohortCsvByteForByte) {
     for (const char* f : {"a_od.vol", "sub/b_os.vol", "sub/deeper/c_od.vol"}) {
         const fs::path j = c.dir / "per_scan" / (std::to_string(i++) + ".json");
         const auto r = test::run_octshape("macula " + q(c.in / f) + " -o " + q(j) + " " +
-                                          c.key_arg());
+                                          c.key_arg() + " --eye-key-file " +
+                                          q(out / "private" / "eye.key"));
         ASSERT_EQ(r.exit_code, 0) << r.err;
         jsons += " " + q(j);
     }
@@ -392,18 +402,28 @@ TEST(CohortEye, EachInputAloneThenTheTablesGiveTheCohortsFolderByteForByte) {
     const auto r = test::run_octshape("cohort " + q(c.in) + " -o " + q(out) + " --jobs 2" + opts);
     ASSERT_EQ(r.exit_code, 1) << r.err;
     fs::rename(out, ref);  // the jobs write the same folder (the gallery names it)
+    // The folder's eye keys are HMACs under its private/eye.key: the jobs' folder gets the
+    // cohort's key (as a copied folder would), so that the keys, and the files named by them,
+    // can be compared.
+    fs::create_directories(out / "private");
+    fs::permissions(out / "private", fs::perms::owner_all);
+    fs::copy_file(ref / "private" / "eye.key", out / "private" / "eye.key");
 
     const auto listed =
         test::run_octshape("cohort " + q(c.in) + " -o " + q(out) + " --list" + opts);
     ASSERT_EQ(listed.exit_code, 0) << listed.err;
-    EXPECT_FALSE(fs::exists(out));  // --list writes nothing
+    // --list writes nothing (it reads the key; without a subject option it would make
+    // private/subject.key, CohortEye.WithoutASubjectOptionTheJobsShareTheKeyListMade).
+    EXPECT_EQ(std::distance(fs::recursive_directory_iterator(out),
+                            fs::recursive_directory_iterator()),
+              2);
     std::map<std::string, std::string> type_of;  // file name -> listed type
     std::vector<std::string> files;
     std::istringstream lines(listed.out);
     for (std::string line; std::getline(lines, line);) {
         const json j = json::parse(line);
         const std::string file = j["file"];
-        EXPECT_EQ(j["key"], io::sha256_hex(file).substr(0, 16));
+        EXPECT_EQ(j["key"], keyed(ref, file));
         type_of[fs::path(file).filename().string()] = j["type"];
         files.push_back(file);
     }
@@ -526,6 +546,72 @@ TEST(CohortEye, WithoutASubjectOptionTheJobsShareTheKeyListMade) {
     EXPECT_NE(slurp(out2 / "eyes.csv"), table);  // other ids under another key
 }
 
+// The eye key is HMAC-SHA256 of the absolute path under the folder's own secret,
+// OUTDIR/private/eye.key (made at random on the first run, mode 0600): not the plain SHA-256 a
+// holder of the patient list could recompute; another folder, another key; a resumed run and
+// `merge` keep the keys; `macula --eye-key-file` gives the folder's key; a damaged key file is
+// refused in one line (exit 65) and nothing is rewritten.
+TEST(CohortCli, EyeKeysAreKeyedByTheFoldersOwnSecret) {
+    test::TempDir dir;
+    const fs::path in = dir / "in";
+    fs::create_directories(in);
+    write_macula(in / "Mustermann_Max_4711_0.vol", retina::MaculaFamily::kBezier,
+                 io::Laterality::kOD, 1);
+    const std::string path =
+        fs::absolute(in / "Mustermann_Max_4711_0.vol").lexically_normal().string();
+    const std::string plain = io::sha256_hex(path).substr(0, 16);
+    const auto key_of = [](const fs::path& out) {
+        const auto rows = read_csv(out / "eyes.csv");
+        EXPECT_EQ(rows.size(), 2U);
+        return rows.size() == 2 ? rows[1][4] : std::string();
+    };
+    const fs::path o1 = dir / "o1";
+    const auto r1 = test::run_octshape("cohort " + q(in) + " -o " + q(o1));
+    ASSERT_EQ(r1.exit_code, 0) << r1.err;
+    struct stat st {};
+    ASSERT_EQ(::stat((o1 / "private" / "eye.key").c_str(), &st), 0);
+    EXPECT_EQ(st.st_mode & 0777, 0600U);
+    const std::string k1 = key_of(o1);
+    EXPECT_NE(k1, plain);
+    EXPECT_EQ(k1, keyed(o1, path));
+    EXPECT_TRUE(fs::exists(o1 / "eyes" / (k1 + ".json")));
+
+    const fs::path o2 = dir / "o2";
+    ASSERT_EQ(test::run_octshape("cohort " + q(in) + " -o " + q(o2)).exit_code, 0);
+    const std::string k2 = key_of(o2);
+    EXPECT_NE(k2, k1);  // P(equal | two random keys) = 2^-64
+    EXPECT_EQ(k2, keyed(o2, path));
+
+    const std::string table = slurp(o1 / "eyes.csv");
+    const auto again = test::run_octshape("cohort " + q(in) + " -o " + q(o1));
+    ASSERT_EQ(again.exit_code, 0) << again.err;
+    EXPECT_NE(again.err.find("0 to do"), std::string::npos) << again.err;
+    EXPECT_EQ(slurp(o1 / "eyes.csv"), table);
+    const auto merged = test::run_octshape("merge " + q(o1 / "eyes"));
+    ASSERT_EQ(merged.exit_code, 0) << merged.err;
+    EXPECT_EQ(merged.out, table);
+
+    const auto single = test::run_octshape("macula " + q(path) + " --eye-key-file " +
+                                           q(o1 / "private" / "eye.key"));
+    ASSERT_EQ(single.exit_code, 0) << single.err;
+    EXPECT_EQ(json::parse(single.out)["cohort"]["eye_key"], k1);
+    const auto unkeyed = test::run_octshape("macula " + q(path));
+    ASSERT_EQ(unkeyed.exit_code, 0) << unkeyed.err;
+    EXPECT_EQ(json::parse(unkeyed.out)["cohort"]["eye_key"], plain);  // no cohort, no secret
+
+    const std::string good_key = slurp(o1 / "private" / "eye.key");
+    for (const std::string& damaged : {good_key.substr(0, 40), good_key + good_key, std::string()}) {
+        spit(o1 / "private" / "eye.key", damaged);
+        const auto bad = test::run_octshape("-q cohort " + q(in) + " -o " + q(o1));
+        EXPECT_EQ(bad.exit_code, 65) << bad.err;
+        EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
+        EXPECT_NE(bad.err.find("eye.key: corrupt: damaged key file"), std::string::npos)
+            << bad.err;
+        EXPECT_EQ(slurp(o1 / "private" / "eye.key"), damaged);  // never replaced
+        EXPECT_EQ(slurp(o1 / "eyes.csv"), table);
+    }
+}
+
 TEST(CohortCli, SubjectIdsAreKeyedHashesMapsOrRawOnRequest) {
     test::TempDir dir;
     fs::create_directories(dir / "in");
@@ -628,7 +714,8 @@ TEST(CohortCli, SubjectIdsAreKeyedHashesMapsOrRawOnRequest) {
     const std::string own_csv = slurp(dir / "o6" / "eyes.csv");
     const auto k2 = test::run_octshape(own);
     ASSERT_EQ(k2.exit_code, 0) << k2.err;
-    EXPECT_EQ(count(k2.err, "made by an earlier run"), 1U) << k2.err;
+    EXPECT_EQ(count(k2.err, "subject ids: HMAC under the key in"), 1U) << k2.err;
+    EXPECT_EQ(count(k2.err, "made by an earlier run"), 2U) << k2.err;  // subject and eye keys
     EXPECT_NE(k2.err.find("0 to do"), std::string::npos) << k2.err;
     EXPECT_EQ(slurp(dir / "o6" / "eyes.csv"), own_csv);
     const auto own_ps = test::run_octshape("pseudonym --subject-key-file " + q(key) +
@@ -720,6 +807,10 @@ SLOW_TEST(CohortKill, SigkillAtRandomMomentsThenRerunGivesTheUninterruptedTables
     int interrupted_midway = 0;  // kills that left some but not all eyes done
     for (int trial = 0; trial < 6; ++trial) {
         const fs::path out = dir / ("run" + std::to_string(trial));
+        // The reference's eye keys (HMACs under its private/eye.key), so that the tables compare.
+        fs::create_directories(out / "private");
+        fs::permissions(out / "private", fs::perms::owner_all);
+        fs::copy_file(dir / "ref" / "private" / "eye.key", out / "private" / "eye.key");
         // Two kills in a row, then a run to the end. The first kill waits until a random number
         // of eyes is finished (plus a random few ms, so it also lands inside writes): most of a
         // run is process start-up, and a purely timed kill would often miss the batch. The
@@ -857,12 +948,13 @@ TEST(CohortKill, WithoutASubjectOptionAKilledRunResumesToTheUninterruptedFolder)
     fs::create_directories(out / "private");
     fs::permissions(out / "private", fs::perms::owner_all);
     fs::copy_file(killed / "private" / "subject.key", key);
+    fs::copy_file(killed / "private" / "eye.key", out / "private" / "eye.key");
     const auto reference = test::run_octshape(cmd);
     ASSERT_EQ(reference.exit_code, 1) << reference.err;
     const auto want = tree_files(out);
-    EXPECT_EQ(want.size(), static_cast<std::size_t>(kEyes) + 1 + 3 * kEyes + 8)
+    EXPECT_EQ(want.size(), static_cast<std::size_t>(kEyes) + 1 + 3 * kEyes + 9)
         << "eyes, a failure record, 3 pictures per eye, index.html, eyes.csv, failures.csv, "
-           "provenance.json, .lock, private/{inputs.csv, failures.csv, subject.key}";
+           "provenance.json, .lock, private/{inputs.csv, failures.csv, subject.key, eye.key}";
     ASSERT_EQ(got.size(), want.size());
     for (const auto& [name, text] : want) {
         ASSERT_TRUE(got.count(name)) << name;
