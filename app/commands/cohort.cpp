@@ -387,7 +387,15 @@ void add_cohort_command(CLI::App& app, RunContext& ctx) {
         ->required();
     // Given, it must be a count: --jobs 0 is a mistake, not "the default" (leave it out).
     cmd->add_option("-j,--jobs", opts->jobs, "Eyes analysed at once (default: one per core)")
-        ->check(CLI::PositiveNumber);
+        ->check(CLI::Validator(
+            [](std::string& v) {
+                return v.find_first_not_of("0123456789") == std::string::npos &&
+                               v.find_first_not_of('0') != std::string::npos
+                           ? std::string()
+                           : "must be a count of 1 or more (leave it out for one per core), "
+                             "not " + v;
+            },
+            "N >= 1"));
     cmd->add_flag("--list", *list_only,
                   "Analyse nothing: print one JSON line {key, type, file} per input the run "
                   "would analyse (type: macula, onh or unknown), for a workflow to plan its jobs");

@@ -742,7 +742,10 @@ TEST(CohortCli, SubjectIdsAreKeyedHashesMapsOrRawOnRequest) {
 
 // ---- Kill and resume ----------------------------------------------------------------------
 
-pid_t spawn_octshape(const std::vector<std::string>& args) {
+// `err`: where stderr goes; `own_group`: the child leads a process group of its own (as a
+// terminal's foreground job, which Ctrl-C signals as a whole).
+pid_t spawn_octshape(const std::vector<std::string>& args, const char* err = "/dev/null",
+                     bool own_group = false) {
     std::vector<std::string> argv_s{test::exe()};
     argv_s.insert(argv_s.end(), args.begin(), args.end());
     std::vector<char*> argv;
@@ -751,10 +754,17 @@ pid_t spawn_octshape(const std::vector<std::string>& args) {
     posix_spawn_file_actions_t fa;
     posix_spawn_file_actions_init(&fa);
     posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
-    posix_spawn_file_actions_addopen(&fa, 2, "/dev/null", O_WRONLY, 0);
+    posix_spawn_file_actions_addopen(&fa, 2, err, O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    posix_spawnattr_t attr;
+    posix_spawnattr_init(&attr);
+    if (own_group) {
+        posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP);
+        posix_spawnattr_setpgroup(&attr, 0);
+    }
     pid_t pid = -1;
-    const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
+    const int rc = posix_spawn(&pid, argv[0], &fa, &attr, argv.data(), environ);
     posix_spawn_file_actions_destroy(&fa);
+    posix_spawnattr_destroy(&attr);
     EXPECT_EQ(rc, 0);
     return pid;
 }
@@ -867,6 +877,66 @@ SLOW_TEST(CohortKill, SigkillAtRandomMomentsThenRerunGivesTheUninterruptedTables
     }
     // The kills did land in the middle of batches (else the test would prove nothing).
     EXPECT_GE(interrupted_midway, 4);
+}
+
+// Ctrl-C (SIGINT to the whole process group, as a terminal sends it) or SIGTERM during a cohort:
+// one line says how many eyes finished and that a re-run resumes; the process ends by the
+// signal; the eyes cut short are not recorded as failures; the re-run does only the rest.
+TEST(CohortKill, SigintOrSigtermSaysWhatFinishedAndTheRerunResumes) {
+    test::TempDir dir;
+    const fs::path in = dir / "in";
+    fs::create_directories(in);
+    write_macula(dir / "m0.vol", retina::MaculaFamily::kBezier, io::Laterality::kOD, 1);
+    constexpr int kEyes = 16;  // ~0.1 s each: the signal (after 2) lands mid-batch
+    for (int i = 0; i < kEyes; ++i) {
+        fs::create_hard_link(dir / "m0.vol", in / ("eye" + std::to_string(100 + i) + ".vol"));
+    }
+    // A result: OUTDIR/eyes/KEY.json (not a temporary ".KEY.tmp-….json" of a write in progress).
+    const auto is_result = [](const fs::path& p) {
+        return p.extension() == ".json" && p.filename().string()[0] != '.';
+    };
+    for (const int sig : {SIGINT, SIGTERM}) {
+        const fs::path out = dir / ("out" + std::to_string(sig));
+        const std::string err = (dir / "err.txt").string();
+        const std::vector<std::string> args{"cohort", in.string(), "-o", out.string(),
+                                            "--jobs", "2"};
+        const pid_t pid = spawn_octshape(args, err.c_str(), /*own_group=*/true);
+        const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+        for (;;) {
+            std::size_t n = 0;
+            std::error_code ec;
+            for (fs::directory_iterator it(out / "eyes", ec), end; !ec && it != end;
+                 it.increment(ec)) {
+                n += is_result(it->path()) ? 1 : 0;
+            }
+            if (n >= 2 || std::chrono::steady_clock::now() > deadline) break;
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        }
+        ASSERT_EQ(::kill(sig == SIGINT ? -pid : pid, sig), 0);
+        EXPECT_EQ(wait_exit(pid), -sig);
+        const std::string text = slurp(err);
+        const std::string said = sig == SIGINT ? "interrupted by SIGINT: " : "interrupted by SIGTERM: ";
+        const auto at = text.find("octshape: " + said);
+        ASSERT_NE(at, std::string::npos) << text;
+        const std::string line = text.substr(at, text.find('\n', at) - at);
+        EXPECT_EQ(text.substr(at + line.size()), "\n") << "the last line: " << text;
+        EXPECT_NE(line.find("run the same command again to resume"), std::string::npos) << line;
+        std::size_t finished = 0;
+        for (const auto& e : fs::directory_iterator(out / "eyes")) {
+            finished += is_result(e.path()) ? 1 : 0;
+        }
+        EXPECT_NE(line.find(std::to_string(finished) + " of " + std::to_string(kEyes) +
+                            " eyes finished"),
+                  std::string::npos)
+            << line << " (" << finished << " results on disk)";
+        ASSERT_LT(finished, static_cast<std::size_t>(kEyes)) << "the signal came too late";
+        EXPECT_TRUE(fs::is_empty(out / "failures"));  // no eye recorded as crashed
+        const auto rerun = test::run_octshape("cohort " + q(in) + " -o " + q(out) + " --jobs 2");
+        ASSERT_EQ(rerun.exit_code, 0) << rerun.err;
+        EXPECT_NE(rerun.err.find(std::to_string(finished) + " already done"), std::string::npos)
+            << rerun.err;
+        EXPECT_EQ(read_csv(out / "eyes.csv").size(), static_cast<std::size_t>(kEyes) + 1);
+    }
 }
 
 // Every file under `dir` (relative name -> content, masked as folder_files masks it).
