@@ -356,6 +356,7 @@ void add_cohort_options(CLI::App* cmd, CohortOptions& o) {
                     "file,group (absolute path or file name); matching no eye is an error");
     cmd->add_option("--type", o.type,
                     "auto (decide from the BM segmentation: docs/cohort.md), macula or onh")
+        ->check(CLI::IsMember({"auto", "macula", "onh"}))
         ->capture_default_str();
     cmd->add_flag("--qc", o.qc, "Write QC pictures OUTDIR/qc/<eye_key>_*.png");
     cmd->add_flag("--retry-failed", o.retry_failed,

@@ -61,8 +61,9 @@ void add_macula_command(CLI::App& app, RunContext& /*ctx*/) {
 
     add_macula_analysis_options(cmd, opts->eye);
     add_segmentation_options(cmd, opts->eye.segmentation);
-    cmd->add_flag("!--no-type-check", opts->eye.check_scan_type,
-                  "Analyse the scan even if it looks like an optic nerve head volume (a long BM "
+    cmd->add_flag_callback(
+        "--no-type-check", [opts] { opts->eye.check_scan_type = false; },
+        "Analyse the scan even if it looks like an optic nerve head volume (a long BM "
                   "gap in several B-scans: docs/cohort.md, Classifier)");
     add_subject_options(cmd, opts->subjects);
     add_eye_key_option(cmd, opts->eye_key_file);

@@ -17,6 +17,25 @@ TEST(Cli, VersionPrintsTheVersion) {
     const RunResult r = run_octshape("--version");
     EXPECT_EQ(r.exit_code, 0);
     EXPECT_NE(r.out.find(kVersion), std::string::npos) << r.out;
+    // The revision once (it was printed twice: `git describe` without a tag is the revision).
+    const auto at = r.out.find("(revision ");
+    ASSERT_NE(at, std::string::npos) << r.out;
+    const std::string rev = r.out.substr(at + 10, r.out.find_first_of(",;)", at) - at - 10);
+    ASSERT_FALSE(rev.empty()) << r.out;
+    EXPECT_EQ(r.out.find(rev, at + 10 + rev.size()), std::string::npos) << r.out;
+}
+
+TEST(Cli, HelpShowsChoicesAndNoInternalDefaultsOfFlags) {
+    // `--no-type-check{false}` (CLI11's default of a negated flag) is gone; --type lists its
+    // choices.
+    const RunResult macula = run_octshape("macula --help");
+    EXPECT_EQ(macula.out.find("{false}"), std::string::npos) << macula.out;
+    EXPECT_NE(macula.out.find("--no-type-check"), std::string::npos) << macula.out;
+    for (const char* c : {"cohort", "cohort-eye", "cohort-tables"}) {
+        const RunResult r = run_octshape(std::string(c) + " --help");
+        EXPECT_NE(r.out.find("--type TEXT:{auto,macula,onh}=auto"), std::string::npos) << r.out;
+        EXPECT_EQ(r.out.find("{false}"), std::string::npos) << r.out;
+    }
 }
 
 TEST(Cli, HelpListsExitCodes) {
