@@ -223,7 +223,14 @@ cv::Mat profiles_picture(const retina::CubeResult& r, const std::string& title) 
         a.x1 = rmax;
         a.y0 = hmin;
         a.y1 = hmax;
-        draw_axes(img, a, "r (mm)", "um", "%.1f", "%.0f", 1e3, 0.35, 4, 5);
+        // The unit above the tick labels, the title centred over the plot: they do not meet
+        // (the unit was drawn where the title starts: "um 0 deg").
+        draw_axes(img, a, "r (mm)", "", "%.1f", "%.0f", 1e3, 0.35, 4, 5);
+        int unit_base = 0;
+        const cv::Size unit =
+            cv::getTextSize("um", cv::FONT_HERSHEY_SIMPLEX, 0.35, 1, &unit_base);
+        plain_text(img, "um", {a.plot.x - 6 - unit.width, a.plot.y - 6}, 0.35,
+                   cv::Scalar(60, 60, 60));
         if (h.valid) {
             for (const auto* fit : {&h.interior, &h.exterior}) {
                 std::vector<cv::Point> pts;
@@ -248,7 +255,11 @@ cv::Mat profiles_picture(const retina::CubeResult& r, const std::string& title) 
         const std::string t =
             printf_number("%.0f deg", h.angle_deg) +
             (h.valid ? "  RMSE " + printf_number("%.2f um", h.rmse_um) : "  FAILED");
-        cv::putText(img, t, {ox + 46, oy + 18}, cv::FONT_HERSHEY_SIMPLEX, 0.45,
+        int title_base = 0;
+        const cv::Size title_size =
+            cv::getTextSize(t, cv::FONT_HERSHEY_SIMPLEX, 0.45, 1, &title_base);
+        cv::putText(img, t, {a.plot.x + std::max(0, (a.plot.width - title_size.width) / 2), oy + 18},
+                    cv::FONT_HERSHEY_SIMPLEX, 0.45,
                     h.valid ? cv::Scalar(0, 0, 0) : cv::Scalar(0, 0, 200), 1, cv::LINE_AA);
     }
     cv::Mat legend(56, img.cols, CV_8UC3, palette::kWhite);
