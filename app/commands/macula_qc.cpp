@@ -371,7 +371,7 @@ cv::Mat macula_radial_thickness_picture(const retina::CubeResult& r, const io::S
         const Eigen::Vector2d e = geo.ascan_mm(k, nx - 1.0, nx);
         const Eigen::Vector2d u = geo.direction(k);
         const cv::Point t = L.px(e.x() + 0.12 * u.x(), e.y() + 0.12 * u.y()) + cv::Point(-6, 5);
-        outlined_text(img, std::to_string(k + 1), t, 0.4, cv::Scalar(200, 200, 200));
+        outlined_text(img, std::to_string(k), t, 0.4, cv::Scalar(200, 200, 200));
     }
     draw_disks(img, r, [&](double x, double y) { return L.px(x, y); });
     for (const auto& h : r.half_lines) {
@@ -396,7 +396,7 @@ cv::Mat macula_radial_thickness_picture(const retina::CubeResult& r, const io::S
     const int end = draw_legend(
         legend, {8, 22},
         {{LegendItem::kLine, cv::Scalar(lut.at<cv::Vec3b>(0, 128)),
-          "thickness along each line (B-scan number at its End)"},
+          "thickness along each line (B-scan number from 0 at its End)"},
          {LegendItem::kDot, missing, "missing"},
          {LegendItem::kLine, kRim, "rim"},
          {LegendItem::kLine, kSlope, "steepest slope"},
@@ -493,7 +493,7 @@ cv::Mat macula_bscan_picture(const retina::CubeResult& r, const io::Scan& scan,
     const int cx = static_cast<int>(std::lround((a_centre + 0.5) * sx));
     cv::line(img, {cx, 0}, {cx, H - 1}, kCentre, 1, cv::LINE_AA);
     outlined_text(img,
-                  "B-scan " + std::to_string(b + 1) + " of " + std::to_string(nb) +
+                  "B-scan " + std::to_string(b) + " (numbered 0-" + std::to_string(nb - 1) + ")" +
                       (geo ? printf_number(" (through the centre, %.0f deg)",
                                            geo->lines[static_cast<std::size_t>(b)].angle_deg)
                            : std::string(" (through the centre)")) +
