@@ -493,7 +493,8 @@ cv::Mat macula_bscan_picture(const retina::CubeResult& r, const io::Scan& scan,
     const int cx = static_cast<int>(std::lround((a_centre + 0.5) * sx));
     cv::line(img, {cx, 0}, {cx, H - 1}, kCentre, 1, cv::LINE_AA);
     outlined_text(img,
-                  "B-scan " + std::to_string(b) + " (numbered 0-" + std::to_string(nb - 1) + ")" +
+                  "B-scan " + std::to_string(b) +
+                      (nb > 1 ? " of 0-" + std::to_string(nb - 1) : std::string()) +
                       (geo ? printf_number(" (through the centre, %.0f deg)",
                                            geo->lines[static_cast<std::size_t>(b)].angle_deg)
                            : std::string(" (through the centre)")) +
