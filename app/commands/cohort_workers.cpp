@@ -55,6 +55,10 @@ constexpr std::size_t kMaxMessage = 4000;  // a failure message is cut to this m
 // The worker's life: eye after eye until the parent closes its end of the socket.
 [[noreturn]] void worker_main(const CohortOptions& o, const SubjectSource& subjects,
                               const std::vector<Item>& items, const fs::path& out, int sock) {
+    // Ctrl-C reaches the whole process group: the batch stops its workers itself (stop_batch),
+    // so that an eye cut short is never recorded as a crash.
+    ::signal(SIGINT, SIG_IGN);
+    ::signal(SIGTERM, SIG_IGN);
     for (;;) {
         std::uint64_t index = 0;
         const auto n = ::recv(sock, &index, sizeof index, 0);
@@ -179,11 +183,17 @@ private:
 // nor a failure: the next run does it), the records written so far reach the disk, one line
 // says how many eyes are finished and that a re-run resumes, and the process ends by the signal
 // (a shell sees 128 + N, and a script's loop stops as on any Ctrl-C).
-// `busy`: the eyes in progress, one of which may have written its result before the kill (the
-// re-run keeps such a result: it is counted).
-[[noreturn]] void stop_batch(int sig, const std::vector<pid_t>& pids,
-                             const std::vector<std::size_t>& busy, const std::vector<Item>& items,
+// An eye in progress may have written its result before the kill (the re-run keeps such a
+// result): it is counted.
+[[noreturn]] void stop_batch(int sig, const std::vector<Worker>& workers,
+                             const std::vector<pid_t>& retired, const std::vector<Item>& items,
                              const fs::path& out, int lock_fd) {
+    std::vector<pid_t> pids = retired;
+    std::vector<std::size_t> busy;
+    for (const Worker& w : workers) {
+        if (w.pid > 0) pids.push_back(w.pid);
+        if (w.pid > 0 && w.busy) busy.push_back(w.index);
+    }
     for (const pid_t pid : pids) ::kill(pid, SIGKILL);
     for (const pid_t pid : pids) {
         while (::waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {
@@ -247,10 +257,6 @@ void run_workers(const CohortOptions& o, const SubjectSource& subjects, std::vec
             // The lock is the batch's: an eye outliving a killed batch must not block the
             // re-run (its atomic write of the same result is harmless).
             ::close(lock_fd);
-            // Ctrl-C reaches the whole process group: the batch stops its workers itself, so
-            // that an eye cut short is never recorded as a crash.
-            ::signal(SIGINT, SIG_IGN);
-            ::signal(SIGTERM, SIG_IGN);
             spdlog::set_level(worker_level);
             worker_main(o, subjects, items, out, sv[1]);
         }
@@ -304,15 +310,7 @@ void run_workers(const CohortOptions& o, const SubjectSource& subjects, std::vec
     std::vector<pollfd> fds;
     std::vector<Worker*> polled;
     for (;;) {
-        if (g_stop_signal != 0) {
-            std::vector<pid_t> pids = retired;
-            std::vector<std::size_t> busy;
-            for (const Worker& w : workers) {
-                if (w.pid > 0) pids.push_back(w.pid);
-                if (w.pid > 0 && w.busy) busy.push_back(w.index);
-            }
-            stop_batch(g_stop_signal, pids, busy, items, out, lock_fd);
-        }
+        if (g_stop_signal != 0) stop_batch(g_stop_signal, workers, retired, items, out, lock_fd);
         fds.clear();
         polled.clear();
         int wait_ms = 1000;  // a bound, should an end go unnoticed by poll
