@@ -13,6 +13,7 @@
 
 #include "commands/command.h"
 #include "commands/man_page.h"
+#include "commands/usage_error.h"
 #include "octshape/version.h"
 #include "commands/provenance.h"
 #include "octshape/error.h"
@@ -98,11 +99,13 @@ int main(int argc, char** argv) {
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        // CLI11 prints the help or the error; its own codes (105 for a value outside a set,
-        // 106 for a conversion, ...) become the one usage code, as for the checks octshape
-        // makes itself (UsageError).
-        const int code = app.exit(e);
-        return code == 0 ? 0 : static_cast<int>(octshape::ExitCode::kUsage);
+        // CLI11 prints the help or the version; a mistake is one line (with a "did you mean"
+        // for a near miss), and CLI11's own codes (105 for a value outside a set, 106 for a
+        // conversion, ...) become the one usage code, as for the checks octshape makes itself
+        // (UsageError).
+        if (e.get_exit_code() == 0) return app.exit(e);
+        std::cerr << "octshape: error: " << octshape::app::usage_error_line(app, e) << '\n';
+        return static_cast<int>(octshape::ExitCode::kUsage);
     } catch (const octshape::Error& e) {
         std::cerr << "octshape: error: " << e.what() << '\n';
         return static_cast<int>(e.exit_code());

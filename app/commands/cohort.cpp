@@ -180,6 +180,9 @@ Setup prepare(CohortOptions& o) {
     // OUTDIR/private/subject.key: made by the first command on OUTDIR that needs it (`cohort`,
     // `cohort --list` before a workflow's jobs, or a `cohort-eye` job), reused by the others.
     s.subjects = SubjectSource::from_options(cohort_subject_options(o));
+    // The eye keys: HMAC of each path under the cohort's own secret, OUTDIR/private/eye.key
+    // (made here by the first command on OUTDIR, like the subject key; reused by the others).
+    set_eye_key_secret(own_eye_key(make_private_dir(o.out)));
     if (!o.groups.empty()) s.groups = GroupMap::load(o.groups, s.subjects);
     // The eye record's options, and the failure record's (which also depend on --type).
     s.sig = cohort_signatures(o, s.subjects);
@@ -353,6 +356,7 @@ void add_cohort_options(CLI::App* cmd, CohortOptions& o) {
                     "file,group (absolute path or file name); matching no eye is an error");
     cmd->add_option("--type", o.type,
                     "auto (decide from the BM segmentation: docs/cohort.md), macula or onh")
+        ->check(CLI::IsMember({"auto", "macula", "onh"}))
         ->capture_default_str();
     cmd->add_flag("--qc", o.qc, "Write QC pictures OUTDIR/qc/<eye_key>_*.png");
     cmd->add_flag("--retry-failed", o.retry_failed,
@@ -377,14 +381,22 @@ void add_cohort_command(CLI::App& app, RunContext& ctx) {
         "Analyse every supported export under the folders (recursive), N at a time in N worker "
         "processes (a crashed or hung eye is recorded, its worker replaced); resumable and crash "
         "safe. Writes OUTDIR/eyes/*.json, OUTDIR/eyes.csv, OUTDIR/failures.csv, and under "
-        "OUTDIR/private/ all that names an input (paths; the subject key it makes when no subject "
-        "option is given): the rest can be handed over (docs/cohort.md). "
+        "OUTDIR/private/ all that names an input (paths; eye.key, the secret of the eye keys; the "
+        "subject key it makes when no subject option is given): the rest can be handed over (docs/cohort.md). "
         "Exit 0: all eyes done; 1: some inputs failed (listed in failures.csv)");
     cmd->add_option("inputs", opts->inputs, "Folders (searched recursively) or files")
         ->required();
     // Given, it must be a count: --jobs 0 is a mistake, not "the default" (leave it out).
     cmd->add_option("-j,--jobs", opts->jobs, "Eyes analysed at once (default: one per core)")
-        ->check(CLI::PositiveNumber);
+        ->check(CLI::Validator(
+            [](std::string& v) {
+                return v.find_first_not_of("0123456789") == std::string::npos &&
+                               v.find_first_not_of('0') != std::string::npos
+                           ? std::string()
+                           : "must be a count of 1 or more (leave it out for one per core), "
+                             "not " + v;
+            },
+            "N >= 1"));
     cmd->add_flag("--list", *list_only,
                   "Analyse nothing: print one JSON line {key, type, file} per input the run "
                   "would analyse (type: macula, onh or unknown), for a workflow to plan its jobs");

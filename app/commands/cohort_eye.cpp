@@ -14,7 +14,6 @@
 #include <cerrno>
 #include <cstring>
 #include <new>
-#include <random>
 
 #include "commands/provenance.h"
 #include "commands/qc_names.h"
@@ -52,19 +51,22 @@ fs::path make_private_dir(const fs::path& out) {
     return d;
 }
 
-std::string own_subject_key(const fs::path& private_dir) {
-    const fs::path p = private_dir / "subject.key";
+namespace {
+
+// OUTDIR/private/<name>: read when it exists, else made from RAND_bytes (mode 0600). Returns
+// the key. `what` names its use in the log.
+std::string own_key(const fs::path& private_dir, const char* name, const char* what) {
+    const fs::path p = private_dir / name;
     std::error_code ec;
     if (fs::exists(p, ec)) {
-        spdlog::info("subject ids: HMAC under the key in {} (made by an earlier run)", p.string());
-        return p.string();
+        std::string key = read_key_file(p.string());
+        spdlog::info("{}: HMAC under the key in {} (made by an earlier run)", what, p.string());
+        return key;
     }
-    std::random_device rd;
-    std::string key;
-    for (int i = 0; i < 8; ++i) key += fmt::format("{:08x}", rd());
+    const std::string key = io::random_hex(kKeyFileBytes);
     // Written under a name of this process, then linked into place: link() never replaces, so
     // of several jobs making the key at once the first one's is the key of all.
-    const fs::path tmp = private_dir / fmt::format(".subject.key.tmp-{}", ::getpid());
+    const fs::path tmp = private_dir / fmt::format(".{}.tmp-{}", name, ::getpid());
     fs::remove(tmp, ec);
     const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
     if (fd < 0) throw OutputError(tmp.string(), std::strerror(errno));
@@ -76,15 +78,26 @@ std::string own_subject_key(const fs::path& private_dir) {
     const bool lost_race = ok && !linked && errno == EEXIST;
     fs::remove(tmp, ec);
     if (lost_race) {
-        spdlog::info("subject ids: HMAC under the key in {} (made by a job beside this one)",
+        spdlog::info("{}: HMAC under the key in {} (made by a job beside this one)", what,
                      p.string());
-        return p.string();
+        return read_key_file(p.string());
     }
-    if (!linked) throw OutputError(p.string(), "cannot write the subject key");
-    spdlog::info("subject ids: HMAC under a new random key in {} (keep it with the study's "
+    if (!linked) throw OutputError(p.string(), std::string("cannot write the key ") + name);
+    spdlog::info("{}: HMAC under a new random key in {} (keep it with the study's "
                  "identification list; later runs on this folder reuse it)",
-                 p.string());
-    return p.string();
+                 what, p.string());
+    return key;
+}
+
+}  // namespace
+
+std::string own_subject_key(const fs::path& private_dir) {
+    (void)own_key(private_dir, "subject.key", "subject ids");
+    return (private_dir / "subject.key").string();
+}
+
+std::string own_eye_key(const fs::path& private_dir) {
+    return own_key(private_dir, "eye.key", "eye keys");
 }
 
 SubjectOptions cohort_subject_options(const CohortOptions& o) {

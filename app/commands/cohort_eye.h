@@ -34,7 +34,7 @@ struct CohortOptions {
 // One input file and what is known about it.
 struct Item {
     std::string path;  // absolute
-    std::string key;   // eye key: first 16 hex digits of SHA-256(path)
+    std::string key;   // eye_key(path): HMAC under the cohort's eye.key
     FileFacts facts;
     bool done = false;       // a current result exists
     bool failed = false;     // a current failure record exists
@@ -60,10 +60,16 @@ struct Skipped {
 std::filesystem::path make_private_dir(const std::filesystem::path& out);
 
 // The subject key of a cohort run without a subject option: OUTDIR/private/subject.key, made
-// (64 random hex digits, mode 0600) by the first command that needs it and reused by every
+// (64 hex digits of RAND_bytes, mode 0600) by the first command that needs it and reused by every
 // later one; safe when several `cohort-eye` jobs make it at once (the first one's is kept).
 // Returns its path.
 std::string own_subject_key(const std::filesystem::path& private_dir);
+
+// The secret of the cohort's eye keys (eye_key, set_eye_key_secret): OUTDIR/private/eye.key,
+// made (64 hex digits of RAND_bytes, mode 0600) by the first cohort command on OUTDIR and
+// reused by every later one (`cohort`, `cohort --list`, `cohort-eye`, `cohort-tables`), as the
+// subject key. Returns the key; a damaged file is an InputError (exit 65), never replaced.
+std::string own_eye_key(const std::filesystem::path& private_dir);
 
 // The options of a cohort run's subject ids: `o.subjects`, or, when no subject option is given,
 // the cohort's own key (own_subject_key) under OUTDIR/private/.

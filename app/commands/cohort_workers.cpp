@@ -20,6 +20,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <stdexcept>
 
@@ -54,6 +55,10 @@ constexpr std::size_t kMaxMessage = 4000;  // a failure message is cut to this m
 // The worker's life: eye after eye until the parent closes its end of the socket.
 [[noreturn]] void worker_main(const CohortOptions& o, const SubjectSource& subjects,
                               const std::vector<Item>& items, const fs::path& out, int sock) {
+    // Ctrl-C reaches the whole process group: the batch stops its workers itself (stop_batch),
+    // so that an eye cut short is never recorded as a crash.
+    ::signal(SIGINT, SIG_IGN);
+    ::signal(SIGTERM, SIG_IGN);
     for (;;) {
         std::uint64_t index = 0;
         const auto n = ::recv(sock, &index, sizeof index, 0);
@@ -145,11 +150,80 @@ struct Worker {
     Clock::time_point start = {};  // when that eye was sent
 };
 
+// ---- Interruption: SIGINT (Ctrl-C), SIGTERM (scancel, kill) --------------------------------
+
+volatile sig_atomic_t g_stop_signal = 0;
+extern "C" void on_stop_signal(int sig) { g_stop_signal = sig; }
+
+// The batch's handlers of SIGINT and SIGTERM for its life (no SA_RESTART: poll returns EINTR);
+// the previous dispositions are restored when it ends.
+class StopSignals {
+public:
+    StopSignals() {
+        g_stop_signal = 0;
+        struct sigaction sa {};
+        sa.sa_handler = on_stop_signal;
+        sigemptyset(&sa.sa_mask);
+        ::sigaction(SIGINT, &sa, &old_int_);
+        ::sigaction(SIGTERM, &sa, &old_term_);
+    }
+    ~StopSignals() {
+        ::sigaction(SIGINT, &old_int_, nullptr);
+        ::sigaction(SIGTERM, &old_term_, nullptr);
+    }
+    StopSignals(const StopSignals&) = delete;
+    StopSignals& operator=(const StopSignals&) = delete;
+
+private:
+    struct sigaction old_int_ {};
+    struct sigaction old_term_ {};
+};
+
+// The batch was told to stop: its workers are killed (an eye in progress is neither a result
+// nor a failure: the next run does it), the records written so far reach the disk, one line
+// says how many eyes are finished and that a re-run resumes, and the process ends by the signal
+// (a shell sees 128 + N, and a script's loop stops as on any Ctrl-C).
+// An eye in progress may have written its result before the kill (the re-run keeps such a
+// result): it is counted.
+[[noreturn]] void stop_batch(int sig, const std::vector<Worker>& workers,
+                             const std::vector<pid_t>& retired, const std::vector<Item>& items,
+                             const fs::path& out, int lock_fd) {
+    std::vector<pid_t> pids = retired;
+    std::vector<std::size_t> busy;
+    for (const Worker& w : workers) {
+        if (w.pid > 0) pids.push_back(w.pid);
+        if (w.pid > 0 && w.busy) busy.push_back(w.index);
+    }
+    for (const pid_t pid : pids) ::kill(pid, SIGKILL);
+    for (const pid_t pid : pids) {
+        while (::waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {
+        }
+    }
+    (void)::syncfs(lock_fd);
+    auto finished = std::count_if(items.begin(), items.end(),
+                                  [](const Item& it) { return it.done || it.failed; });
+    std::error_code ec;
+    for (const std::size_t i : busy) {
+        finished += fs::exists(out / "eyes" / (items[i].key + ".json"), ec) ? 1 : 0;
+    }
+    std::fprintf(stderr,
+                 "%soctshape: interrupted by %s: %zu of %zu eyes finished (results and recorded "
+                 "failures are kept); run the same command again to resume\n",
+                 ::isatty(STDERR_FILENO) != 0 ? "\n" : "",  // below the progress bar
+                 sig == SIGINT ? "SIGINT" : "SIGTERM", static_cast<std::size_t>(finished),
+                 items.size());
+    std::fflush(stderr);
+    ::signal(sig, SIG_DFL);
+    ::raise(sig);
+    std::_Exit(128 + sig);
+}
+
 }  // namespace
 
 void run_workers(const CohortOptions& o, const SubjectSource& subjects, std::vector<Item>& items,
                  const std::vector<std::size_t>& pending, const fs::path& out,
                  const std::string& fail_options, int jobs, int lock_fd) {
+    const StopSignals stop_signals;
     const bool bar = ::isatty(STDERR_FILENO) != 0 && spdlog::get_level() <= spdlog::level::info;
     Progress progress(items.size(), pending.size(), bar);
     progress.draw();
@@ -236,6 +310,7 @@ void run_workers(const CohortOptions& o, const SubjectSource& subjects, std::vec
     std::vector<pollfd> fds;
     std::vector<Worker*> polled;
     for (;;) {
+        if (g_stop_signal != 0) stop_batch(g_stop_signal, workers, retired, items, out, lock_fd);
         fds.clear();
         polled.clear();
         int wait_ms = 1000;  // a bound, should an end go unnoticed by poll

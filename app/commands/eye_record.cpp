@@ -222,8 +222,48 @@ std::optional<std::string> visit_date(const io::Scan& scan) {
 
 // ---- File facts and the resume record ----------------------------------------------------
 
-std::string eye_key(const std::string& abs_path) {
-    return io::sha256_hex(abs_path).substr(0, 16);
+namespace {
+std::string& eye_key_secret() {
+    static std::string secret;
+    return secret;
+}
+}  // namespace
+
+void set_eye_key_secret(std::string secret) { eye_key_secret() = std::move(secret); }
+
+std::string eye_key(const std::string& abs_path, const std::string& secret) {
+    if (secret.empty()) return io::sha256_hex(abs_path).substr(0, 16);
+    return io::hmac_sha256_hex(secret, abs_path).substr(0, 16);
+}
+
+std::string eye_key(const std::string& abs_path) { return eye_key(abs_path, eye_key_secret()); }
+
+std::string read_key_file(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError::unreadable(path, std::strerror(errno));
+    std::string k(2 * kKeyFileBytes + 2, '\0');  // one byte more than a good file holds
+    in.read(k.data(), static_cast<std::streamsize>(k.size()));
+    if (in.bad()) throw InputError::unreadable(path, "read failed");
+    k.resize(static_cast<std::size_t>(in.gcount()));
+    if (!k.empty() && k.back() == '\n') k.pop_back();
+    const bool hex = k.size() == 2 * kKeyFileBytes &&
+                     std::all_of(k.begin(), k.end(), [](char c) {
+                         return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f');
+                     });
+    if (!hex) {
+        throw InputError::corrupt(path,
+                                  "damaged key file (not one line of 64 hex digits): restore it "
+                                  "from a backup of its output folder, or start a new folder");
+    }
+    return k;
+}
+
+void add_eye_key_option(CLI::App* cmd, std::string& file) {
+    cmd->add_option("--eye-key-file", file,
+                    "Eye key (cohort.eye_key, the CSV's eye_key) = HMAC-SHA256 of the path under "
+                    "this key: a cohort's OUTDIR/private/eye.key, so that `merge` of per-scan "
+                    "results gives that cohort's keys. Without it: SHA-256 of the path, which "
+                    "whoever can guess the path can recompute");
 }
 
 std::string absolute_path(const std::string& file) {

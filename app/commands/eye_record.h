@@ -68,10 +68,28 @@ inline constexpr std::size_t kSubjectHexChars = 16;
 // ISO date of the visit (VisitDate, else the exam time's date); nullopt if the export has none.
 [[nodiscard]] std::optional<std::string> visit_date(const io::Scan& scan);
 
-// The eye key of an input: the first 16 hex digits of SHA-256 of its absolute, normalised path.
-// It names the eye's records and QC pictures and is the eyes table's key column, so that no
-// output meant for sharing holds a file or folder name (docs/cohort.md).
+// The eye key of an input: the first 16 hex digits of HMAC-SHA256(secret, absolute normalised
+// path) under the cohort's own secret (OUTDIR/private/eye.key, set_eye_key_secret), so that
+// nobody without that file can recompute it from a list of patients' paths; a single-eye command
+// (no cohort, no secret set) uses SHA-256 of the path. It names the eye's records and QC
+// pictures and is the eyes table's key column, so that no output meant for sharing holds a
+// file or folder name (docs/cohort.md).
 [[nodiscard]] std::string eye_key(const std::string& absolute_path);
+// The same under an explicit secret (empty: the unkeyed SHA-256 form).
+[[nodiscard]] std::string eye_key(const std::string& absolute_path, const std::string& secret);
+// Sets the secret of every later eye_key(path) of this process (and of its forked workers): the
+// cohort commands set it once, before any eye is keyed.
+void set_eye_key_secret(std::string secret);
+// The random bytes of the keys a cohort makes for itself (OUTDIR/private/eye.key, subject.key):
+// 256 bits, written as one line of 64 lowercase hex digits.
+inline constexpr std::size_t kKeyFileBytes = 32;
+// Reads such a key file. Anything but one line of 64 lowercase hex digits is a damaged file:
+// InputError (exit 65), since a key made anew would silently give every eye (or subject) of the
+// folder other keys.
+[[nodiscard]] std::string read_key_file(const std::string& path);
+// `--eye-key-file F` of `macula` and `onh`: eye keys under a cohort's OUTDIR/private/eye.key, so
+// that `merge` of per-scan results gives that cohort's keys (without it: SHA-256 of the path).
+void add_eye_key_option(CLI::App* cmd, std::string& file);
 
 // How a log line names an input: "eye KEY" (or "mesh KEY", `noun`) with its eye key, never its
 // path: Heidelberg names exports after the patient, and logs are kept and shared. With -v

@@ -21,6 +21,7 @@ struct MaculaOptions {
     std::string csv_out;
     MaculaEyeOptions eye;
     SubjectOptions subjects;
+    std::string eye_key_file;
 };
 
 void run(const MaculaOptions& o) {
@@ -28,6 +29,7 @@ void run(const MaculaOptions& o) {
     // A failed run takes back what it published (the QC pictures, the CSV).
     io::OutputJournal journal;
     const SubjectSource subjects = SubjectSource::from_options(o.subjects);
+    if (!o.eye_key_file.empty()) set_eye_key_secret(read_key_file(o.eye_key_file));
     MaculaEyeOptions eye = o.eye;
     eye.qc_stem = output_stem(o.json_out, o.csv_out);  // never the input's (patient's) name
     const MaculaEye r = analyse_macula_eye(o.file, eye, subjects);
@@ -62,10 +64,12 @@ void add_macula_command(CLI::App& app, RunContext& /*ctx*/) {
 
     add_macula_analysis_options(cmd, opts->eye);
     add_segmentation_options(cmd, opts->eye.segmentation);
-    cmd->add_flag("!--no-type-check", opts->eye.check_scan_type,
-                  "Analyse the scan even if it looks like an optic nerve head volume (a long BM "
+    cmd->add_flag_callback(
+        "--no-type-check", [opts] { opts->eye.check_scan_type = false; },
+        "Analyse the scan even if it looks like an optic nerve head volume (a long BM "
                   "gap in several B-scans: docs/cohort.md, Classifier)");
     add_subject_options(cmd, opts->subjects);
+    add_eye_key_option(cmd, opts->eye_key_file);
     cmd->callback([opts] { run(*opts); });
 }
 

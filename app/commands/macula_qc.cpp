@@ -223,7 +223,14 @@ cv::Mat profiles_picture(const retina::CubeResult& r, const std::string& title) 
         a.x1 = rmax;
         a.y0 = hmin;
         a.y1 = hmax;
-        draw_axes(img, a, "r (mm)", "um", "%.1f", "%.0f", 1e3, 0.35, 4, 5);
+        // The unit above the tick labels, the title centred over the plot: they do not meet
+        // (the unit was drawn where the title starts: "um 0 deg").
+        draw_axes(img, a, "r (mm)", "", "%.1f", "%.0f", 1e3, 0.35, 4, 5);
+        int unit_base = 0;
+        const cv::Size unit =
+            cv::getTextSize("um", cv::FONT_HERSHEY_SIMPLEX, 0.35, 1, &unit_base);
+        plain_text(img, "um", {a.plot.x - 6 - unit.width, a.plot.y - 6}, 0.35,
+                   cv::Scalar(60, 60, 60));
         if (h.valid) {
             for (const auto* fit : {&h.interior, &h.exterior}) {
                 std::vector<cv::Point> pts;
@@ -248,7 +255,11 @@ cv::Mat profiles_picture(const retina::CubeResult& r, const std::string& title) 
         const std::string t =
             printf_number("%.0f deg", h.angle_deg) +
             (h.valid ? "  RMSE " + printf_number("%.2f um", h.rmse_um) : "  FAILED");
-        cv::putText(img, t, {ox + 46, oy + 18}, cv::FONT_HERSHEY_SIMPLEX, 0.45,
+        int title_base = 0;
+        const cv::Size title_size =
+            cv::getTextSize(t, cv::FONT_HERSHEY_SIMPLEX, 0.45, 1, &title_base);
+        cv::putText(img, t, {a.plot.x + std::max(0, (a.plot.width - title_size.width) / 2), oy + 18},
+                    cv::FONT_HERSHEY_SIMPLEX, 0.45,
                     h.valid ? cv::Scalar(0, 0, 0) : cv::Scalar(0, 0, 200), 1, cv::LINE_AA);
     }
     cv::Mat legend(56, img.cols, CV_8UC3, palette::kWhite);
@@ -360,7 +371,7 @@ cv::Mat macula_radial_thickness_picture(const retina::CubeResult& r, const io::S
         const Eigen::Vector2d e = geo.ascan_mm(k, nx - 1.0, nx);
         const Eigen::Vector2d u = geo.direction(k);
         const cv::Point t = L.px(e.x() + 0.12 * u.x(), e.y() + 0.12 * u.y()) + cv::Point(-6, 5);
-        outlined_text(img, std::to_string(k + 1), t, 0.4, cv::Scalar(200, 200, 200));
+        outlined_text(img, std::to_string(k), t, 0.4, cv::Scalar(200, 200, 200));
     }
     draw_disks(img, r, [&](double x, double y) { return L.px(x, y); });
     for (const auto& h : r.half_lines) {
@@ -385,7 +396,7 @@ cv::Mat macula_radial_thickness_picture(const retina::CubeResult& r, const io::S
     const int end = draw_legend(
         legend, {8, 22},
         {{LegendItem::kLine, cv::Scalar(lut.at<cv::Vec3b>(0, 128)),
-          "thickness along each line (B-scan number at its End)"},
+          "thickness along each line (B-scan number from 0 at its End)"},
          {LegendItem::kDot, missing, "missing"},
          {LegendItem::kLine, kRim, "rim"},
          {LegendItem::kLine, kSlope, "steepest slope"},
@@ -482,7 +493,8 @@ cv::Mat macula_bscan_picture(const retina::CubeResult& r, const io::Scan& scan,
     const int cx = static_cast<int>(std::lround((a_centre + 0.5) * sx));
     cv::line(img, {cx, 0}, {cx, H - 1}, kCentre, 1, cv::LINE_AA);
     outlined_text(img,
-                  "B-scan " + std::to_string(b + 1) + " of " + std::to_string(nb) +
+                  "B-scan " + std::to_string(b) +
+                      (nb > 1 ? " of 0-" + std::to_string(nb - 1) : std::string()) +
                       (geo ? printf_number(" (through the centre, %.0f deg)",
                                            geo->lines[static_cast<std::size_t>(b)].angle_deg)
                            : std::string(" (through the centre)")) +

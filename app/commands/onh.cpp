@@ -22,6 +22,7 @@ struct OnhOptions {
     std::string csv_out;
     OnhEyeOptions eye;
     SubjectOptions subjects;
+    std::string eye_key_file;
 };
 
 void run(const OnhOptions& o) {
@@ -29,6 +30,7 @@ void run(const OnhOptions& o) {
     // A failed run takes back what it published (pictures, meshes, the CSV).
     io::OutputJournal journal;
     const SubjectSource subjects = SubjectSource::from_options(o.subjects);
+    if (!o.eye_key_file.empty()) set_eye_key_secret(read_key_file(o.eye_key_file));
     const FileFacts facts = file_facts(o.file);  // before reading: a missing file says so
     OnhEyeOptions eye = o.eye;
     eye.qc_stem = output_stem(o.json_out, o.csv_out);  // never the input's (patient's) name
@@ -71,6 +73,7 @@ void add_onh_command(CLI::App& app, RunContext& /*ctx*/) {
     add_onh_analysis_options(cmd, opts->eye);
     add_segmentation_options(cmd, opts->eye.segmentation);
     add_subject_options(cmd, opts->subjects);
+    add_eye_key_option(cmd, opts->eye_key_file);
     cmd->callback([opts] { run(*opts); });
 }
 

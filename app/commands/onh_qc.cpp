@@ -178,8 +178,8 @@ cv::Mat bscan_panel(const io::Scan& scan, const retina::OnhResult& r, int b) {
         const Eigen::Vector3d& q = r.mrw_points_mm[i];
         cv::line(img, px(p.x(), p.z()), px(q.x(), q.z()), kMrw, 1, cv::LINE_AA);
     }
-    outlined_text(img, "B-scan " + std::to_string(b + 1) + " of " + std::to_string(scan.num_bscans()) +
-                           registration_title(r, b),
+    outlined_text(img, "B-scan " + std::to_string(b) + " of 0-" +
+                           std::to_string(scan.num_bscans() - 1) + registration_title(r, b),
                   {6, 18}, 0.5, palette::kWhite);
     scale_bar(img, {10, H - 14}, 1.0 / dx, palette::kWhite);
     return img;
@@ -291,9 +291,9 @@ cv::Mat onh_mrw_picture(const retina::OnhResult& r, const std::string& title) {
         for (const auto& m : r.mrw_inplane) {
             const cv::Point q = a.px(m.anatomical_deg, m.mrw_mm);
             cv::circle(img, q, 4, kInplane, 1, cv::LINE_AA);
-            plain_text(img, std::to_string(m.bscan + 1), q + cv::Point(5, -5), 0.33, kInplane);
+            plain_text(img, std::to_string(m.bscan), q + cv::Point(5, -5), 0.33, kInplane);
         }
-        legend.push_back({LegendItem::kRing, kInplane, "in-plane MRW (B-scan number)"});
+        legend.push_back({LegendItem::kRing, kInplane, "in-plane MRW (B-scan number, from 0)"});
         legend.push_back({LegendItem::kLine, kInplane, "its sector means"});
         means = "3-D " + means + printf_number(", in-plane %.0f um", r.mrw_inplane_mean_mm * 1e3);
     }

@@ -186,7 +186,7 @@ cv::Mat radial_enface_picture(const io::Scan& scan,
         cv::line(out, L.px(s.x(), s.y()), L.px(e.x(), e.y()), kLine, 1, cv::LINE_8);
         const Eigen::Vector2d u = geo.direction(k);
         const cv::Point q = L.px(e.x(), e.y()) + round_pt(16.0 * u.x() - 6.0, -16.0 * u.y() + 5.0);
-        outlined_text(out, std::to_string(k + 1), q, 0.4, kLine);
+        outlined_text(out, std::to_string(k), q, 0.4, kLine);
     }
     const Eigen::Vector2d c = r.ellipse.centre_mm;
     cv::circle(out, L.px(c.x(), c.y()), static_cast<int>(std::lround(p.disc_radius_mm * L.ppm)),
@@ -216,7 +216,7 @@ cv::Mat radial_enface_picture(const io::Scan& scan,
     const int y0 = L.top + H + 2 * L.margin + 16;
     const int end = draw_legend(
         out, {8, y0},
-        {{LegendItem::kLine, kLine, "radial lines (B-scan number at the End)"},
+        {{LegendItem::kLine, kLine, "radial lines (B-scan number from 0 at the End)"},
          {LegendItem::kTiltedCross, kCrossing, "line crossing"},
          {LegendItem::kDot, kBmo, "BMO points (two per line)"},
          {LegendItem::kLine, kEllipse, "BMO ellipse"},
@@ -338,7 +338,7 @@ cv::Mat radial_bscans_picture(const io::Scan& scan,
         }
         // Which way the line runs: the anatomical angle of its Start (left) and End (right).
         const double ang = geo.lines[static_cast<std::size_t>(k)].angle_deg;
-        outlined_text(img, "B-scan " + std::to_string(k + 1) + printf_number(", %.0f deg", ang) +
+        outlined_text(img, "B-scan " + std::to_string(k) + printf_number(", %.0f deg", ang) +
                                registration_title(r, k),
                       {6, 16}, 0.45, palette::kWhite);
         outlined_text(img, printf_number("%.0f", std::fmod(ang + 180.0, 360.0)), {4, L.panel_h - 8},
@@ -355,7 +355,7 @@ cv::Mat radial_bscans_picture(const io::Scan& scan,
                  {LegendItem::kLine, kMrw, "in-plane MRW"}},
                 0.45, palette::kText, sheet_w - 8);
     plain_text(out,
-               "every radial B-scan, Start at the left (corner numbers: anatomical angle of "
+               "every radial B-scan, numbered from 0, Start at the left (corner numbers: anatomical angle of "
                "each end, deg; 0 nasal, 90 superior); each " +
                    printf_number("%.2f mm wide", geo.mean_length_mm) +
                    printf_number(", %.2f mm deep shown (stretched)", (L.z1 - L.z0) * dz),

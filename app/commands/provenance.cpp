@@ -22,7 +22,11 @@ std::string version_text() {
     std::string s = std::string("octshape ") + kVersion + " (revision " + b.revision;
     if (std::string(b.modified) == "yes") s += ", modified";
     if (std::string(b.modified) == "unknown") s += ", modified: unknown";
-    s += "; " + std::string(b.describe) + "; build " + b.build_type + ")";
+    // `git describe` adds something only after a tag (e.g. "v0.2.0-3-g1234"): without one it
+    // is the revision again, said once.
+    const std::string describe = b.describe;
+    if (describe != b.revision && describe != "unknown") s += "; " + describe;
+    s += "; build " + std::string(b.build_type) + ")";
     return s;
 }
 

@@ -33,7 +33,7 @@ struct StatsOptions {
     bool retest = false;
     std::string table_out;
     std::string retest_out;
-    std::string analysis;  // volume | line; empty = volume if the table has volume rows
+    std::string analysis;  // volume | radial | line; empty: the first of these the table has
     bool json = false;
 };
 
@@ -203,8 +203,9 @@ nlohmann::ordered_json to_json(const retina::GroupStats& g,
     return j;
 }
 
-// Keeps the rows of one analysis (eyes.csv column `analysis`: volume or line): a line scan's
-// 2-D parameters are not the volume's and are never pooled with them. Returns the analysis
+// Keeps the rows of one analysis (eyes.csv column `analysis`: volume, radial or line): a line
+// scan's 2-D parameters and a radial scan's half-line fits are not the volume's and are never
+// pooled with them. Returns the analysis
 // kept ("" when the table has no such column).
 std::string keep_one_analysis(retina::EyeTable& t, const StatsOptions& o) {
     const int col = t.column("analysis");
@@ -219,9 +220,10 @@ std::string keep_one_analysis(retina::EyeTable& t, const StatsOptions& o) {
     for (const auto& row : t.rows) ++counts[row[static_cast<std::size_t>(col)]];
     std::string keep = o.analysis;
     if (keep.empty()) {
-        keep = counts.contains("volume") ? "volume"
-               : counts.contains("line") ? "line"
-                                         : counts.begin()->first;
+        keep = counts.contains("volume")   ? "volume"
+               : counts.contains("radial") ? "radial"
+               : counts.contains("line")   ? "line"
+                                           : counts.begin()->first;
     }
     std::vector<std::vector<std::string>> kept;
     for (auto& row : t.rows) {
@@ -232,7 +234,7 @@ std::string keep_one_analysis(retina::EyeTable& t, const StatsOptions& o) {
         if (name == keep) continue;
         spdlog::warn("{}: {} rows of analysis '{}' left out (one analysis a table: give "
                      "--analysis {})",
-                     o.input, n, name, name == "line" ? "line" : "volume");
+                     o.input, n, name, name);
     }
     if (t.rows.empty()) {
         throw AnalysisError(o.input + ": no row of analysis '" + keep + "'");
@@ -304,8 +306,10 @@ void run(const StatsOptions& o) {
     } else {
         if (!analysis.empty()) {
             std::cout << "Analysis: "
-                      << (analysis == "volume" ? "volume (3-D)"
-                                               : analysis == "line" ? "line scan (2-D)" : analysis)
+                      << (analysis == "volume"   ? "volume (3-D)"
+                          : analysis == "radial" ? "radial scan (3-D from the radial lines)"
+                          : analysis == "line"   ? "line scan (2-D)"
+                                                 : analysis)
                       << ".\n";
         }
         std::cout << groups_text(g);
@@ -343,9 +347,10 @@ void add_stats_command(CLI::App& app, RunContext& /*ctx*/) {
     cmd->add_option("--retest-output", opts->retest_out,
                     "Write the ICC table as CSV (parameter,n_eyes,k,icc,lower_95,upper_95,...)");
     cmd->add_option("--analysis", opts->analysis,
-                    "Rows of one analysis only, volume or line (default: volume when there are "
-                    "volume rows; the other rows are left out with a warning, never pooled)")
-        ->check(CLI::IsMember({"volume", "line"}));
+                    "Rows of one analysis only, volume, radial or line (default: volume when "
+                    "there are volume rows, else radial, else line; the other rows are left out "
+                    "with a warning, never pooled)")
+        ->check(CLI::IsMember({"volume", "radial", "line"}));
     cmd->add_flag("--json", opts->json, "Print JSON on stdout instead of the text tables");
     cmd->callback([opts] { run(*opts); });
 }

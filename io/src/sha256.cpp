@@ -2,6 +2,7 @@
 
 #include <openssl/evp.h>
 #include <openssl/hmac.h>
+#include <openssl/rand.h>
 
 #include <cstdio>
 #include <stdexcept>
@@ -100,6 +101,14 @@ std::string hmac_sha256_hex(std::string_view key, std::string_view message) {
         crypto_failure("HMAC");
     }
     return to_hex(out.data(), len);
+}
+
+std::string random_hex(std::size_t bytes) {
+    std::vector<unsigned char> b(bytes);
+    if (bytes > 0 && RAND_bytes(b.data(), static_cast<int>(bytes)) != 1) {
+        crypto_failure("RAND_bytes");
+    }
+    return to_hex(b.data(), b.size());
 }
 
 }  // namespace octshape::io

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <string>
 #include <vector>
 
@@ -15,6 +17,25 @@ TEST(Cli, VersionPrintsTheVersion) {
     const RunResult r = run_octshape("--version");
     EXPECT_EQ(r.exit_code, 0);
     EXPECT_NE(r.out.find(kVersion), std::string::npos) << r.out;
+    // The revision once (it was printed twice: `git describe` without a tag is the revision).
+    const auto at = r.out.find("(revision ");
+    ASSERT_NE(at, std::string::npos) << r.out;
+    const std::string rev = r.out.substr(at + 10, r.out.find_first_of(",;)", at) - at - 10);
+    ASSERT_FALSE(rev.empty()) << r.out;
+    EXPECT_EQ(r.out.find(rev, at + 10 + rev.size()), std::string::npos) << r.out;
+}
+
+TEST(Cli, HelpShowsChoicesAndNoInternalDefaultsOfFlags) {
+    // `--no-type-check{false}` (CLI11's default of a negated flag) is gone; --type lists its
+    // choices.
+    const RunResult macula = run_octshape("macula --help");
+    EXPECT_EQ(macula.out.find("{false}"), std::string::npos) << macula.out;
+    EXPECT_NE(macula.out.find("--no-type-check"), std::string::npos) << macula.out;
+    for (const char* c : {"cohort", "cohort-eye", "cohort-tables"}) {
+        const RunResult r = run_octshape(std::string(c) + " --help");
+        EXPECT_NE(r.out.find("--type TEXT:{auto,macula,onh}=auto"), std::string::npos) << r.out;
+        EXPECT_EQ(r.out.find("{false}"), std::string::npos) << r.out;
+    }
 }
 
 TEST(Cli, HelpListsExitCodes) {
@@ -50,6 +71,34 @@ TEST(Cli, EveryBadOptionValueIsTheSameUsageError) {
         EXPECT_EQ(r.exit_code, 64) << args << "\n" << r.err;
         EXPECT_FALSE(r.err.empty()) << args;
     }
+}
+
+TEST(Cli, EveryCommandLineMistakeIsOneLineWithDidYouMean) {
+    // CLI11's texts ("The following arguments were not expected: qc --qc-dir", "A subcommand
+    // is required", each with a second line "Run with --help ...") become one line
+    // `octshape: error: ...`, exit 64, with the nearest command or option for a near miss.
+    const std::string scan = std::string(OCTSHAPE_SOURCE_DIR) + "/sample_scans/macula_line_od.vol";
+    const std::vector<std::pair<std::string, std::string>> cases{
+        {"maculla", "unknown command 'maculla' (did you mean macula?)"},
+        {"phantom macul", "phantom: unknown command 'macul' (did you mean macula?)"},
+        {"macula " + scan + " --qc-dir qc", "macula: unknown option --qc-dir (did you mean --qc?)"},
+        {"cohort " + scan + " -o o --typ onh", "cohort: unknown option --typ (did you mean --type?)"},
+        {"macula --bogus", "macula: unknown option --bogus (octshape macula --help)"},
+        {"frobnicate", "unknown command 'frobnicate' (octshape --help)"},
+        {"", "a command is required: denoise, "},
+        {"macula", "macula: file is required"},
+        {"macula " + scan + " extra", "macula: unexpected argument 'extra'"},
+        {"cohort " + scan + " -o o --jobs 0", "cohort: --jobs: must be a count of 1 or more"},
+        {"phantom onh --eye XX", "phantom onh: --eye: XX not in {OD,OS}"}};
+    for (const auto& [args, want] : cases) {
+        const RunResult r = run_octshape(args);
+        EXPECT_EQ(r.exit_code, 64) << args;
+        EXPECT_EQ(r.err.rfind("octshape: error: ", 0), 0U) << args << ": " << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << args << ": " << r.err;
+        EXPECT_NE(r.err.find(want), std::string::npos) << args << ": " << r.err;
+    }
+    // Far from every name: no guess.
+    EXPECT_EQ(run_octshape("frobnicate").err.find("did you mean"), std::string::npos);
 }
 
 TEST(Cli, QuietAndVerboseWorkAfterTheSubcommandToo) {

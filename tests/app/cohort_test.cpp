@@ -88,6 +88,15 @@ std::vector<std::string> expected_header() {
     return h;
 }
 
+// The eye key of `path` in the cohort folder `out`: HMAC-SHA256 under OUTDIR/private/eye.key
+// (its one line, without the newline), 16 hex digits (docs/cohort.md).
+std::string keyed(const fs::path& out, const std::string& path) {
+    std::string k = slurp(out / "private" / "eye.key");
+    EXPECT_EQ(k.size(), 65U);
+    if (!k.empty()) k.pop_back();
+    return io::hmac_sha256_hex(k, path).substr(0, 16);
+}
+
 // Eye key -> file name, from OUTDIR/private/inputs.csv (the only map from keys to files).
 std::map<std::string, std::string> names_by_key(const fs::path& out) {
     std::map<std::string, std::string> m;
@@ -96,7 +105,7 @@ std::map<std::string, std::string> names_by_key(const fs::path& out) {
     if (rows.empty()) return m;
     EXPECT_EQ(rows[0], (std::vector<std::string>{"eye_key", "file", "sha256", "result"}));
     for (std::size_t i = 1; i < rows.size(); ++i) {
-        EXPECT_EQ(rows[i][0], io::sha256_hex(rows[i][1]).substr(0, 16));
+        EXPECT_EQ(rows[i][0], keyed(out, rows[i][1]));
         m[rows[i][0]] = fs::path(rows[i][1]).filename().string();
     }
     return m;
@@ -244,7 +253,7 @@ TEST(CohortCli, ResumeRedoesNothingUnlessFileOptionOrVersionChanged) {
     const auto r3 = test::run_octshape(cmd);
     EXPECT_NE(r3.err.find("1 to do"), std::string::npos) << r3.err;
     const auto eyes3 = json_mtimes(out / "eyes");
-    const std::string key_a = io::sha256_hex((c.in / "a_od.vol").string()).substr(0, 16);
+    const std::string key_a = keyed(out, (c.in / "a_od.vol").string());
     for (const auto& [name, t] : eyes1) {
         if (name == key_a + ".json") {
             EXPECT_NE(eyes3.at(name), t);
@@ -315,7 +324,8 @@ TEST(CohortCli, MergeAndPerScanMaculaGiveTheCohortCsvByteForByte) {
     for (const char* f : {"a_od.vol", "sub/b_os.vol", "sub/deeper/c_od.vol"}) {
         const fs::path j = c.dir / "per_scan" / (std::to_string(i++) + ".json");
         const auto r = test::run_octshape("macula " + q(c.in / f) + " -o " + q(j) + " " +
-                                          c.key_arg());
+                                          c.key_arg() + " --eye-key-file " +
+                                          q(out / "private" / "eye.key"));
         ASSERT_EQ(r.exit_code, 0) << r.err;
         jsons += " " + q(j);
     }
@@ -392,18 +402,28 @@ TEST(CohortEye, EachInputAloneThenTheTablesGiveTheCohortsFolderByteForByte) {
     const auto r = test::run_octshape("cohort " + q(c.in) + " -o " + q(out) + " --jobs 2" + opts);
     ASSERT_EQ(r.exit_code, 1) << r.err;
     fs::rename(out, ref);  // the jobs write the same folder (the gallery names it)
+    // The folder's eye keys are HMACs under its private/eye.key: the jobs' folder gets the
+    // cohort's key (as a copied folder would), so that the keys, and the files named by them,
+    // can be compared.
+    fs::create_directories(out / "private");
+    fs::permissions(out / "private", fs::perms::owner_all);
+    fs::copy_file(ref / "private" / "eye.key", out / "private" / "eye.key");
 
     const auto listed =
         test::run_octshape("cohort " + q(c.in) + " -o " + q(out) + " --list" + opts);
     ASSERT_EQ(listed.exit_code, 0) << listed.err;
-    EXPECT_FALSE(fs::exists(out));  // --list writes nothing
+    // --list writes nothing (it reads the key; without a subject option it would make
+    // private/subject.key, CohortEye.WithoutASubjectOptionTheJobsShareTheKeyListMade).
+    EXPECT_EQ(std::distance(fs::recursive_directory_iterator(out),
+                            fs::recursive_directory_iterator()),
+              2);
     std::map<std::string, std::string> type_of;  // file name -> listed type
     std::vector<std::string> files;
     std::istringstream lines(listed.out);
     for (std::string line; std::getline(lines, line);) {
         const json j = json::parse(line);
         const std::string file = j["file"];
-        EXPECT_EQ(j["key"], io::sha256_hex(file).substr(0, 16));
+        EXPECT_EQ(j["key"], keyed(ref, file));
         type_of[fs::path(file).filename().string()] = j["type"];
         files.push_back(file);
     }
@@ -526,6 +546,72 @@ TEST(CohortEye, WithoutASubjectOptionTheJobsShareTheKeyListMade) {
     EXPECT_NE(slurp(out2 / "eyes.csv"), table);  // other ids under another key
 }
 
+// The eye key is HMAC-SHA256 of the absolute path under the folder's own secret,
+// OUTDIR/private/eye.key (made at random on the first run, mode 0600): not the plain SHA-256 a
+// holder of the patient list could recompute; another folder, another key; a resumed run and
+// `merge` keep the keys; `macula --eye-key-file` gives the folder's key; a damaged key file is
+// refused in one line (exit 65) and nothing is rewritten.
+TEST(CohortCli, EyeKeysAreKeyedByTheFoldersOwnSecret) {
+    test::TempDir dir;
+    const fs::path in = dir / "in";
+    fs::create_directories(in);
+    write_macula(in / "Mustermann_Max_4711_0.vol", retina::MaculaFamily::kBezier,
+                 io::Laterality::kOD, 1);
+    const std::string path =
+        fs::absolute(in / "Mustermann_Max_4711_0.vol").lexically_normal().string();
+    const std::string plain = io::sha256_hex(path).substr(0, 16);
+    const auto key_of = [](const fs::path& out) {
+        const auto rows = read_csv(out / "eyes.csv");
+        EXPECT_EQ(rows.size(), 2U);
+        return rows.size() == 2 ? rows[1][4] : std::string();
+    };
+    const fs::path o1 = dir / "o1";
+    const auto r1 = test::run_octshape("cohort " + q(in) + " -o " + q(o1));
+    ASSERT_EQ(r1.exit_code, 0) << r1.err;
+    struct stat st {};
+    ASSERT_EQ(::stat((o1 / "private" / "eye.key").c_str(), &st), 0);
+    EXPECT_EQ(st.st_mode & 0777, 0600U);
+    const std::string k1 = key_of(o1);
+    EXPECT_NE(k1, plain);
+    EXPECT_EQ(k1, keyed(o1, path));
+    EXPECT_TRUE(fs::exists(o1 / "eyes" / (k1 + ".json")));
+
+    const fs::path o2 = dir / "o2";
+    ASSERT_EQ(test::run_octshape("cohort " + q(in) + " -o " + q(o2)).exit_code, 0);
+    const std::string k2 = key_of(o2);
+    EXPECT_NE(k2, k1);  // P(equal | two random keys) = 2^-64
+    EXPECT_EQ(k2, keyed(o2, path));
+
+    const std::string table = slurp(o1 / "eyes.csv");
+    const auto again = test::run_octshape("cohort " + q(in) + " -o " + q(o1));
+    ASSERT_EQ(again.exit_code, 0) << again.err;
+    EXPECT_NE(again.err.find("0 to do"), std::string::npos) << again.err;
+    EXPECT_EQ(slurp(o1 / "eyes.csv"), table);
+    const auto merged = test::run_octshape("merge " + q(o1 / "eyes"));
+    ASSERT_EQ(merged.exit_code, 0) << merged.err;
+    EXPECT_EQ(merged.out, table);
+
+    const auto single = test::run_octshape("macula " + q(path) + " --eye-key-file " +
+                                           q(o1 / "private" / "eye.key"));
+    ASSERT_EQ(single.exit_code, 0) << single.err;
+    EXPECT_EQ(json::parse(single.out)["cohort"]["eye_key"], k1);
+    const auto unkeyed = test::run_octshape("macula " + q(path));
+    ASSERT_EQ(unkeyed.exit_code, 0) << unkeyed.err;
+    EXPECT_EQ(json::parse(unkeyed.out)["cohort"]["eye_key"], plain);  // no cohort, no secret
+
+    const std::string good_key = slurp(o1 / "private" / "eye.key");
+    for (const std::string& damaged : {good_key.substr(0, 40), good_key + good_key, std::string()}) {
+        spit(o1 / "private" / "eye.key", damaged);
+        const auto bad = test::run_octshape("-q cohort " + q(in) + " -o " + q(o1));
+        EXPECT_EQ(bad.exit_code, 65) << bad.err;
+        EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
+        EXPECT_NE(bad.err.find("eye.key: corrupt: damaged key file"), std::string::npos)
+            << bad.err;
+        EXPECT_EQ(slurp(o1 / "private" / "eye.key"), damaged);  // never replaced
+        EXPECT_EQ(slurp(o1 / "eyes.csv"), table);
+    }
+}
+
 TEST(CohortCli, SubjectIdsAreKeyedHashesMapsOrRawOnRequest) {
     test::TempDir dir;
     fs::create_directories(dir / "in");
@@ -628,7 +714,8 @@ TEST(CohortCli, SubjectIdsAreKeyedHashesMapsOrRawOnRequest) {
     const std::string own_csv = slurp(dir / "o6" / "eyes.csv");
     const auto k2 = test::run_octshape(own);
     ASSERT_EQ(k2.exit_code, 0) << k2.err;
-    EXPECT_EQ(count(k2.err, "made by an earlier run"), 1U) << k2.err;
+    EXPECT_EQ(count(k2.err, "subject ids: HMAC under the key in"), 1U) << k2.err;
+    EXPECT_EQ(count(k2.err, "made by an earlier run"), 2U) << k2.err;  // subject and eye keys
     EXPECT_NE(k2.err.find("0 to do"), std::string::npos) << k2.err;
     EXPECT_EQ(slurp(dir / "o6" / "eyes.csv"), own_csv);
     const auto own_ps = test::run_octshape("pseudonym --subject-key-file " + q(key) +
@@ -655,7 +742,10 @@ TEST(CohortCli, SubjectIdsAreKeyedHashesMapsOrRawOnRequest) {
 
 // ---- Kill and resume ----------------------------------------------------------------------
 
-pid_t spawn_octshape(const std::vector<std::string>& args) {
+// `err`: where stderr goes; `own_group`: the child leads a process group of its own (as a
+// terminal's foreground job, which Ctrl-C signals as a whole).
+pid_t spawn_octshape(const std::vector<std::string>& args, const char* err = "/dev/null",
+                     bool own_group = false) {
     std::vector<std::string> argv_s{test::exe()};
     argv_s.insert(argv_s.end(), args.begin(), args.end());
     std::vector<char*> argv;
@@ -664,10 +754,17 @@ pid_t spawn_octshape(const std::vector<std::string>& args) {
     posix_spawn_file_actions_t fa;
     posix_spawn_file_actions_init(&fa);
     posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
-    posix_spawn_file_actions_addopen(&fa, 2, "/dev/null", O_WRONLY, 0);
+    posix_spawn_file_actions_addopen(&fa, 2, err, O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    posix_spawnattr_t attr;
+    posix_spawnattr_init(&attr);
+    if (own_group) {
+        posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP);
+        posix_spawnattr_setpgroup(&attr, 0);
+    }
     pid_t pid = -1;
-    const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
+    const int rc = posix_spawn(&pid, argv[0], &fa, &attr, argv.data(), environ);
     posix_spawn_file_actions_destroy(&fa);
+    posix_spawnattr_destroy(&attr);
     EXPECT_EQ(rc, 0);
     return pid;
 }
@@ -720,6 +817,10 @@ SLOW_TEST(CohortKill, SigkillAtRandomMomentsThenRerunGivesTheUninterruptedTables
     int interrupted_midway = 0;  // kills that left some but not all eyes done
     for (int trial = 0; trial < 6; ++trial) {
         const fs::path out = dir / ("run" + std::to_string(trial));
+        // The reference's eye keys (HMACs under its private/eye.key), so that the tables compare.
+        fs::create_directories(out / "private");
+        fs::permissions(out / "private", fs::perms::owner_all);
+        fs::copy_file(dir / "ref" / "private" / "eye.key", out / "private" / "eye.key");
         // Two kills in a row, then a run to the end. The first kill waits until a random number
         // of eyes is finished (plus a random few ms, so it also lands inside writes): most of a
         // run is process start-up, and a purely timed kill would often miss the batch. The
@@ -778,6 +879,73 @@ SLOW_TEST(CohortKill, SigkillAtRandomMomentsThenRerunGivesTheUninterruptedTables
     EXPECT_GE(interrupted_midway, 4);
 }
 
+// Waits (up to `limit`) until OUTDIR/eyes holds `n` results (KEY.json, not the hidden
+// temporaries of writes in progress); returns how many it holds.
+std::size_t wait_for_results(const fs::path& out, std::size_t n, std::chrono::seconds limit) {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    for (;;) {
+        std::size_t got = 0;
+        std::error_code ec;
+        for (fs::directory_iterator it(out / "eyes", ec), end; !ec && it != end;
+             it.increment(ec)) {
+            got += it->path().filename().string()[0] != '.' ? 1 : 0;
+        }
+        if (got >= n || std::chrono::steady_clock::now() > deadline) return got;
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+}
+
+// Ctrl-C (SIGINT to the whole process group, as a terminal sends it) or SIGTERM during a cohort:
+// one line says how many eyes finished and that a re-run resumes; the process ends by the
+// signal; the eyes cut short are not recorded as failures; the re-run does only the rest.
+TEST(CohortKill, SigintOrSigtermSaysWhatFinishedAndTheRerunResumes) {
+    test::TempDir dir;
+    const fs::path in = dir / "in";
+    fs::create_directories(in);
+    write_macula(dir / "m0.vol", retina::MaculaFamily::kBezier, io::Laterality::kOD, 1);
+    constexpr int kEyes = 12;  // ~0.1 s each: the signal (after 2) lands mid-batch
+    for (int i = 0; i < kEyes; ++i) {
+        fs::create_hard_link(dir / "m0.vol", in / ("eye" + std::to_string(100 + i) + ".vol"));
+    }
+    // A result: OUTDIR/eyes/KEY.json (not a temporary ".KEY.tmp-….json" of a write in progress).
+    const auto is_result = [](const fs::path& p) {
+        return p.extension() == ".json" && p.filename().string()[0] != '.';
+    };
+    for (const int sig : {SIGINT, SIGTERM}) {
+        const fs::path out = dir / ("out" + std::to_string(sig));
+        const std::string err = (dir / "err.txt").string();
+        const std::vector<std::string> args{"cohort", in.string(), "-o", out.string(),
+                                            "--jobs", "2"};
+        const pid_t pid = spawn_octshape(args, err.c_str(), /*own_group=*/true);
+        (void)wait_for_results(out, 2, std::chrono::seconds(60));
+        ASSERT_EQ(::kill(sig == SIGINT ? -pid : pid, sig), 0);
+        EXPECT_EQ(wait_exit(pid), -sig);
+        const std::string text = slurp(err);
+        const std::string said = sig == SIGINT ? "interrupted by SIGINT: " : "interrupted by SIGTERM: ";
+        const auto at = text.find("octshape: " + said);
+        ASSERT_NE(at, std::string::npos) << text;
+        const std::string line = text.substr(at, text.find('\n', at) - at);
+        EXPECT_EQ(text.substr(at + line.size()), "\n") << "the last line: " << text;
+        EXPECT_NE(line.find("run the same command again to resume"), std::string::npos) << line;
+        std::size_t finished = 0;
+        for (const auto& e : fs::directory_iterator(out / "eyes")) {
+            finished += is_result(e.path()) ? 1 : 0;
+        }
+        EXPECT_NE(line.find(std::to_string(finished) + " of " + std::to_string(kEyes) +
+                            " eyes finished"),
+                  std::string::npos)
+            << line << " (" << finished << " results on disk)";
+        ASSERT_LT(finished, static_cast<std::size_t>(kEyes)) << "the signal came too late";
+        EXPECT_TRUE(fs::is_empty(out / "failures"));  // no eye recorded as crashed
+        if (sig == SIGTERM) continue;  // the same stop: one re-run shows the resumption
+        const auto rerun = test::run_octshape("cohort " + q(in) + " -o " + q(out) + " --jobs 2");
+        ASSERT_EQ(rerun.exit_code, 0) << rerun.err;
+        EXPECT_NE(rerun.err.find(std::to_string(finished) + " already done"), std::string::npos)
+            << rerun.err;
+        EXPECT_EQ(read_csv(out / "eyes.csv").size(), static_cast<std::size_t>(kEyes) + 1);
+    }
+}
+
 // Every file under `dir` (relative name -> content, masked as folder_files masks it).
 std::map<std::string, std::string> tree_files(const fs::path& dir) {
     std::map<std::string, std::string> m;
@@ -818,17 +986,7 @@ TEST(CohortKill, WithoutASubjectOptionAKilledRunResumesToTheUninterruptedFolder)
     // Kill the cohort once 3 eyes are finished (each eye takes a fraction of a second: the
     // batch is then in its middle).
     const pid_t pid = spawn_octshape(args);
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-    for (;;) {
-        std::size_t n = 0;
-        std::error_code ec;
-        for (fs::directory_iterator it(out / "eyes", ec), end; !ec && it != end;
-             it.increment(ec)) {
-            n += it->path().filename().string()[0] != '.' ? 1 : 0;
-        }
-        if (n >= 3 || std::chrono::steady_clock::now() > deadline) break;
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
+    (void)wait_for_results(out, 3, std::chrono::seconds(120));
     ::kill(pid, SIGKILL);
     EXPECT_EQ(wait_exit(pid), -SIGKILL);
     std::this_thread::sleep_for(std::chrono::milliseconds(50));  // orphans die too
@@ -857,12 +1015,13 @@ TEST(CohortKill, WithoutASubjectOptionAKilledRunResumesToTheUninterruptedFolder)
     fs::create_directories(out / "private");
     fs::permissions(out / "private", fs::perms::owner_all);
     fs::copy_file(killed / "private" / "subject.key", key);
+    fs::copy_file(killed / "private" / "eye.key", out / "private" / "eye.key");
     const auto reference = test::run_octshape(cmd);
     ASSERT_EQ(reference.exit_code, 1) << reference.err;
     const auto want = tree_files(out);
-    EXPECT_EQ(want.size(), static_cast<std::size_t>(kEyes) + 1 + 3 * kEyes + 8)
+    EXPECT_EQ(want.size(), static_cast<std::size_t>(kEyes) + 1 + 3 * kEyes + 9)
         << "eyes, a failure record, 3 pictures per eye, index.html, eyes.csv, failures.csv, "
-           "provenance.json, .lock, private/{inputs.csv, failures.csv, subject.key}";
+           "provenance.json, .lock, private/{inputs.csv, failures.csv, subject.key, eye.key}";
     ASSERT_EQ(got.size(), want.size());
     for (const auto& [name, text] : want) {
         ASSERT_TRUE(got.count(name)) << name;

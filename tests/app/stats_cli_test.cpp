@@ -110,7 +110,8 @@ TEST(StatsCli, LineAndVolumeRowsAreNeverPooled) {
          "subject_id,eye,visit_date,scan_type,eye_key,sha256,group,analysis,cft_mm\n"
          "S1,OD,2024-01-01,macula,0000000000000001,h,NA,volume,0.2\n"
          "S2,OD,2024-01-01,macula,0000000000000002,h,NA,volume,0.4\n"
-         "S3,OD,2024-01-01,macula,0000000000000003,h,NA,line,5.0\n");
+         "S3,OD,2024-01-01,macula,0000000000000003,h,NA,line,5.0\n"
+         "S4,OD,2024-01-01,macula,0000000000000004,h,NA,radial,0.7\n");
     RunResult r = run_octshape("stats --json " + (dir / "eyes.csv").string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     auto j = nlohmann::json::parse(r.out);
@@ -120,6 +121,17 @@ TEST(StatsCli, LineAndVolumeRowsAreNeverPooled) {
     EXPECT_EQ(all["n"], 2);
     EXPECT_NEAR(all["mean"].get<double>(), 0.3, 1e-12);
     EXPECT_NE(r.err.find("1 rows of analysis 'line' left out"), std::string::npos) << r.err;
+    // Radial macula rows (the cohort writes `radial`): left out, with the option that takes them.
+    EXPECT_NE(r.err.find("1 rows of analysis 'radial' left out (one analysis a table: give "
+                         "--analysis radial)"),
+              std::string::npos)
+        << r.err;
+    r = run_octshape("stats --json --analysis radial " + (dir / "eyes.csv").string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["analysis"], "radial");
+    EXPECT_EQ(j["parameters"][0]["groups"]["all"]["n"], 1);
+    EXPECT_EQ(j["parameters"][0]["groups"]["all"]["mean"], 0.7);
     r = run_octshape("stats --json --analysis line " + (dir / "eyes.csv").string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     j = nlohmann::json::parse(r.out);

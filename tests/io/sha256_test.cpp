@@ -65,5 +65,16 @@ TEST(HmacSha256, Rfc4231Vectors) {
     EXPECT_NE(hmac_sha256_hex("", "x"), hmac_sha256_hex("k", "x"));
 }
 
+// The cohort's own keys (OUTDIR/private/eye.key, subject.key): 2n lowercase hex digits from
+// the CSPRNG; two draws of 256 bits agree with probability 2^-256.
+TEST(RandomHex, LowercaseHexOfTheLengthAskedAndNeverTheSame) {
+    const std::string a = random_hex(32);
+    const std::string b = random_hex(32);
+    EXPECT_EQ(a.size(), 64U);
+    EXPECT_EQ(a.find_first_not_of("0123456789abcdef"), std::string::npos) << a;
+    EXPECT_NE(a, b);
+    EXPECT_EQ(random_hex(0), "");
+}
+
 }  // namespace
 }  // namespace octshape::io

@@ -403,6 +403,11 @@ TEST(OnhRadial, LevelSetRefusesBscansWithoutAnImage) {
         ADD_FAILURE() << "a blank B-scan was segmented";
     } catch (const AnalysisError& e) {
         EXPECT_NE(std::string(e.what()).find("radial B-scan 2"), std::string::npos) << e.what();
+        // Plain, and numbered from 0 as everywhere (it said "the B-scans of radial B-scan 2
+        // hold no image").
+        EXPECT_NE(std::string(e.what()).find("level-set ILM: no image in radial B-scan 2 ("),
+                  std::string::npos)
+            << e.what();
     }
     io::Scan missing = scan;
     std::fill(missing.bscans[4].pixels.begin(), missing.bscans[4].pixels.end(), 3.4e38F);

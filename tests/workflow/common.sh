@@ -37,12 +37,17 @@ YAML
 }
 
 # `octshape cohort` on IN into OUT, then moved to REF (so that the workflow can write the same
-# OUT: the gallery names its folder): it must finish with exit 1 (the bad files are recorded).
+# OUT: the gallery names its folder), its eye key left in OUT/private/: it must finish with
+# exit 1 (the bad files are recorded).
 reference_cohort() {  # reference_cohort IN OUT REF
   local rc=0
   "$OCTSHAPE" -q cohort "$1" -o "$2" --jobs 2 "${COHORT_OPTS[@]}" || rc=$?
   [ $rc -eq 1 ] || { echo "cohort: expected exit 1 (failures recorded), got $rc"; exit 1; }
   mv "$2" "$3"
+  # The eye keys are HMACs under OUT/private/eye.key: the workflow's OUT starts with the
+  # reference's key (as a moved folder would have it), so that keys and file names compare.
+  mkdir -p -m 700 "$2/private"
+  cp -p "$3/private/eye.key" "$2/private/eye.key"
 }
 
 # Every table, record, QC picture and the gallery of two output folders, byte for byte; in the

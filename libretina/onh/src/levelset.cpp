@@ -101,7 +101,8 @@ void require_image(const io::Scan& scan, int b0, int nb, const std::string& wher
                      static_cast<std::size_t>(scan.meta.size_z);
     for (int b = b0; b < b0 + nb; ++b) {
         if (scan.bscans[static_cast<std::size_t>(b)].pixels.size() != npx) {
-            throw AnalysisError("level-set ILM: a B-scan has no pixels" + where);
+            throw AnalysisError("level-set ILM: no pixels in " +
+                                (nb == 1 ? where : "B-scan " + std::to_string(b)));
         }
     }
     // An image: some contrast among the pixels that hold data (the evolution reads max(v, 0)).
@@ -120,10 +121,9 @@ void require_image(const io::Scan& scan, int b0, int nb, const std::string& wher
     if (!(hi > lo)) {
         throw AnalysisError(
             std::isfinite(lo)
-                ? "level-set ILM: the B-scans" + where +
-                      " hold no image (every pixel with data is " + std::to_string(lo) +
-                      "); --ilm device uses the device's ILM line instead"
-                : "level-set ILM: no pixel" + where +
+                ? "level-set ILM: no image in " + where + " (every pixel with data is " +
+                      std::to_string(lo) + "); --ilm device uses the device's ILM line instead"
+                : "level-set ILM: no pixel in " + where +
                       " holds data (all missing, NaN or invalid); --ilm device uses the "
                       "device's ILM line instead");
     }
@@ -165,7 +165,7 @@ DeviceIlm device_ilm(const io::Scan& scan) {
             "level-set ILM needs a volume scan (>= 2 B-scans with a B-scan distance)");
     }
     if (!scan.pixels_loaded) throw AnalysisError("level-set ILM needs the B-scan pixels");
-    require_image(scan, 0, nb, "");
+    require_image(scan, 0, nb, "the B-scans");
     DeviceIlm out =
         device_ilm_rows(scan, 0, nb, {meta.scale_x_mm, meta.distance_mm, meta.scale_z_mm});
     if (!fill_missing(out.ilm, nb, na)) throw AnalysisError("level-set ILM: the scan has no device ILM");

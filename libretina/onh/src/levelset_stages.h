@@ -46,8 +46,8 @@ struct DeviceIlm {
 [[nodiscard]] DeviceIlm device_ilm(const io::Scan& scan);
 
 // AnalysisError unless B-scans [b0, b0 + nb) all have pixels and those with data show some
-// contrast (not all equal, not all missing); `where` (e.g. " of radial B-scan 3") is added to
-// the message.
+// contrast (not all equal, not all missing); `where` names them in the message ("the B-scans",
+// "radial B-scan 3": numbered from 0, as everywhere).
 void require_image(const io::Scan& scan, int b0, int nb, const std::string& where);
 
 // The device ILM of B-scans [b0, b0 + nb) in pixels, with spacing h; missing values NaN (not

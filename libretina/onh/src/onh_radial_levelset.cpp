@@ -101,8 +101,7 @@ BscanLevelSet bscan_level_set(const io::Scan& scan,
                               const RadialOnhGrid& grid,
                               int k,
                               const LevelSetParams& params) {
-    const std::string where = " of radial B-scan " + std::to_string(k);
-    ls::require_image(scan, k, 1, where);
+    ls::require_image(scan, k, 1, "radial B-scan " + std::to_string(k));
     const int na = scan.meta.size_x;
     const double ds = grid.geo.lines[static_cast<std::size_t>(k)].length_mm / (na - 1);
     const double hz = scan.meta.scale_z_mm;

@@ -38,5 +38,8 @@ private:
 [[nodiscard]] std::string sha256_file(const std::string& path);
 // HMAC-SHA256 of `message` under `key`, lowercase hex (64 characters).
 [[nodiscard]] std::string hmac_sha256_hex(std::string_view key, std::string_view message);
+// `bytes` bytes from OpenSSL's CSPRNG (RAND_bytes), lowercase hex (2 * bytes characters): the
+// secret keys a cohort makes for itself (subject ids, eye keys).
+[[nodiscard]] std::string random_hex(std::size_t bytes);
 
 }  // namespace octshape::io
