@@ -115,9 +115,10 @@ void add_onh_analysis_options(CLI::App* cmd, OnhEyeOptions& o, bool per_eye_file
     cmd->add_option("--disc-radius-mm", p.disc_radius_mm,
                     "Radius of the total-volume disc around the BMO centre (mm)")
         ->capture_default_str();
-    cmd->add_flag("!--no-axial-registration", p.axial_registration.enabled,
-                  "Do not remove the axial eye motion between B-scans (estimated from the BM and "
-                  "reported either way; docs/algorithms/onh.md)");
+    cmd->add_flag_callback(
+        "--no-axial-registration", [&p] { p.axial_registration.enabled = false; },
+        "Do not remove the axial eye motion between B-scans (estimated from the BM and "
+        "reported either way; docs/algorithms/onh.md)");
     cmd->add_option("--min-gap-area-mm2", p.detection.min_gap_area_mm2,
                     "Smallest BM gap accepted as the disc by the automatic BMO detection (mm2)")
         ->capture_default_str();

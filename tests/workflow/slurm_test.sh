@@ -177,7 +177,13 @@ wait_until() {  # wait_until SECONDS CMD...
     sleep 0.2
   done
 }
-eye_key_of() { python3 -c 'import hashlib,sys; print(hashlib.sha256(sys.argv[1].encode()).hexdigest()[:16])' "$1"; }
+# eye_key_of INPUT OUTDIR: the input's eye key, HMAC-SHA-256 of its path under OUTDIR's own key
+# (docs/cohort.md), computed here independently of octshape.
+eye_key_of() {
+  python3 -c 'import hashlib, hmac, sys
+key = open(sys.argv[2]).read().strip().encode()
+print(hmac.new(key, sys.argv[1].encode(), hashlib.sha256).hexdigest()[:16])' "$1" "$2/private/eye.key"
+}
 job_of() {  # job_of EYE_KEY -> the id of the latest Slurm job of that eye (ended ones too)
   scontrol show job -o 2>/dev/null | grep " JobName=octshape-eye-$1 " | grep -o '^JobId=[0-9]*' |
     cut -d= -f2 | tail -n 1
@@ -221,8 +227,8 @@ write_config "$IN2" "$T/smk2" "$T/octshape" >"$T/config2.yaml"
 echo 600 >"$T/hang"
 # Slurm's least time limit is 1 min: every eye job of this run gets it.
 smk_start "$T/smk2.log" "$T/config2.yaml" --set-resources eye:runtime=1
-key_cancel=$(eye_key_of "$IN2/macula/hang_cancel.vol")
-key_limit=$(eye_key_of "$IN2/macula/hang_limit.vol")
+key_cancel=$(eye_key_of "$IN2/macula/hang_cancel.vol" "$T/smk2")
+key_limit=$(eye_key_of "$IN2/macula/hang_limit.vol" "$T/smk2")
 # The partition runs up to 4 jobs per core: all eyes of the run start at once.
 wait_until 120 is_state "$key_cancel" RUNNING || { echo "the job to cancel never ran"; exit 1; }
 sleep 2
