@@ -3,10 +3,13 @@
 #include <vtkAlgorithm.h>
 #include <vtkCommand.h>
 #include <vtkExecutive.h>
+#include <vtkLogger.h>
 #include <vtkNew.h>
 #include <vtkObject.h>
+#include <vtkOutputWindow.h>
 
-#include <array>
+#include <iostream>
+#include <mutex>
 #include <regex>
 #include <utility>
 #include <vector>
@@ -36,13 +39,45 @@ public:
         if (message.empty()) message = one_line(static_cast<const char*>(data));
     }
     std::string message;
+    bool warnings = false;
+};
+
+// The report of an object nobody observes (a reader's XML parser, a filter's helper) goes to
+// VTK's output window (and its logger, which this window replaces on stderr): while
+// vtk_first_error runs on this thread it is collected, otherwise printed as VTK would.
+thread_local FirstReport* t_collector = nullptr;
+
+class CollectingWindow : public vtkOutputWindow {
+public:
+    static CollectingWindow* New() { return new CollectingWindow; }
+    void DisplayErrorText(const char* text) override {
+        if (t_collector != nullptr) {
+            t_collector->Execute(nullptr, vtkCommand::ErrorEvent, const_cast<char*>(text));
+        } else {
+            std::cerr << text;
+        }
+    }
+    void DisplayWarningText(const char* text) override {
+        if (t_collector != nullptr && t_collector->warnings) {
+            t_collector->Execute(nullptr, vtkCommand::WarningEvent, const_cast<char*>(text));
+        } else {
+            std::cerr << text;
+        }
+    }
 };
 
 }  // namespace
 
 std::string vtk_first_error(vtkObject* object, const std::function<void()>& run,
                             VtkReport report) {
+    static std::once_flag installed;
+    std::call_once(installed, [] {
+        vtkNew<CollectingWindow> window;
+        vtkOutputWindow::SetInstance(window);
+        vtkLogger::SetStderrVerbosity(vtkLogger::VERBOSITY_OFF);
+    });
     vtkNew<FirstReport> first;
+    first->warnings = report == VtkReport::kErrorsAndWarnings;
     std::vector<std::pair<vtkObject*, unsigned long>> tags;
     const auto watch = [&](vtkObject* o) {
         if (o == nullptr) return;
@@ -55,10 +90,13 @@ std::string vtk_first_error(vtkObject* object, const std::function<void()>& run,
     if (auto* algorithm = vtkAlgorithm::SafeDownCast(object)) watch(algorithm->GetExecutive());
     struct Unwatch {
         std::vector<std::pair<vtkObject*, unsigned long>>& tags;
+        FirstReport* outer;
         ~Unwatch() {
             for (const auto& [o, tag] : tags) o->RemoveObserver(tag);
+            t_collector = outer;
         }
-    } unwatch{tags};
+    } unwatch{tags, t_collector};
+    t_collector = first;
     run();
     return first->message;
 }
