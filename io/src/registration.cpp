@@ -142,8 +142,9 @@ IcpResult icp_rigid(const mesh::Vertices& source_V,
     icp->SetMeanDistanceModeToRMS();
     icp->SetMaximumMeanDistance(params.tolerance * std::max(diagonal, 1e-300));
     icp->Modified();
-    run_vtk(icp, [&] { icp->Update(); },
-            [](const std::string& m) { return AnalysisError("rigid registration (VTK ICP): " + m); });
+    run_vtk(icp, [&] { icp->Update(); }, [](const std::string& m) {
+        return AnalysisError("rigid registration (VTK ICP): " + m);
+    });
 
     IcpResult out;
     vtkMatrix4x4* M = icp->GetMatrix();
