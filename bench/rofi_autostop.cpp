@@ -205,6 +205,8 @@ bool selected(const std::string& name, const std::string& only) {
 
 }  // namespace
 
+// Long (323 lines, over the 150 of the style) on purpose: a benchmark's main is its protocol, read
+// top to bottom against the tables it prints (docs/algorithms); it ships no result.
 int main(int argc, char** argv) {
     bool full = false;
     bool no_oracle = false;   // --no-oracle: the automatic rules only (no grid)

@@ -229,17 +229,16 @@ const char* kScript = R"(
 })();
 )";
 
-}  // namespace
+// The eyes: OUTDIR/eyes/*.json in name order, subject, visit and group from eyes.csv (by eye
+// key, then by sha256) where the JSON lacks them; the parameter columns in first-seen order.
+struct Eyes {
+    std::vector<EyeRow> rows;
+    std::vector<std::string> param_columns;
+};
 
-GalleryResult write_qc_gallery(const fs::path& outdir, bool allow_empty) {
+Eyes read_eyes(const fs::path& outdir) {
     std::error_code ec;
-    if (!fs::is_directory(outdir, ec)) {
-        if (!fs::exists(outdir, ec)) throw InputError::missing(outdir.string());
-        throw InputError::not_regular(outdir.string());
-    }
-    GalleryResult res;
-
-    // eyes.csv rows by eye key and by sha256 (subject, visit, group when the JSON lacks them).
+    Eyes out;
     std::map<std::string, std::map<std::string, std::string>> csv_by_key;
     std::map<std::string, std::map<std::string, std::string>> csv_by_sha;
     if (fs::is_regular_file(outdir / "eyes.csv", ec)) {
@@ -252,12 +251,10 @@ GalleryResult write_qc_gallery(const fs::path& outdir, bool allow_empty) {
         }
     }
 
-    // The eyes: OUTDIR/eyes/*.json in name order.
-    std::vector<EyeRow> eyes;
-    std::vector<std::string> param_columns;
     auto add_param_column = [&](const std::string& name) {
-        if (std::find(param_columns.begin(), param_columns.end(), name) == param_columns.end()) {
-            param_columns.push_back(name);
+        if (std::find(out.param_columns.begin(), out.param_columns.end(), name) ==
+            out.param_columns.end()) {
+            out.param_columns.push_back(name);
         }
     };
     std::vector<fs::path> json_files;
@@ -319,9 +316,16 @@ GalleryResult write_qc_gallery(const fs::path& outdir, bool allow_empty) {
         if (j.contains("qc_flags") && j["qc_flags"].is_array()) {
             for (const auto& f : j["qc_flags"]) row.flags.push_back(text_of(f));
         }
-        eyes.push_back(std::move(row));
+        out.rows.push_back(std::move(row));
     }
 
+    return out;
+}
+
+// Gives each qc/*.png to its eye; returns how many were given.
+std::size_t assign_pictures(const fs::path& outdir, std::vector<EyeRow>& eyes) {
+    std::error_code ec;
+    std::size_t pictures = 0;
     // QC pictures: each qc/*.png goes to the longest eye key whose picture name it is
     // (KEY_KIND.png, commands/qc_names.h).
     std::vector<std::string> pngs;
@@ -343,32 +347,23 @@ GalleryResult write_qc_gallery(const fs::path& outdir, bool allow_empty) {
         }
         if (best != nullptr) {
             best->pictures.push_back(png);
-            ++res.pictures;
+            ++pictures;
         }
     }
 
-    // Failures.
-    retina::EyeTable failures;
-    if (fs::is_regular_file(outdir / "failures.csv", ec)) {
-        failures = retina::read_eye_table_file((outdir / "failures.csv").string());
-    }
-    res.failures = failures.rows.size();
-    res.eyes = eyes.size();
+    return pictures;
+}
 
-    if (!allow_empty && eyes.empty() && failures.rows.empty()) {
-        throw InputError(InputError::Kind::kMissing, outdir.string(),
-                         "nothing to show: no eyes/*.json and no failures.csv rows (run "
-                         "octshape cohort --qc first)");
-    }
+// One table, failures first, then flagged eyes (most flags first), then the rest, each
+// by eye key; a column header click re-sorts. Status: 0 failed, 1 flagged, 2 passed.
+struct Line {
+    int status = 2;
+    std::string key;
+    const EyeRow* eye = nullptr;
+    std::string reason;  // failures
+};
 
-    // One table, failures first, then flagged eyes (most flags first), then the rest, each
-    // by eye key; a column header click re-sorts. Status: 0 failed, 1 flagged, 2 passed.
-    struct Line {
-        int status = 2;
-        std::string key;
-        const EyeRow* eye = nullptr;
-        std::string reason;  // failures
-    };
+std::vector<Line> table_lines(const retina::EyeTable& failures, const std::vector<EyeRow>& eyes) {
     std::vector<Line> lines;
     const int key_col = failures.column("eye_key");
     const int file_col = failures.column("file");
@@ -403,6 +398,12 @@ GalleryResult write_qc_gallery(const fs::path& outdir, bool allow_empty) {
         return a.key < b.key;
     });
 
+    return lines;
+}
+
+// The page: one sortable table, each eye's pictures in a row under it.
+std::string page(const GalleryResult& res, const std::vector<std::string>& param_columns,
+                 const std::vector<Line>& lines) {
     std::ostringstream h;
     h << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
       << "<link rel=\"icon\" href=\"data:,\">\n"
@@ -482,10 +483,43 @@ GalleryResult write_qc_gallery(const fs::path& outdir, bool allow_empty) {
       << "<div id=\"viewer\" hidden><img alt=\"full size\"></div>\n"
       << "<script>" << kScript << "</script>\n</body>\n</html>\n";
 
+    return h.str();
+}
+
+}  // namespace
+
+GalleryResult write_qc_gallery(const fs::path& outdir, bool allow_empty) {
+    std::error_code ec;
+    if (!fs::is_directory(outdir, ec)) {
+        if (!fs::exists(outdir, ec)) throw InputError::missing(outdir.string());
+        throw InputError::not_regular(outdir.string());
+    }
+    GalleryResult res;
+
+    Eyes read = read_eyes(outdir);
+    std::vector<EyeRow>& eyes = read.rows;
+    res.pictures = assign_pictures(outdir, eyes);
+
+    // Failures.
+    retina::EyeTable failures;
+    if (fs::is_regular_file(outdir / "failures.csv", ec)) {
+        failures = retina::read_eye_table_file((outdir / "failures.csv").string());
+    }
+    res.failures = failures.rows.size();
+    res.eyes = eyes.size();
+
+    if (!allow_empty && eyes.empty() && failures.rows.empty()) {
+        throw InputError(InputError::Kind::kMissing, outdir.string(),
+                         "nothing to show: no eyes/*.json and no failures.csv rows (run "
+                         "octshape cohort --qc first)");
+    }
+
+    const std::vector<Line> lines = table_lines(failures, eyes);
+
     const fs::path qc = outdir / "qc";
     fs::create_directories(qc, ec);
     if (ec) throw OutputError(qc.string(), ec.message());
-    io::write_text_atomically((qc / "index.html").string(), h.str());
+    io::write_text_atomically((qc / "index.html").string(), page(res, read.param_columns, lines));
     return res;
 }
 

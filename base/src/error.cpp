@@ -61,4 +61,7 @@ ExitCode InputError::exit_code() const {
 OutputError::OutputError(std::string path, const std::string& reason)
     : Error(path + ": cannot write: " + reason), path_(std::move(path)) {}
 
+InternalError::InternalError(const std::string& what) : Error(what) {}
+InternalError::InternalError(const char* what) : Error(what) {}
+
 }  // namespace octshape

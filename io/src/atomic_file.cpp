@@ -148,8 +148,10 @@ void check_output_location(const std::string& path) {
 }
 
 void check_output_directory(const std::string& dir) {
-    fs::path p = fs::absolute(fs::path(dir)).lexically_normal();
     std::error_code ec;
+    // fs::absolute throws (a standard exception, exit 70) when the working folder is gone.
+    fs::path p = fs::absolute(fs::path(dir), ec).lexically_normal();
+    if (ec) throw OutputError(dir, "cannot resolve the path: " + ec.message());
     if (fs::exists(p, ec) && !fs::is_directory(p, ec)) throw OutputError(dir, "not a directory");
     while (!fs::exists(p, ec) && p.has_parent_path() && p.parent_path() != p) p = p.parent_path();
     if (!fs::is_directory(p, ec)) throw OutputError(dir, "no existing folder to create it in");
@@ -164,7 +166,9 @@ void write_path_atomically(const std::string& path,
     const Target target = resolve_target(path);
     if (target.kind != Target::Kind::kFile) {
         // The writer needs a file: a private temporary one, then its bytes in one go.
-        const fs::path tmp_dir = fs::temp_directory_path();
+        std::error_code tec;  // a TMPDIR that is not a folder: an OutputError, not exit 70
+        const fs::path tmp_dir = fs::temp_directory_path(tec);
+        if (tec) throw OutputError(path, "no folder for temporary files: " + tec.message());
         std::random_device rd;
         const fs::path tmp = tmp_dir / (".octshape-out.tmp-" + std::to_string(::getpid()) + "-" +
                                         std::to_string(rd()) +

@@ -8,7 +8,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
-#include <stdexcept>
 
 #include "octshape/error.h"
 
@@ -67,7 +66,7 @@ std::string encode_png(int width, int height, int channels, std::span<const std:
     if (width <= 0 || height <= 0 || (channels != 1 && channels != 3) ||
         pixels.size() != static_cast<std::size_t>(width) * static_cast<std::size_t>(height) *
                              static_cast<std::size_t>(channels)) {
-        throw Error("encode_png: the pixels do not match width x height x channels");
+        throw DataError("encode_png: the pixels do not match width x height x channels");
     }
     const std::size_t row = static_cast<std::size_t>(width) * static_cast<std::size_t>(channels);
     const auto bpp = static_cast<std::size_t>(channels);
@@ -108,7 +107,8 @@ std::string encode_png(int width, int height, int channels, std::span<const std:
     if (compress2(reinterpret_cast<Bytef*>(idat.data()), &size,
                   reinterpret_cast<const Bytef*>(raw.data()), static_cast<uLong>(raw.size()),
                   6) != Z_OK) {
-        throw std::runtime_error("encode_png: zlib compression failed");
+        // compressBound sizes the buffer, so only zlib running out of memory gets here.
+        throw InternalError("encode_png: zlib compression failed");
     }
     idat.resize(size);
     std::string out("\x89PNG\r\n\x1a\n", 8);

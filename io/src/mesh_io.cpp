@@ -18,7 +18,6 @@
 
 #include <vtkCellArray.h>
 #include <vtkCellData.h>
-#include <vtkCommand.h>
 #include <vtkDataSetAttributes.h>
 #include <vtkDoubleArray.h>
 #include <vtkPointData.h>
@@ -775,14 +774,6 @@ void check_declared_counts(const fs::path& path) {
         // Only the XML before the appended data: its binary bytes could mimic an attribute.
         const std::size_t appended = head.find("<AppendedData");
         check_vtp_counts(path.string(), head.substr(0, appended), size);
-    }
-}
-
-void VtkErrorCatcher::Execute(vtkObject* /*caller*/, unsigned long event, void* data) {
-    if ((event == vtkCommand::ErrorEvent || event == vtkCommand::WarningEvent) &&
-        message_.empty()) {
-        message_ = data != nullptr ? static_cast<const char*>(data) : "unknown VTK error";
-        message_ = message_.substr(0, message_.find('\n'));
     }
 }
 

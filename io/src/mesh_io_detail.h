@@ -2,7 +2,6 @@
 // Private to octshape_io: the pieces the mesh and point-set readers and writers share (VTK
 // reading with its errors caught, the polydata and binary-PLY writers, extension handling).
 
-#include <vtkCommand.h>
 #include <vtkNew.h>
 #include <vtkPolyData.h>
 #include <vtkSmartPointer.h>
@@ -19,23 +18,12 @@
 
 #include "octshape/error.h"
 #include "octshape/io/mesh_io.h"
+#include "octshape/io/vtk_errors.h"
 
 namespace octshape::io::detail {
 
 // The extension of `path`, lower case, with its dot (".ply").
 [[nodiscard]] std::string lower_extension(const std::filesystem::path& path);
-
-// Collects the first error a VTK algorithm reports (instead of printing it), first line only
-// (VTK messages span lines and name source files).
-class VtkErrorCatcher : public vtkCommand {
-public:
-    static VtkErrorCatcher* New() { return new VtkErrorCatcher; }
-    void Execute(vtkObject* caller, unsigned long event, void* data) override;
-    [[nodiscard]] const std::string& message() const { return message_; }
-
-private:
-    std::string message_;
-};
 
 // Runs a VTK polydata reader on `path`; any error or warning it reports is an InputError
 // (corrupt) naming the file. The output may still be empty: callers check what they need.
@@ -49,19 +37,18 @@ template <class Reader>
 vtkSmartPointer<vtkPolyData> read_polydata(const std::filesystem::path& path) {
     check_declared_counts(path);
     vtkNew<Reader> reader;
-    vtkNew<VtkErrorCatcher> catcher;
-    reader->AddObserver(vtkCommand::ErrorEvent, catcher);
-    reader->AddObserver(vtkCommand::WarningEvent, catcher);
     reader->SetFileName(path.string().c_str());
     try {
-        reader->Update();
+        run_vtk(
+            reader, [&] { reader->Update(); },
+            [&](const std::string& m) {
+                return InputError::corrupt(path.string(), "VTK reader: " + m);
+            },
+            VtkReport::kErrorsAndWarnings);
     } catch (const std::bad_alloc&) {
         throw InputError::corrupt(path.string(), "its declared sizes need more memory than there is");
     } catch (const std::length_error&) {
         throw InputError::corrupt(path.string(), "its declared sizes need more memory than there is");
-    }
-    if (!catcher->message().empty()) {
-        throw InputError::corrupt(path.string(), "VTK reader: " + catcher->message());
     }
     return reader->GetOutput();
 }
@@ -70,13 +57,11 @@ vtkSmartPointer<vtkPolyData> read_polydata(const std::filesystem::path& path) {
 template <class Writer>
 void write_polydata(Writer* writer, vtkPolyData* poly, const std::string& tmp,
                     const std::string& path) {
-    vtkNew<VtkErrorCatcher> catcher;
-    writer->AddObserver(vtkCommand::ErrorEvent, catcher);
     writer->SetFileName(tmp.c_str());
     writer->SetInputData(poly);
-    if (writer->Write() != 1 || !catcher->message().empty()) {
-        throw OutputError(path, "VTK writer: " + catcher->message());
-    }
+    int written = 0;
+    const std::string message = vtk_first_error(writer, [&] { written = writer->Write(); });
+    if (written != 1 || !message.empty()) throw OutputError(path, "VTK writer: " + message);
 }
 
 // (V, F) as VTK polydata in double precision, with point and cell data arrays.

@@ -19,6 +19,7 @@
 
 #include "mesh_io_detail.h"
 #include "octshape/error.h"
+#include "octshape/io/vtk_errors.h"
 #include "octshape/mesh/closest_point.h"
 
 namespace octshape::io {
@@ -141,7 +142,9 @@ IcpResult icp_rigid(const mesh::Vertices& source_V,
     icp->SetMeanDistanceModeToRMS();
     icp->SetMaximumMeanDistance(params.tolerance * std::max(diagonal, 1e-300));
     icp->Modified();
-    icp->Update();
+    run_vtk(icp, [&] { icp->Update(); }, [](const std::string& m) {
+        return AnalysisError("rigid registration (VTK ICP): " + m);
+    });
 
     IcpResult out;
     vtkMatrix4x4* M = icp->GetMatrix();

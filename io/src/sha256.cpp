@@ -5,7 +5,6 @@
 #include <openssl/rand.h>
 
 #include <cstdio>
-#include <stdexcept>
 #include <vector>
 
 #include "octshape/error.h"
@@ -24,10 +23,10 @@ std::string to_hex(const std::uint8_t* bytes, std::size_t n) {
     return s;
 }
 
-// libcrypto failing to hash is an environment fault (no memory, broken provider), not a
-// property of the input: report it as such.
+// libcrypto failing to hash is an environment fault (no memory, broken provider) or a Sha256
+// used after finish(), never a property of the input: internal (exit 70).
 [[noreturn]] void crypto_failure(const char* what) {
-    throw std::runtime_error(std::string("OpenSSL SHA-256 failed in ") + what);
+    throw InternalError(std::string("OpenSSL SHA-256 failed in ") + what);
 }
 
 }  // namespace

@@ -81,12 +81,12 @@ FoldRepairResult repair_folds(Vertices& V,
                               const FoldRepairParams& params) {
     params.validate();
     if (!fixed.empty() && fixed.size() != static_cast<std::size_t>(V.rows())) {
-        throw Error("fixed: " + std::to_string(fixed.size()) +
-                                    " entries for " + std::to_string(V.rows()) + " vertices");
+        throw DataError("fixed: " + std::to_string(fixed.size()) + " entries for " +
+                        std::to_string(V.rows()) + " vertices");
     }
     if (adj.vertex_faces.rows() != V.rows() || adj.vertex_vertices.rows() != V.rows()) {
-        throw Error("adjacency: not built for these " +
-                                    std::to_string(V.rows()) + " vertices");
+        throw DataError("adjacency: not built for these " + std::to_string(V.rows()) +
+                        " vertices");
     }
     FoldRepairResult out;
     std::vector<std::uint8_t> move(static_cast<std::size_t>(V.rows()), 0);

@@ -1,5 +1,6 @@
 #include "octshape/io/atomic_file.h"
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -110,6 +111,29 @@ TEST(AtomicFile, AJournalTakesBackWhatAFailedRunPublished) {
         journal.commit();
     }
     EXPECT_EQ(read_all(dir / "kept.json"), "{}");
+}
+
+// A FIFO is written through a temporary file: with TMPDIR not a folder that is an OutputError
+// (exit 73) naming the destination, not std::filesystem's exception (which was exit 70).
+TEST(AtomicFile, NoTemporaryFolderIsAnOutputError) {
+    test::TempDir dir;
+    const fs::path fifo = dir / "f";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    std::ofstream(dir / "plain") << "x";
+    const char* old = std::getenv("TMPDIR");
+    const std::string saved = old != nullptr ? old : "";
+    ::setenv("TMPDIR", (dir / "plain").c_str(), 1);
+    try {
+        write_path_atomically(fifo.string(), [](const std::string&) {});
+        ADD_FAILURE() << "no error";
+    } catch (const OutputError& e) {
+        EXPECT_EQ(e.path(), fifo.string());
+    }
+    if (old != nullptr) {
+        ::setenv("TMPDIR", saved.c_str(), 1);
+    } else {
+        ::unsetenv("TMPDIR");
+    }
 }
 
 TEST(AtomicFile, ASymlinkIsWrittenThroughAndAFifoInto) {

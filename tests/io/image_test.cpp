@@ -80,9 +80,9 @@ TEST(Png, SmoothPicturesCompress) {
 
 TEST(Png, SizeMismatchIsRefused) {
     const std::vector<std::uint8_t> px(10);
-    EXPECT_THROW((void)encode_png(3, 3, 1, px), octshape::Error);
-    EXPECT_THROW((void)encode_png(5, 2, 2, px), octshape::Error);
-    EXPECT_THROW((void)encode_png(0, 2, 1, {}), octshape::Error);
+    EXPECT_THROW((void)encode_png(3, 3, 1, px), octshape::DataError);
+    EXPECT_THROW((void)encode_png(5, 2, 2, px), octshape::DataError);
+    EXPECT_THROW((void)encode_png(0, 2, 1, {}), octshape::DataError);
 }
 
 fs::path dummy_export() { return test::shared_dir() / "realdata" / "heyex_xml_dummy"; }

@@ -122,7 +122,7 @@ TEST(Folds, BadParametersAndSizesThrow) {
     p.max_rounds = -1;
     EXPECT_THROW((void)mesh::repair_folds(V, m.F, {}, p), octshape::UsageError);
     EXPECT_THROW((void)mesh::repair_folds(V, m.F, std::vector<std::uint8_t>(2, 0)),
-                 octshape::Error);
+                 octshape::DataError);
 }
 
 }  // namespace

@@ -106,4 +106,15 @@ public:
     [[nodiscard]] ExitCode exit_code() const override { return ExitCode::kUsage; }
 };
 
+// A broken invariant of octshape itself, or a library octshape relies on failing for a reason no
+// input can cause (libcrypto or zlib without memory): exit 70, "please report". Each throw site
+// says in one line beside it why no input can reach it.
+class InternalError : public Error {
+public:
+    // Out of line: a cold path, kept from the caller's inlining.
+    explicit InternalError(const std::string& what);
+    explicit InternalError(const char* what);
+    [[nodiscard]] ExitCode exit_code() const override { return ExitCode::kInternal; }
+};
+
 }  // namespace octshape

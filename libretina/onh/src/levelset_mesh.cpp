@@ -24,6 +24,7 @@
 
 #include "levelset_stages.h"
 #include "octshape/error.h"
+#include "octshape/io/vtk_errors.h"
 #include "octshape/mesh/components.h"
 #include "octshape/mesh/rofi.h"
 
@@ -90,7 +91,9 @@ Surface surface(const Windows& w, const std::vector<float>& phi, const Spacing& 
         fe->ComputeGradientsOff();
         fe->ComputeScalarsOff();
         fe->InterpolateAttributesOff();
-        fe->Update();
+        io::run_vtk(fe, [&] { fe->Update(); }, [](const std::string& m) {
+            return AnalysisError("level-set ILM: marching cubes (VTK): " + m);
+        });
         vtkPolyData* out = fe->GetOutput();
         const vtkIdType np = out->GetNumberOfPoints();
         std::vector<int> map(static_cast<std::size_t>(np));

@@ -564,7 +564,9 @@ MaculaTruth macula_truth(const MaculaPhantomParams& p, const MaculaTruthOptions&
                 prev_r = r;
             }
             if (changes != 1) {
-                throw std::logic_error("Scheibe profile without a single inflection in the pit");
+                // Unreachable from input: the built-in profiles have one, and validate() keeps the
+                // variation affine (T'' scaled by pit_depth_scale > 0, r by radial_scale).
+                throw InternalError("Scheibe profile without a single inflection in the pit");
             }
             const double rs = bisect([&](double r) { return -sp.curvature(r); }, lo, hi);
             h.max_slope_deg = std::atan(sp.slope(rs)) * kDeg;

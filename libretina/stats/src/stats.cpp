@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <stdexcept>
 #include <string>
 
 #include "octshape/error.h"
@@ -49,13 +48,13 @@ double beta_continued_fraction(double a, double b, double x) {
         h *= del;
         if (std::fabs(del - 1.0) <= kEps) return h;
     }
-    throw std::domain_error("incomplete_beta: continued fraction did not converge (a = " +
-                            std::to_string(a) + ", b = " + std::to_string(b) + ")");
+    throw AnalysisError("incomplete_beta: continued fraction did not converge (a = " +
+                        std::to_string(a) + ", b = " + std::to_string(b) + ")");
 }
 
 void check_beta_args(double a, double b, const char* what) {
     if (!(a > 0.0) || !(b > 0.0) || !std::isfinite(a) || !std::isfinite(b)) {
-        throw std::domain_error(std::string(what) + ": a and b must be finite and > 0");
+        throw DataError(std::string(what) + ": a and b must be finite and > 0");
     }
 }
 
@@ -63,7 +62,7 @@ void check_beta_args(double a, double b, const char* what) {
 
 double incomplete_beta(double a, double b, double x) {
     check_beta_args(a, b, "incomplete_beta");
-    if (!(x >= 0.0 && x <= 1.0)) throw std::domain_error("incomplete_beta: x must be in [0, 1]");
+    if (!(x >= 0.0 && x <= 1.0)) throw DataError("incomplete_beta: x must be in [0, 1]");
     if (x == 0.0) return 0.0;
     if (x == 1.0) return 1.0;
     const double front = std::exp(a * std::log(x) + b * std::log1p(-x) - log_beta(a, b));
@@ -75,7 +74,7 @@ double incomplete_beta(double a, double b, double x) {
 double incomplete_beta_inverse(double a, double b, double p) {
     check_beta_args(a, b, "incomplete_beta_inverse");
     if (!(p >= 0.0 && p <= 1.0)) {
-        throw std::domain_error("incomplete_beta_inverse: p must be in [0, 1]");
+        throw UsageError("incomplete_beta_inverse: p must be in [0, 1]");
     }
     if (p == 0.0) return 0.0;
     if (p == 1.0) return 1.0;
@@ -122,7 +121,7 @@ double f_upper_tail(double f, double d1, double d2) {
 }
 
 double f_quantile(double p, double d1, double d2) {
-    if (!(p >= 0.0 && p <= 1.0)) throw std::domain_error("f_quantile: p must be in [0, 1]");
+    if (!(p >= 0.0 && p <= 1.0)) throw UsageError("f_quantile: p must be in [0, 1]");
     if (p == 0.0) return 0.0;
     if (p == 1.0) return std::numeric_limits<double>::infinity();
     // With y = d2 / (d2 + d1 f) ~ Beta(d2/2, d1/2): P(F <= f) = 1 - I_y(d2/2, d1/2), so
@@ -140,7 +139,7 @@ Summary summarise(const std::vector<double>& values) {
     s.min = values.front();
     s.max = values.front();
     for (const double v : values) {
-        if (!std::isfinite(v)) throw std::domain_error("summarise: non-finite value");
+        if (!std::isfinite(v)) throw DataError("summarise: non-finite value");
         sum += v;
         s.min = std::min(s.min, v);
         s.max = std::max(s.max, v);

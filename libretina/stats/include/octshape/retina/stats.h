@@ -17,17 +17,18 @@ namespace octshape::retina {
 // ---- special functions ---------------------------------------------------------------------
 
 // Regularised incomplete beta I_x(a, b) = B(x; a, b) / B(a, b) for a, b > 0, x in [0, 1]
-// (continued fraction, modified Lentz; relative accuracy ~1e-14). Throws std::domain_error on
-// arguments outside the domain.
+// (continued fraction, modified Lentz; relative accuracy ~1e-14). Throws DataError for a, b or
+// x outside the domain, AnalysisError if the fraction does not converge (a, b beyond ~1e9).
 [[nodiscard]] double incomplete_beta(double a, double b, double x);
 
 // The x in [0, 1] with I_x(a, b) = p, p in [0, 1] (safeguarded Newton on a bracket, converged
-// to ~1e-15 in x). Throws std::domain_error outside the domain.
+// to ~1e-15 in x). Throws DataError for a or b outside the domain, UsageError for p.
 [[nodiscard]] double incomplete_beta_inverse(double a, double b, double p);
 
 // F distribution with d1, d2 > 0 degrees of freedom (non-integer allowed: the ICC confidence
 // interval uses a Satterthwaite df): P(F <= f), P(F > f) (computed directly, accurate for
-// small tail probabilities) and the quantile f with P(F <= f) = p.
+// small tail probabilities) and the quantile f with P(F <= f) = p (UsageError for p outside
+// [0, 1]).
 [[nodiscard]] double f_cdf(double f, double d1, double d2);
 [[nodiscard]] double f_upper_tail(double f, double d1, double d2);
 [[nodiscard]] double f_quantile(double p, double d1, double d2);
@@ -43,7 +44,7 @@ struct Summary {
 };
 
 // n, mean, SD (denominator n - 1, two-pass), min, max. Empty input -> n = 0, all NaN.
-// Throws std::domain_error on a non-finite value.
+// Throws DataError on a non-finite value.
 [[nodiscard]] Summary summarise(const std::vector<double>& values);
 
 // ---- ICC(2,1) ------------------------------------------------------------------------------
