@@ -89,7 +89,7 @@ std::string retest_csv(const retina::RetestStats& r) {
 std::string groups_text(const retina::GroupStats& g) {
     std::ostringstream o;
     o << (g.all_scans ? "Every scan counts.\n"
-                      : "One scan per eye (subject_id + eye): the first by visit_date, file.\n");
+                      : "One scan per eye (subject_id + eye): the first by visit_date, then eye_key.\n");
     for (const auto& gi : g.groups) {
         o << fmt::format("group {}: {} scans, {} eyes, {} subjects\n", gi.name, gi.rows, gi.eyes,
                          gi.subjects);
@@ -150,7 +150,7 @@ nlohmann::ordered_json to_json(const retina::GroupStats& g,
     j["input"] = input;
     if (!analysis.empty()) j["analysis"] = analysis;
     j["group_column"] = g.group_column;
-    j["scans_used"] = g.all_scans ? "every scan" : "first scan of each eye (visit_date, file)";
+    j["scans_used"] = g.all_scans ? "every scan" : "first scan of each eye (visit_date, then eye_key)";
     j["groups"] = nlohmann::ordered_json::array();
     for (const auto& gi : g.groups) {
         j["groups"].push_back(

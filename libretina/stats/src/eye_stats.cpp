@@ -49,7 +49,7 @@ struct Ids {
           file(require_column(t, "eye_key")) {}
 };
 
-// Row indices grouped by key, each group in visit_date then file order (ISO dates sort as
+// Row indices grouped by key, each group in visit_date then eye_key order (ISO dates sort as
 // strings).
 std::map<std::vector<std::string>, std::vector<std::size_t>> scans_by_key(const EyeTable& t,
                                                                           const Ids& ids,
