@@ -4,22 +4,16 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <string>
 
 #include <Eigen/Dense>
 
 #include "octshape/error.h"
 #include "octshape/retina/radial_geometry.h"
+#include "octshape/retina/report_util.h"
 
 namespace octshape::retina {
 namespace {
-
-std::string fmt1(double v) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.1f", v);
-    return buf;
-}
 
 // One BM value: its B-scan, grid position (normalised) and depth (px).
 struct BmSample {
@@ -272,9 +266,10 @@ AxialRegistration estimate_axial_motion(const io::Scan& scan, const AxialRegistr
     R.rms_shift_um = std::sqrt(sum2 / std::max(1, nb));
     R.applied = params.enabled;
     const std::string what = params.enabled ? "removed" : "not removed (registration off)";
-    R.notes.push_back("axial motion between B-scans " + what + ": RMS " + fmt1(R.rms_shift_um) +
-                      " um, largest " + fmt1(R.max_abs_shift_um) + " um; BM about its smooth "
-                      "surface " + fmt1(R.residual_rms_um) + " um RMS (" +
+    R.notes.push_back("axial motion between B-scans " + what + ": RMS " +
+                      fixed_number(R.rms_shift_um, 1) + " um, largest " +
+                      fixed_number(R.max_abs_shift_um, 1) + " um; BM about its smooth surface " +
+                      fixed_number(R.residual_rms_um, 1) + " um RMS (" +
                       std::to_string(R.bm_values_rejected) + " BM values rejected)");
     if (R.rms_shift_um > params.large_motion_um) {
         R.qc_flags.push_back(params.enabled ? "large axial motion between B-scans (registered)"

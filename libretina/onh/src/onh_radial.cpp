@@ -9,12 +9,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <numbers>
 #include <sstream>
 
 #include "octshape/error.h"
+#include "octshape/retina/report_util.h"
 #include "onh_stages.h"
 
 namespace octshape::retina::onh_detail {
@@ -30,12 +30,6 @@ constexpr int kGridSteps = 256;
 // Each half-line must reach this far from the crossing (mm): a BMO of the smallest plausible
 // size (area 0.8 mm2, radius 0.5 mm) with BM on both sides.
 constexpr double kMinRadiusMm = 0.5;
-
-std::string fmt(double v, int digits) {
-    char b[64];
-    std::snprintf(b, sizeof b, "%.*f", digits, v);
-    return b;
-}
 
 // Heights (mm, z = -depth ScaleZ) of segmentation line `layer` along B-scan `k`; NaN missing.
 std::vector<double> line_heights(const io::Scan& scan, int k, io::Layer layer) {
@@ -112,8 +106,8 @@ void radial_check(const io::Scan& scan, const RadialOnhGrid& grid, const IlmSurf
     }
     r.notes.push_back("radial scan: " + std::to_string(r.radial_lines) + " lines, surfaces "
                       "interpolated between them (linear in angle about the crossing) on a " +
-                      fmt(grid.step_mm * 1e3, 1) + " um grid within " + fmt(grid.radius_mm, 3) +
-                      " mm of the crossing");
+                      fixed_number(grid.step_mm * 1e3, 1) + " um grid within " +
+                      fixed_number(grid.radius_mm, 3) + " mm of the crossing");
     check_ilm_mesh(ilm);
 }
 
@@ -346,8 +340,8 @@ RadialOnhGrid radial_onh_grid(const io::Scan& scan) {
         g.radius_mm = std::min({g.radius_mm, l.crossing_along_mm, l.length_mm - l.crossing_along_mm});
     }
     if (!(g.radius_mm >= kMinRadiusMm)) {
-        throw AnalysisError("radial scan whose lines reach only " + fmt(g.radius_mm, 3) +
-                            " mm beyond their crossing (at least " + fmt(kMinRadiusMm, 1) +
+        throw AnalysisError("radial scan whose lines reach only " + fixed_number(g.radius_mm, 3) +
+                            " mm beyond their crossing (at least " + fixed_number(kMinRadiusMm, 1) +
                             " mm each side are needed)");
     }
     g.step_mm = std::max(g.geo.mean_length_mm / (g.size_x - 1), 2.0 * g.radius_mm / kGridSteps);
@@ -475,9 +469,9 @@ OnhResult analyse_onh_radial(const io::Scan& scan, const IlmSurface& ilm,
     ilm_regions(ilm, params, r);
     const double leave = (r.ellipse.centre_mm - grid.crossing_mm).norm() + params.disc_radius_mm;
     if (leave > grid.radius_mm) {
-        r.qc_flags.push_back("the " + fmt(params.disc_radius_mm, 2) +
+        r.qc_flags.push_back("the " + fixed_number(params.disc_radius_mm, 2) +
                              " mm disc around the BMO centre leaves the scanned circle (radius " +
-                             fmt(grid.radius_mm, 2) +
+                             fixed_number(grid.radius_mm, 2) +
                              " mm): total and annular volumes are incomplete");
     }
     centre_and_shape(g, params, r);

@@ -11,7 +11,6 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
 #include <limits>
 #include <string>
 #include <utility>
@@ -19,6 +18,7 @@
 
 #include "levelset_stages.h"
 #include "octshape/error.h"
+#include "octshape/retina/report_util.h"
 #include "onh_stages.h"
 
 namespace octshape::retina::onh_detail {
@@ -36,12 +36,6 @@ namespace ls = levelset_detail;
 // Measured: 0.05, 0.1 and 0.2 mm give the same parameters to 0.01 % and 0.01 um at 24 lines
 // (crossing centred and 300 um off); at 6 lines 0.05 mm moves the MRW by 0.05 um.
 constexpr double kDistanceCapMm = 0.1;
-
-std::string fmt(double v, int digits) {
-    char b[64];
-    std::snprintf(b, sizeof b, "%.*f", digits, v);
-    return b;
-}
 
 // One B-scan's 2-D level set and its signed distance field.
 struct BscanLevelSet {
@@ -445,7 +439,7 @@ IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParam
         std::to_string(nl - static_cast<int>(unconverged.size())) +
         " converged), their signed "
         "distances interpolated between the lines (linear in angle about the crossing) on a " +
-        fmt(grid.step_mm * 1e3, 1) + " um grid; " + std::to_string(raw_faces) +
+        fixed_number(grid.step_mm * 1e3, 1) + " um grid; " + std::to_string(raw_faces) +
         " marching-cubes faces, " + std::to_string(out.F.rows()) +
         " after the clip to the scanned circle and the largest of " + std::to_string(c.components) +
         " components, " + std::to_string(res.rofi_iterations) + " RoFi iterations");

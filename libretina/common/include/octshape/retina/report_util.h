@@ -1,6 +1,6 @@
 #pragma once
 // Small helpers shared by the per-eye reports (cube_report.h, onh_report.h): how a number is
-// written in JSON (missing: null) and, from io/csv.h, in CSV (missing: "NA").
+// written in JSON (missing: null) and, from io/csv.h, in CSV (missing: "NA"); and in a message.
 
 #include <nlohmann/json.hpp>
 #include <string>
@@ -12,6 +12,8 @@ namespace octshape::retina {
 
 // A finite number, or null.
 [[nodiscard]] nlohmann::ordered_json json_number(double v);
+// `v` with `digits` decimals ("%.*f"), for messages and notes.
+[[nodiscard]] std::string fixed_number(double v, int digits);
 // The CSV writers are io's (octshape/io/csv.h, the one CSV dialect), named here for the reports.
 using io::csv_field;
 using io::csv_line;
