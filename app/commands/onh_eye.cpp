@@ -189,14 +189,15 @@ EyeResult analyse_onh_eye(const std::string& file,
         j["options"]["bmo_file_sha256"] = io::sha256_file(o.bmo_file);
         if (o.record_paths) j["options"]["bmo_file"] = o.bmo_file;
     }
-    const auto cols = retina::onh_csv_header();
+    const auto cols = eyes_type_header(retina::ScanType::kOnh);
     const auto vals = retina::onh_csv_values(r);
     out.csv_header = eye_csv_header(o.record_paths);
     out.csv_row = eye_csv_values(file, sha, scan, o.record_paths);
     out.csv_header.insert(out.csv_header.end(), cols.begin(), cols.end());
     out.csv_row.insert(out.csv_row.end(), vals.begin(), vals.end());
     const std::string options_text = onh_options_text(o) + " subjects=" + subjects.fingerprint();
-    attach_cohort_record(j, cols, vals, facts, options_text, "onh", scan, subjects, file);
+    attach_cohort_record(j, cols, vals, facts, options_text, retina::ScanType::kOnh, scan,
+                         subjects, file);
     prov.add_input(sha, o.record_paths ? file : std::string());
     if (!segmentation.is_null()) {
         prov.add_input(segmentation["sha256"].get<std::string>(),

@@ -127,8 +127,12 @@ TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
     // A volume has no in-plane MRW (radial scans only): null in the JSON, NA in its columns.
     EXPECT_TRUE(v["mrw_inplane_mean_mm"].is_null());
     EXPECT_FALSE(j.contains("radial"));
-    EXPECT_EQ(hv.back(), "mrw_inplane_sector_330_mm");
-    EXPECT_EQ(rv.back(), "NA");
+    ASSERT_GE(hv.size(), 2U);
+    EXPECT_EQ(hv[hv.size() - 2], "mrw_inplane_sector_330_mm");
+    EXPECT_EQ(rv[rv.size() - 2], "NA");
+    // Appended last: which analysis read the scan.
+    EXPECT_EQ(hv.back(), "analysis");
+    EXPECT_EQ(rv.back(), "volume");
     int checked = 0;
     for (std::size_t i = 0; i < hv.size(); ++i) {
         for (const char* key : {"cup_volume_mm3", "conht_mm", "mrw_mean_mm", "bmo_area_mm2"}) {
@@ -276,11 +280,13 @@ TEST(OnhCli, RadialSampleJsonCsvAgainstItsTruth) {
     const auto rows = read_csv(dir / "eye.csv");
     ASSERT_EQ(rows.size(), 2U);
     const auto& h = rows[0];
-    ASSERT_GE(h.size(), 13U);
-    EXPECT_EQ(h[h.size() - 13], "mrw_inplane_mean_mm");
-    EXPECT_EQ(h.back(), "mrw_inplane_sector_330_mm");
-    EXPECT_NE(rows[1][h.size() - 13], "NA");
-    EXPECT_NEAR(std::stod(rows[1][h.size() - 13]), v["mrw_inplane_mean_mm"].get<double>(), 1e-6);
+    ASSERT_GE(h.size(), 14U);
+    EXPECT_EQ(h[h.size() - 14], "mrw_inplane_mean_mm");
+    EXPECT_EQ(h[h.size() - 2], "mrw_inplane_sector_330_mm");
+    EXPECT_NE(rows[1][h.size() - 14], "NA");
+    EXPECT_NEAR(std::stod(rows[1][h.size() - 14]), v["mrw_inplane_mean_mm"].get<double>(), 1e-6);
+    EXPECT_EQ(h.back(), "analysis");  // appended after the in-plane columns
+    EXPECT_EQ(rows[1].back(), "radial");
 }
 
 // A BMO file for a radial scan: ascan,bscan,depth_px (the automatic detection's own points,

@@ -1,5 +1,8 @@
 #include "octshape/retina/cube_report.h"
 
+#include "octshape/retina/etdrs.h"
+#include "octshape/retina/record.h"
+
 #include <cmath>
 #include <sstream>
 
@@ -87,7 +90,7 @@ void disk_json(J& v, const std::string& diameter, const std::string& prefix, con
 
 }  // namespace
 
-J cube_json(const CubeResult& r, const CubeParams& p) {
+J cube_json(const CubeResult& r, const CubeParams& p, const J& options) {
     J j;
     j["analysis"] = r.line_scan     ? "line scan (2-D, docs/algorithms/cube.md)"
                     : r.radial_scan ? "radial scan (3-D from the lines' half-lines)"
@@ -97,23 +100,13 @@ J cube_json(const CubeResult& r, const CubeParams& p) {
         "points in grid mm (x along a B-scan = A-scan index * ScaleX, y across B-scans = "
         "B-scan index * Distance); heights are retinal thickness ILM - BM in mm; disk normals "
         "in the grid frame with z >= 0";
-    J o;
-    o["num_half_lines"] = r.line_scan     ? 2
-                          : r.radial_scan ? static_cast<int>(r.half_lines.size())
-                                          : p.num_half_lines;
-    o["radius_mm"] = p.radius_mm;
-    o["sample_spacing_mm"] = r.sample_spacing_mm;
-    o["tau_mm"] = p.tau_mm;
-    o["inner_radius_mm"] = p.inner_radius_mm;
-    o["search_radius_mm"] = p.search_radius_mm;
-    o["tie_tolerance_mm"] = p.tie_tolerance_mm;
-    o["centre_smoothing_mm"] = p.centre_smoothing_mm;
-    o["centre_fit_radius_mm"] = p.centre_fit_radius_mm;
-    o["max_rounds"] = p.max_rounds;
-    o["energy_tolerance"] = p.energy_tolerance;
-    o["rim_point"] = to_string(p.rim_point);
-    o["local_fit_min_noise_um"] = num(p.local_fit_min_noise_um);
-    j["options"] = o;
+    j["options"] = options;
+    J s;
+    s["half_lines"] = r.line_scan     ? 2
+                      : r.radial_scan ? static_cast<int>(r.half_lines.size())
+                                      : p.num_half_lines;
+    s["spacing_mm"] = r.sample_spacing_mm;
+    j["sampling"] = s;
     J c;
     c["source"] = r.centre_source;
     c["search_centre_x_mm"] = r.search_centre_mm.x();
@@ -201,12 +194,18 @@ J cube_json(const CubeResult& r, const CubeParams& p) {
 }
 
 std::vector<std::string> cube_csv_header() {
-    std::vector<std::string> h{"analysis", "centre_source"};
+    std::vector<std::string> h{record::name(record::Name::kAnalysis), "centre_source"};
     for (const auto& c : columns()) h.emplace_back(c.name);
     h.emplace_back("qc_flags");
     // Appended after qc_flags (columns are only ever appended): the map's node noise, the
     // covariate the per-eye precision and bias depend on (docs/outputs.md, "How precise").
     h.emplace_back("thickness_noise_sd_um");
+    return h;
+}
+
+std::vector<std::string> macula_csv_header() {
+    std::vector<std::string> h = cube_csv_header();
+    for (auto& c : etdrs_csv_header()) h.push_back(std::move(c));
     return h;
 }
 

@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "octshape/retina/report_util.h"
+#include "octshape/retina/record.h"
 
 namespace octshape::retina {
 namespace {
@@ -241,6 +242,9 @@ std::vector<std::string> onh_csv_header() {
     // Appended (radial scans; NA for volumes): the in-plane MRW.
     h.emplace_back("mrw_inplane_mean_mm");
     for (std::size_t k = 0; k < 12; ++k) h.push_back(inplane_sector_name(k));
+    // Appended: which analysis read the scan (volume | radial), as the macula's first column;
+    // a table's rows of two analyses are never pooled (octshape stats keeps one).
+    h.push_back(record::name(record::Name::kAnalysis));
     return h;
 }
 
@@ -253,6 +257,7 @@ std::vector<std::string> onh_csv_values(const OnhResult& r) {
     v.push_back(flags);
     v.push_back(csv_number(r.mrw_inplane_mean_mm));
     for (std::size_t k = 0; k < 12; ++k) v.push_back(csv_number(r.mrw_inplane_sector_mm[k]));
+    v.emplace_back(r.radial ? "radial" : "volume");
     return v;
 }
 
