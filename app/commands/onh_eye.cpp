@@ -181,12 +181,13 @@ EyeResult analyse_onh_eye(const std::string& file,
     EyeResult out;
     auto& j = out.json;
     j = std::move(preamble);
-    const nlohmann::ordered_json body = retina::onh_json(r, o.params);
+    const nlohmann::ordered_json body =
+        retina::onh_json(r, options_from_text(onh_options_text(o)));
     for (const auto& [k, v] : body.items()) j[k] = v;
     if (!o.bmo_file.empty()) {
         // The user's BMO file by its content; its path (which may name the patient) only on
         // request.
-        j["options"]["bmo_file_sha256"] = io::sha256_file(o.bmo_file);
+        // (Its SHA-256 is the option `bmo`, "sha256:HEX".)
         if (o.record_paths) j["options"]["bmo_file"] = o.bmo_file;
     }
     const auto cols = eyes_type_header(retina::ScanType::kOnh);

@@ -58,8 +58,9 @@ TEST(OnhCli, AxialRegistrationIsOnByDefaultAndRecorded) {
     ASSERT_EQ(off.exit_code, 0) << off.err;
     const json a = json::parse(slurp(dir / "on.json"));
     const json b = json::parse(slurp(dir / "off.json"));
-    EXPECT_EQ(a["options"]["axial_registration"], true);
-    EXPECT_EQ(b["options"]["axial_registration"], false);
+    // The JSON's options are the provenance's (one list): 1 on, 0 off.
+    EXPECT_EQ(a["options"]["axial_registration"], 1);
+    EXPECT_EQ(b["options"]["axial_registration"], 0);
     EXPECT_EQ(a["axial_registration"]["applied"], true);
     EXPECT_EQ(b["axial_registration"]["applied"], false);
     EXPECT_EQ(a["provenance"]["options"]["axial_registration"], 1);
@@ -96,8 +97,8 @@ TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
     EXPECT_EQ(j["command"], "onh");
     EXPECT_EQ(j["input"]["sha256"], io::sha256_file(vol.string()));
     EXPECT_EQ(slurp(dir / "eye.json").find("FAKE-PHANTOM"), std::string::npos);  // no identifiers
-    EXPECT_EQ(j["options"]["ilm_source"], "device");
-    EXPECT_EQ(j["options"]["bmo_source"], "automatic");
+    EXPECT_EQ(j["sources"]["ilm_source"], "device");
+    EXPECT_EQ(j["sources"]["bmo_source"], "automatic");
     EXPECT_NE(j["orientation"].get<std::string>().find("0 deg nasal"), std::string::npos);
     const json& v = j["parameters"];
     const json& t = truth["truth"];
@@ -186,7 +187,7 @@ TEST(OnhCli, UserBmoFileReplacesTheDetection) {
                            (dir / "eye.json").string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const json j = json::parse(slurp(dir / "eye.json"));
-    EXPECT_EQ(j["options"]["bmo_source"], "file");
+    EXPECT_EQ(j["sources"]["bmo_source"], "file");
     EXPECT_EQ(j["bmo"]["measured_points"], truth["bmo_points"].size());
     // Exact ellipse points: only cv::fitEllipseDirect's own error on exact points remains
     // (<= 1e-4 mm on the axes, tests/retina/bmo_test.cpp): <= 3e-4 mm2.
@@ -329,7 +330,7 @@ TEST(OnhCli, RadialBmoFileGivesThePointsOnTheirBscans) {
                                       (dir / "f.json").string());
     ASSERT_EQ(f.exit_code, 0) << f.err;
     const json jf = json::parse(slurp(dir / "f.json"));
-    EXPECT_EQ(jf["options"]["bmo_source"], "file");
+    EXPECT_EQ(jf["sources"]["bmo_source"], "file");
     EXPECT_NEAR(jf["parameters"]["bmo_area_mm2"].get<double>(),
                 ja["parameters"]["bmo_area_mm2"].get<double>(), 1e-6);
     EXPECT_NEAR(jf["parameters"]["mrw_inplane_mean_mm"].get<double>(),
@@ -360,7 +361,7 @@ TEST(OnhCli, RadialDefaultIsTheLevelSet) {
                                       (dir / "eye.csv").string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const json j = json::parse(slurp(dir / "eye.json"));
-    EXPECT_EQ(j["options"]["ilm_source"], "levelset");
+    EXPECT_EQ(j["sources"]["ilm_source"], "levelset");
     const json& v = j["parameters"];
     const json& t = truth["truth"];
     auto rel = [&](const char* k) { return v[k].get<double>() / t[k].get<double>() - 1.0; };
@@ -423,7 +424,7 @@ TEST(OnhCli, RadialDefaultsRunWithPicturesAndImpossibleGeometryWritesNothing) {
                                           (dir / "qc").string() + " -o " + out);
         ASSERT_EQ(r.exit_code, 0) << r.err;
         const json j = json::parse(slurp(out));
-        EXPECT_EQ(j["options"]["ilm_source"], "levelset");
+        EXPECT_EQ(j["sources"]["ilm_source"], "levelset");
         int pictures = 0;
         for (const auto& e : std::filesystem::directory_iterator(dir / "qc")) {
             EXPECT_EQ(e.path().extension(), ".png") << e.path();
