@@ -213,6 +213,16 @@ TEST(CohortCli, AnalysesEveryEyeAndRecordsEveryBadFile) {
     ASSERT_EQ(onh[1].size(), onh[0].size());
     EXPECT_EQ(onh[1][3], "onh");
     EXPECT_EQ(name.at(onh[1][4]), "onh.vol");
+    // Self-describing: the analysis, then the scan's pattern and B-scan count, last.
+    ASSERT_GE(onh[0].size(), 3U);
+    EXPECT_EQ(std::vector<std::string>(onh[0].end() - 3, onh[0].end()),
+              (std::vector<std::string>{"analysis", "scan_pattern", "num_bscans"}));
+    EXPECT_EQ(std::vector<std::string>(onh[1].end() - 3, onh[1].end() - 1),
+              (std::vector<std::string>{"volume", "volume"}));
+    const auto onh_info = test::run_octshape("info --json " + q(c.in / "onh.vol"));
+    ASSERT_EQ(onh_info.exit_code, 0) << onh_info.err;
+    EXPECT_EQ(onh[1].back(),
+              std::to_string(json::parse(onh_info.out)["num_bscans"].get<int>()));
     // The summary counts each table once and names it: 3 maculae, 1 ONH.
     EXPECT_NE(r.err.find("4 eyes analysed (3 in " + (out / "eyes.csv").string() + ", 1 in " +
                          (out / "eyes_onh.csv").string() + ")"),
