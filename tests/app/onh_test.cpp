@@ -99,6 +99,11 @@ TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
     EXPECT_EQ(slurp(dir / "eye.json").find("FAKE-PHANTOM"), std::string::npos);  // no identifiers
     EXPECT_EQ(j["sources"]["ilm_source"], "device");
     EXPECT_EQ(j["sources"]["bmo_source"], "automatic");
+    // One list of options: the JSON's are the provenance's but for what the run adds.
+    json from_provenance = j["provenance"]["options"];
+    for (const char* run : {"subjects", "qc_pictures", "record_paths"}) from_provenance.erase(run);
+    EXPECT_EQ(j["options"], from_provenance);
+    EXPECT_EQ(j["options"]["ilm"], "device");
     EXPECT_NE(j["orientation"].get<std::string>().find("0 deg nasal"), std::string::npos);
     const json& v = j["parameters"];
     const json& t = truth["truth"];

@@ -238,6 +238,13 @@ TEST(Record, OutputsMdListsEveryColumnOfEveryTableInOrder) {
     }
 }
 
+TEST(Record, StatsMdAndTheRRecipesReadmeNameTheRecordsColumns) {
+    const std::string stats = read_text(test::source_dir() / "docs" / "stats.md");
+    EXPECT_EQ(documented(stats, "failures.csv"), record::failures_columns(false));
+    const std::string r = read_text(test::source_dir() / "docs" / "r" / "README.md");
+    EXPECT_EQ(documented(r, "non-parameter columns"), record::eyes_non_parameter_columns());
+}
+
 TEST(Record, TheRRecipeSkipsTheRecordsNonParameterColumns) {
     // docs/r/octshape_gee.R reads eyes.csv by name: its identifier list is the record's.
     const std::string r = read_text(test::source_dir() / "docs" / "r" / "octshape_gee.R");
