@@ -33,6 +33,7 @@
 #include "octshape/io/atomic_file.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/retina/scan_type.h"
+#include "octshape/retina/record.h"
 
 namespace octshape::app {
 namespace {
@@ -161,7 +162,7 @@ struct Setup {
 };
 
 Setup prepare(CohortOptions& o) {
-    if (o.type != "auto" && o.type != "macula" && o.type != "onh") {
+    if (o.type != "auto" && !retina::record::parse_scan_type(o.type)) {
         throw UsageError("--type must be auto, macula or onh");
     }
     if (o.jobs < 0) throw UsageError("--jobs must be >= 1");
@@ -169,8 +170,7 @@ Setup prepare(CohortOptions& o) {
     Setup s;
     const int cores = static_cast<int>(std::thread::hardware_concurrency());
     s.jobs = o.jobs > 0 ? o.jobs : std::max(1, cores);  // 0: not given
-    o.eye.params.tau_mm = o.eye.tau_um * 1e-3;
-    o.eye.params.validate();
+    o.eye.params = effective_params(o.eye);
     for (const auto& in : o.inputs) {  // before anything is written
         std::error_code ec;
         if (!fs::exists(in, ec)) throw InputError::missing(in);
@@ -356,7 +356,8 @@ void add_cohort_options(CLI::App* cmd, CohortOptions& o) {
                     "file,group (absolute path or file name); matching no eye is an error");
     cmd->add_option("--type", o.type,
                     "auto (decide from the BM segmentation: docs/cohort.md), macula or onh")
-        ->check(CLI::IsMember({"auto", "macula", "onh"}))
+        ->check(CLI::IsMember({std::string("auto"), std::string(retina::to_string(retina::ScanType::kMacula)),
+                               std::string(retina::to_string(retina::ScanType::kOnh))}))
         ->capture_default_str();
     cmd->add_flag("--qc", o.qc, "Write QC pictures OUTDIR/qc/<eye_key>_*.png");
     cmd->add_flag("--retry-failed", o.retry_failed,

@@ -26,6 +26,7 @@
 namespace octshape::app {
 
 namespace fs = std::filesystem;
+namespace record = retina::record;
 
 std::string scrub(std::string reason, const std::string& abs_path) {
     const fs::path p(abs_path);
@@ -119,7 +120,7 @@ CohortSignatures cohort_signatures(const CohortOptions& o, const SubjectSource& 
 
 nlohmann::json slim(const nlohmann::json& j) {
     nlohmann::json s;
-    for (const char* k : {"cohort", "input", "csv_row"}) {
+    for (const auto& k : retina::record::names(retina::record::slim_keys())) {
         if (j.contains(k)) s[k] = j[k];
     }
     return s;
@@ -142,17 +143,20 @@ std::optional<Item> load_item(const std::string& f, const fs::path& out, const C
     if (fs::exists(eye_json, ec)) {
         try {
             nlohmann::json j = read_json_file(eye_json.string());
-            const std::string type = j.contains("cohort")
-                                         ? j["cohort"].value("scan_type", std::string())
-                                         : std::string();
+            const std::string& cohort = record::name(record::Name::kCohort);
+            const std::string type =
+                j.contains(cohort) && j[cohort].is_object()
+                    ? j[cohort].value(record::name(record::Name::kScanType), std::string())
+                    : std::string();
             const auto pictures = qc::picture_names(it.key, type);
             const bool qc_ok = !o.qc || std::all_of(pictures.begin(), pictures.end(),
                                                     [&](const std::string& name) {
                                                         return fs::exists(out / "qc" / name, ec);
                                                     });
-            const RecordState state = j.contains("cohort")
-                                          ? record_state(j["cohort"], it.facts, sig.eye(type))
-                                          : RecordState::kFileChanged;
+            const RecordState state =
+                j.contains(cohort) ? record_state(j[cohort], it.facts,
+                                                  sig.eye(record::parse_scan_type(type)))
+                                   : RecordState::kFileChanged;
             if (state == RecordState::kCurrent && (o.type == "auto" || o.type == type) &&
                 qc_ok) {
                 it.done = true;
@@ -167,7 +171,8 @@ std::optional<Item> load_item(const std::string& f, const fs::path& out, const C
     if (!it.done && !o.retry_failed && fs::exists(fail_json, ec)) {
         try {
             nlohmann::json j = read_json_file(fail_json.string());
-            if (j.contains("cohort") && record_is_current(j["cohort"], it.facts, sig.failure)) {
+            const std::string& cohort = record::name(record::Name::kCohort);
+            if (j.contains(cohort) && record_is_current(j[cohort], it.facts, sig.failure)) {
                 it.failed = true;
                 it.failure = j;
             }
@@ -192,7 +197,7 @@ int analyse_eye(const CohortOptions& o, const SubjectSource& subjects, const Ite
         const io::Scan& scan = input.scan;
         retina::ScanType type = retina::ScanType::kMacula;
         std::string why = "--type macula";
-        if (o.type == "onh") {
+        if (o.type == retina::to_string(retina::ScanType::kOnh)) {
             type = retina::ScanType::kOnh;
             why = "--type onh";
         } else if (o.type == "auto") {
@@ -242,9 +247,10 @@ int analyse_eye(const CohortOptions& o, const SubjectSource& subjects, const Ite
 void record_failure(Item& item, const fs::path& out, const std::string& options_text,
                     const std::string& reason, int exit_code) {
     nlohmann::ordered_json f;
-    f["cohort"] = cohort_record(item.facts, options_text, "unknown");
-    f["reason"] = scrub(reason, item.path);  // the path is in OUTDIR/private/failures.csv
-    f["exit_code"] = exit_code;
+    f[record::name(record::Name::kCohort)] = cohort_record(item.facts, options_text, std::nullopt);
+    // The path is in OUTDIR/private/failures.csv.
+    f[record::name(record::Name::kReason)] = scrub(reason, item.path);
+    f[record::name(record::Name::kExitCode)] = exit_code;
     io::write_text_atomically((out / "failures" / (item.key + ".json")).string(),
                               f.dump(2) + "\n", {.durable = false});
     item.failed = true;

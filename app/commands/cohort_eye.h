@@ -13,6 +13,7 @@
 #include "commands/eye_record.h"
 #include "commands/macula_eye.h"
 #include "commands/onh_eye.h"
+#include "octshape/retina/record.h"
 
 namespace octshape::app {
 
@@ -82,14 +83,14 @@ struct CohortSignatures {
     std::string macula;
     std::string onh;
     std::string failure;
-    [[nodiscard]] const std::string& eye(const std::string& scan_type) const {
-        return scan_type == "onh" ? onh : macula;
+    [[nodiscard]] const std::string& eye(std::optional<retina::ScanType> scan_type) const {
+        return scan_type == retina::ScanType::kOnh ? onh : macula;
     }
 };
 [[nodiscard]] CohortSignatures cohort_signatures(const CohortOptions& o,
                                                  const SubjectSource& subjects);
 
-// What eyes.csv needs of a per-eye JSON (the rest stays on disk).
+// What eyes.csv needs of a per-eye JSON (retina::record::slim_keys(); the rest stays on disk).
 [[nodiscard]] nlohmann::json slim(const nlohmann::json& j);
 
 // The resume check of one input: its item, marked done (with its slim result) or failed (with

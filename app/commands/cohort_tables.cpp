@@ -13,10 +13,13 @@
 #include "octshape/io/sha256.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/retina/report_util.h"
+#include "octshape/retina/record.h"
 
 namespace octshape::app {
 
 namespace fs = std::filesystem;
+namespace record = retina::record;
+using record::Name;
 
 std::string failures_csv(const std::vector<Item>& items, const std::vector<Skipped>& skipped,
                          bool with_paths) {
@@ -29,14 +32,12 @@ std::string failures_csv(const std::vector<Item>& items, const std::vector<Skipp
     };
     for (const auto& it : items) {
         if (!it.failed) continue;
-        add(it.key, it.path, it.failure.value("reason", std::string()),
-            it.failure.value("exit_code", 0));
+        add(it.key, it.path, it.failure.value(record::name(Name::kReason), std::string()),
+            it.failure.value(record::name(Name::kExitCode), 0));
     }
     for (const auto& s : skipped) add(s.key, s.path, s.reason, s.exit_code);
     std::sort(rows.begin(), rows.end());
-    std::string s = retina::csv_line(
-        with_paths ? std::vector<std::string>{"eye_key", "file", "reason", "exit_code"}
-                   : std::vector<std::string>{"eye_key", "reason", "exit_code"});
+    std::string s = retina::csv_line(record::failures_columns(with_paths));
     for (const auto& r : rows) s += retina::csv_line(r);
     return s;
 }
@@ -45,14 +46,15 @@ std::string inputs_csv(const std::vector<Item>& items, const std::vector<Skipped
     std::vector<std::vector<std::string>> rows;
     for (const auto& it : items) {
         std::string sha;
-        if (it.done && it.slim.contains("input") && it.slim["input"].is_object()) {
-            sha = it.slim["input"].value("sha256", std::string());
+        const std::string& input = record::name(Name::kInput);
+        if (it.done && it.slim.contains(input) && it.slim[input].is_object()) {
+            sha = it.slim[input].value(record::name(Name::kSha256), std::string());
         }
         rows.push_back({it.key, it.path, sha, it.done ? "eye" : (it.failed ? "failure" : "")});
     }
     for (const auto& s : skipped) rows.push_back({s.key, s.path, "", "failure"});
     std::sort(rows.begin(), rows.end());
-    std::string s = retina::csv_line({"eye_key", "file", "sha256", "result"});
+    std::string s = retina::csv_line(record::inputs_columns());
     for (const auto& r : rows) s += retina::csv_line(r);
     return s;
 }
@@ -69,14 +71,16 @@ std::string tables_provenance(const std::vector<Item>& items, const GroupMap& gr
     std::map<std::string, nlohmann::ordered_json> options;  // by the canonical text
     for (const Item* it : done) {
         std::string sha;
-        if (it->slim.contains("input") && it->slim["input"].is_object()) {
-            sha = it->slim["input"].value("sha256", std::string());
+        const std::string& input = record::name(Name::kInput);
+        const std::string& cohort = record::name(Name::kCohort);
+        if (it->slim.contains(input) && it->slim[input].is_object()) {
+            sha = it->slim[input].value(record::name(Name::kSha256), std::string());
         }
-        p.add_input(sha, "", {{"eye_key", it->key}});
-        if (it->slim.contains("cohort") && it->slim["cohort"].is_object()) {
-            const auto& c = it->slim["cohort"];
-            fingerprints.insert(c.value("fingerprint", std::string()));
-            const std::string text = c.value("options", std::string());
+        p.add_input(sha, "", {{record::name(Name::kEyeKey), it->key}});
+        if (it->slim.contains(cohort) && it->slim[cohort].is_object()) {
+            const auto& c = it->slim[cohort];
+            fingerprints.insert(c.value(record::name(Name::kFingerprint), std::string()));
+            const std::string text = c.value(record::name(Name::kOptions), std::string());
             options.emplace(text, options_from_text(text));
         }
     }
@@ -111,15 +115,22 @@ CohortTables write_cohort_tables(const fs::path& out, const std::vector<Item>& i
     }
     // One table per scan type (their parameter columns differ): eyes.csv holds the maculae,
     // eyes_onh.csv the optic nerve heads (written when the cohort has any).
-    const std::string macula_table = eyes_csv(eyes, names, "macula", groups);
-    const bool any_onh = std::any_of(eyes.begin(), eyes.end(), [](const nlohmann::json& e) {
-        return e.contains("cohort") && e["cohort"].value("scan_type", std::string()) == "onh";
-    });
-    const std::string onh_table = any_onh ? eyes_csv(eyes, names, "onh", groups) : "";
+    using retina::ScanType;
+    const auto is_onh = [](const nlohmann::json& e) {
+        const std::string& cohort = record::name(Name::kCohort);
+        return e.contains(cohort) && e[cohort].is_object() &&
+               e[cohort].value(record::name(Name::kScanType), std::string()) ==
+                   retina::to_string(ScanType::kOnh);
+    };
+    const std::string macula_table = eyes_csv(eyes, names, ScanType::kMacula, groups);
+    const bool any_onh = std::any_of(eyes.begin(), eyes.end(), is_onh);
+    const std::string onh_table = any_onh ? eyes_csv(eyes, names, ScanType::kOnh, groups) : "";
     groups.check_matches();  // before any table is written
     const fs::path private_dir = make_private_dir(out);
-    io::write_text_atomically((out / "eyes.csv").string(), macula_table);
-    if (any_onh) io::write_text_atomically((out / "eyes_onh.csv").string(), onh_table);
+    const fs::path macula_file = out / record::eyes_table_file(ScanType::kMacula);
+    const fs::path onh_file = out / record::eyes_table_file(ScanType::kOnh);
+    io::write_text_atomically(macula_file.string(), macula_table);
+    if (any_onh) io::write_text_atomically(onh_file.string(), onh_table);
     io::write_text_atomically((out / "failures.csv").string(),
                               failures_csv(items, skipped, false));
     io::write_text_atomically((out / "provenance.json").string(),
@@ -128,12 +139,9 @@ CohortTables write_cohort_tables(const fs::path& out, const std::vector<Item>& i
                               failures_csv(items, skipped, true));
     io::write_text_atomically((private_dir / "inputs.csv").string(), inputs_csv(items, skipped));
     // Each count once, naming the table that holds it.
-    const auto onh_eyes = static_cast<std::size_t>(
-        std::count_if(eyes.begin(), eyes.end(), [](const nlohmann::json& e) {
-            return e.contains("cohort") && e["cohort"].value("scan_type", std::string()) == "onh";
-        }));
-    std::string where = std::to_string(eyes.size() - onh_eyes) + " in " + (out / "eyes.csv").string();
-    if (any_onh) where += ", " + std::to_string(onh_eyes) + " in " + (out / "eyes_onh.csv").string();
+    const auto onh_eyes = static_cast<std::size_t>(std::count_if(eyes.begin(), eyes.end(), is_onh));
+    std::string where = std::to_string(eyes.size() - onh_eyes) + " in " + macula_file.string();
+    if (any_onh) where += ", " + std::to_string(onh_eyes) + " in " + onh_file.string();
     spdlog::info("{} eyes analysed ({}); {} failed (see {}; their paths in {})", eyes.size(),
                  where, failed, (out / "failures.csv").string(),
                  (private_dir / "failures.csv").string());

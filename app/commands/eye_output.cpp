@@ -8,6 +8,7 @@
 
 #include "octshape/io/atomic_file.h"
 #include "octshape/error.h"
+#include "octshape/retina/record.h"
 #include "octshape/retina/report_util.h"
 #include "octshape/retina/scan_summary.h"
 
@@ -37,8 +38,10 @@ nlohmann::ordered_json eye_provenance_options(const std::string& options_text,
 }
 
 std::vector<std::string> eye_csv_header(bool record_paths) {
-    std::vector<std::string> h{"eye_key", "sha256", "eye", "scan_pattern", "num_bscans"};
-    if (record_paths) h.insert(h.begin(), "file");
+    using retina::record::Name;
+    std::vector<std::string> h = retina::record::names(
+        {Name::kEyeKey, Name::kSha256, Name::kEye, Name::kScanPattern, Name::kNumBscans});
+    if (record_paths) h.insert(h.begin(), retina::record::name(Name::kFile));
     return h;
 }
 

@@ -17,6 +17,7 @@
 #include "octshape/retina/cube_report.h"
 #include "octshape/retina/etdrs.h"
 #include "octshape/retina/onh_report.h"
+#include "octshape/retina/record.h"
 #include "octshape/version.h"
 
 namespace octshape::app {
@@ -82,6 +83,7 @@ std::pair<std::string, std::vector<std::pair<std::string, std::string>>> read_ma
 
 std::string str_or_na(const nlohmann::json& j) {
     if (j.is_string()) return j.get<std::string>();
+    if (j.is_number_integer()) return j.dump();
     return "NA";
 }
 
@@ -292,14 +294,16 @@ FileFacts file_facts(const std::string& file) {
 
 nlohmann::ordered_json cohort_record(const FileFacts& facts,
                                      const std::string& options_text,
-                                     const std::string& scan_type) {
+                                     std::optional<retina::ScanType> scan_type) {
+    using retina::record::Name;
+    using retina::record::name;
     nlohmann::ordered_json c;
-    c["eye_key"] = eye_key(facts.path);
-    c["size_bytes"] = facts.size;
-    c["mtime_ns"] = facts.mtime_ns;
-    c["options"] = options_text;
-    c["fingerprint"] = fingerprint(options_text);
-    c["scan_type"] = scan_type;
+    c[name(Name::kEyeKey)] = eye_key(facts.path);
+    c[name(Name::kSizeBytes)] = facts.size;
+    c[name(Name::kMtimeNs)] = facts.mtime_ns;
+    c[name(Name::kOptions)] = options_text;
+    c[name(Name::kFingerprint)] = fingerprint(options_text);
+    c[name(Name::kScanType)] = scan_type ? retina::to_string(*scan_type) : "unknown";
     return c;
 }
 
@@ -307,7 +311,7 @@ RecordState record_state(const nlohmann::json& r,
                          const FileFacts& facts,
                          const std::string& options_text) {
     if (!r.is_object()) return RecordState::kFileChanged;
-    auto eq = [&](const char* key, const auto& value) {
+    auto eq = [&](const std::string& key, const auto& value) {
         const auto it = r.find(key);
         if (it == r.end()) return false;
         try {
@@ -316,11 +320,13 @@ RecordState record_state(const nlohmann::json& r,
             return false;
         }
     };
-    if (!(eq("eye_key", eye_key(facts.path)) && eq("size_bytes", facts.size) &&
-          eq("mtime_ns", facts.mtime_ns))) {
+    using retina::record::Name;
+    using retina::record::name;
+    if (!(eq(name(Name::kEyeKey), eye_key(facts.path)) && eq(name(Name::kSizeBytes), facts.size) &&
+          eq(name(Name::kMtimeNs), facts.mtime_ns))) {
         return RecordState::kFileChanged;
     }
-    return eq("fingerprint", fingerprint(options_text)) ? RecordState::kCurrent
+    return eq(name(Name::kFingerprint), fingerprint(options_text)) ? RecordState::kCurrent
                                                          : RecordState::kFingerprintChanged;
 }
 
@@ -386,8 +392,13 @@ void GroupMap::check_matches() const {
 
 std::map<std::string, std::string> load_input_paths(const std::string& path) {
     const io::CsvTable t = read_small_table(path);
-    if (t.header.size() < 2 || t.header[0] != "eye_key" || t.header[1] != "file") {
-        throw InputError::corrupt(path, "header must begin with eye_key,file");
+    // The private inputs table (record::inputs_columns()): the key and the path lead.
+    using retina::record::Name;
+    using retina::record::name;
+    if (t.header.size() < 2 || t.header[0] != name(Name::kEyeKey) ||
+        t.header[1] != name(Name::kFile)) {
+        throw InputError::corrupt(path, "header must begin with " + name(Name::kEyeKey) + "," +
+                                            name(Name::kFile));
     }
     std::map<std::string, std::string> paths;
     for (std::size_t i = 0; i < t.rows.size(); ++i) {
@@ -400,95 +411,89 @@ std::map<std::string, std::string> load_input_paths(const std::string& path) {
     return paths;
 }
 
-std::vector<std::string> eyes_common_header() {
-    return {"subject_id", "eye", "visit_date", "scan_type", "eye_key", "sha256", "group"};
-}
-
 void attach_cohort_record(nlohmann::ordered_json& j,
                           const std::vector<std::string>& type_columns,
                           const std::vector<std::string>& type_values,
                           const FileFacts& facts,
                           const std::string& options_text,
-                          const std::string& scan_type,
+                          retina::ScanType scan_type,
                           const io::Scan& scan,
                           const SubjectSource& subjects,
                           const std::string& file) {
+    using retina::record::Name;
+    using retina::record::name;
     nlohmann::ordered_json row;
     for (std::size_t i = 0; i < type_columns.size() && i < type_values.size(); ++i) {
         row[type_columns[i]] = type_values[i];
     }
-    j["csv_row"] = row;
+    j[name(Name::kCsvRow)] = row;
     auto rec = cohort_record(facts, options_text, scan_type);
     const auto subject = subjects.subject_id(scan, facts.path);
-    rec["subject_id"] = subject ? nlohmann::json(*subject) : nlohmann::json(nullptr);
+    rec[name(Name::kSubjectId)] = subject ? nlohmann::json(*subject) : nlohmann::json(nullptr);
     if (!subject && subjects.kind() != SubjectSource::Kind::kNone) {
         spdlog::warn("{}: no subject id for this eye (NA)", log_name(file));
     }
     const auto visit = visit_date(scan);
-    rec["visit_date"] = visit ? nlohmann::json(*visit) : nlohmann::json(nullptr);
-    rec["eye"] = std::string(io::to_string(scan.meta.laterality));
-    j["cohort"] = rec;
+    rec[name(Name::kVisitDate)] = visit ? nlohmann::json(*visit) : nlohmann::json(nullptr);
+    rec[name(Name::kEye)] = std::string(io::to_string(scan.meta.laterality));
+    rec[name(Name::kScanPattern)] = std::string(io::to_string(scan.meta.pattern));
+    rec[name(Name::kNumBscans)] = scan.num_bscans();
+    j[name(Name::kCohort)] = rec;
 }
 
-std::vector<std::string> eyes_type_header(const std::string& scan_type) {
-    if (scan_type == "macula") {
-        auto h = retina::cube_csv_header();
-        for (auto& c : retina::etdrs_csv_header()) h.push_back(std::move(c));
-        return h;
+std::vector<std::string> eyes_type_header(retina::ScanType scan_type) {
+    switch (scan_type) {
+        case retina::ScanType::kMacula:
+            return retina::macula_csv_header();
+        case retina::ScanType::kOnh:
+            return retina::onh_csv_header();
+        case retina::ScanType::kUnsupported:
+            break;
     }
-    if (scan_type == "onh") return retina::onh_csv_header();
-    throw UsageError("no eyes table for scan type '" + scan_type + "'");
+    throw UsageError(std::string("no eyes table for scan type '") + retina::to_string(scan_type) +
+                     "'");
 }
 
 std::string eyes_csv(const std::vector<nlohmann::json>& eyes,
                      const std::vector<std::string>& names,
-                     const std::string& scan_type,
+                     retina::ScanType scan_type,
                      const GroupMap& groups,
                      bool fingerprint_column) {
+    using retina::record::Name;
+    using retina::record::name;
     const auto type_cols = eyes_type_header(scan_type);
-    std::vector<std::vector<std::string>> rows;
+    const std::vector<std::string> header = retina::record::eyes_header(type_cols, fingerprint_column);
+    std::vector<retina::record::Row> rows;
     for (std::size_t i = 0; i < eyes.size(); ++i) {
         const auto& e = eyes[i];
-        const std::string& name = i < names.size() ? names[i] : std::string("(input)");
-        const auto c = e.find("cohort");
-        const auto csv = e.find("csv_row");
+        const std::string& input_name = i < names.size() ? names[i] : std::string("(input)");
+        const auto c = e.find(name(Name::kCohort));
+        const auto csv = e.find(name(Name::kCsvRow));
         if (c == e.end() || !c->is_object() || csv == e.end() || !csv->is_object()) {
-            throw InputError::corrupt(name, "not a per-eye result of octshape " +
-                                                std::string(kVersion) +
-                                                " (no \"cohort\" record or \"csv_row\")");
+            throw InputError::corrupt(input_name, "not a per-eye result of octshape " +
+                                                      std::string(kVersion) + " (no \"" +
+                                                      name(Name::kCohort) + "\" record or \"" +
+                                                      name(Name::kCsvRow) + "\")");
         }
-        if (str_or_na(c->value("scan_type", nlohmann::json())) != scan_type) continue;
-        const auto in = e.find("input");
-        std::string sha = "NA";
-        if (in != e.end() && in->is_object()) {
-            sha = str_or_na(in->value("sha256", nlohmann::json()));
+        const auto field = [&](Name n) { return str_or_na(c->value(name(n), nlohmann::json())); };
+        if (field(Name::kScanType) != retina::to_string(scan_type)) continue;
+        retina::record::Row row;
+        // The parameter columns first: a record column of the same name (none today) wins.
+        for (const auto& col : type_cols) row[col] = str_or_na(csv->value(col, nlohmann::json()));
+        for (const Name n : {Name::kSubjectId, Name::kEye, Name::kVisitDate, Name::kScanType,
+                             Name::kEyeKey, Name::kScanPattern, Name::kNumBscans,
+                             Name::kFingerprint}) {
+            row[name(n)] = field(n);
         }
-        std::vector<std::string> row;
-        const std::string subject = str_or_na(c->value("subject_id", nlohmann::json()));
-        const std::string key = str_or_na(c->value("eye_key", nlohmann::json()));
-        row.push_back(subject);
-        row.push_back(str_or_na(c->value("eye", nlohmann::json())));
-        row.push_back(str_or_na(c->value("visit_date", nlohmann::json())));
-        row.push_back(scan_type);
-        row.push_back(key);
-        row.push_back(sha);
-        row.push_back(groups.group_of(subject, key));
-        for (const auto& col : type_cols) {
-            row.push_back(str_or_na(csv->value(col, nlohmann::json())));
-        }
-        if (fingerprint_column) row.push_back(str_or_na(c->value("fingerprint", nlohmann::json())));
+        const auto in = e.find(name(Name::kInput));
+        row[name(Name::kSha256)] = in != e.end() && in->is_object()
+                                       ? str_or_na(in->value(name(Name::kSha256), nlohmann::json()))
+                                       : std::string("NA");
+        row[name(Name::kGroup)] =
+            groups.group_of(row[name(Name::kSubjectId)], row[name(Name::kEyeKey)]);
         rows.push_back(std::move(row));
     }
-    // subject_id, eye, visit_date, eye_key: indices 0, 1, 2, 4.
-    std::stable_sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) {
-        return std::tie(a[0], a[1], a[2], a[4]) < std::tie(b[0], b[1], b[2], b[4]);
-    });
-    std::vector<std::string> header = eyes_common_header();
-    header.insert(header.end(), type_cols.begin(), type_cols.end());
-    if (fingerprint_column) header.push_back("fingerprint");
-    std::string out = io::csv_line(header);
-    for (const auto& r : rows) out += io::csv_line(r);
-    return out;
+    return retina::record::eyes_table(header, rows);
 }
 
 nlohmann::json read_json_file(const std::string& path) {

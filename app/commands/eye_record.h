@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "octshape/io/scan.h"
+#include "octshape/retina/scan_type.h"
 
 namespace CLI {
 class App;
@@ -110,10 +111,11 @@ struct FileFacts {
 
 // The "cohort" object of a per-eye JSON (and of a failure record): the eye key (never the
 // path), the file's size and mtime, the parameter text and its fingerprint
-// (commands/provenance.h), the scan type.
+// (commands/provenance.h), the scan type ("unknown" for nullopt: a failure); the names are the
+// record's (octshape/retina/record.h).
 [[nodiscard]] nlohmann::ordered_json cohort_record(const FileFacts& facts,
                                                    const std::string& options_text,
-                                                   const std::string& scan_type);
+                                                   std::optional<retina::ScanType> scan_type);
 // Whether a record still stands for this file and this binary's parameters.
 enum class RecordState {
     kCurrent,             // same eye key, file size and mtime, same fingerprint
@@ -137,13 +139,14 @@ struct EyeResult {
 };
 
 // Completes an eye's result for cohorts: `j["csv_row"]` (the `type_columns` of the row by name)
-// and `j["cohort"]` (cohort_record + subject id, visit date, eye).
+// and `j["cohort"]` (cohort_record + subject id, visit date, eye, scan pattern, number of
+// B-scans).
 void attach_cohort_record(nlohmann::ordered_json& j,
                           const std::vector<std::string>& type_columns,
                           const std::vector<std::string>& type_values,
                           const FileFacts& facts,
                           const std::string& options_text,
-                          const std::string& scan_type,
+                          retina::ScanType scan_type,
                           const io::Scan& scan,
                           const SubjectSource& subjects,
                           const std::string& file);
@@ -186,20 +189,19 @@ private:
 // OUTDIR/private/inputs.csv, or the workflow's). Throws InputError when unreadable/malformed.
 [[nodiscard]] std::map<std::string, std::string> load_input_paths(const std::string& path);
 
-// The leading columns of every eyes table.
-[[nodiscard]] std::vector<std::string> eyes_common_header();
-// Per-type parameter columns ("macula": retina::cube_csv_header(), "onh":
+// Per-type parameter columns (macula: retina::cube_csv_header() + etdrs_csv_header(), onh:
 // retina::onh_csv_header()).
-[[nodiscard]] std::vector<std::string> eyes_type_header(const std::string& scan_type);
+[[nodiscard]] std::vector<std::string> eyes_type_header(retina::ScanType scan_type);
 
-// Builds the CSV (header + rows sorted by subject_id, eye, visit_date, eye_key) of the eyes of
-// `scan_type` among `eyes` (per-eye JSON objects with a "cohort" record and a "csv_row").
+// Builds the CSV (retina::record::eyes_header and eyes_table: the record's columns and sort
+// keys) of the eyes of `scan_type` among `eyes` (per-eye JSON objects with a "cohort" record
+// and a "csv_row").
 // Throws InputError naming `names[i]` when an object lacks what the table needs. Checks the
 // `fingerprint_column`: a last column with
 // each eye's fingerprint (`octshape merge --allow-mixed`).
 [[nodiscard]] std::string eyes_csv(const std::vector<nlohmann::json>& eyes,
                                    const std::vector<std::string>& names,
-                                   const std::string& scan_type,
+                                   retina::ScanType scan_type,
                                    const GroupMap& groups,
                                    bool fingerprint_column = false);
 

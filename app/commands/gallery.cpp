@@ -25,12 +25,15 @@
 #include "octshape/error.h"
 #include "octshape/retina/eye_stats.h"
 #include "octshape/version.h"
+#include "octshape/retina/record.h"
 
 namespace octshape::app {
 namespace {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
+namespace record = retina::record;
+using record::Name;
 
 // Parameters shown per scan type (the rest stay in the JSON); other types show their first
 // kMaxGenericParams scalar parameters.
@@ -241,13 +244,16 @@ Eyes read_eyes(const fs::path& outdir) {
     Eyes out;
     std::map<std::string, std::map<std::string, std::string>> csv_by_key;
     std::map<std::string, std::map<std::string, std::string>> csv_by_sha;
-    if (fs::is_regular_file(outdir / "eyes.csv", ec)) {
-        const auto t = retina::read_eye_table_file((outdir / "eyes.csv").string());
+    const std::string& key_col = record::name(Name::kEyeKey);
+    const std::string& sha_col = record::name(Name::kSha256);
+    const fs::path table = outdir / record::eyes_table_file(retina::ScanType::kMacula);
+    if (fs::is_regular_file(table, ec)) {
+        const auto t = retina::read_eye_table_file(table.string());
         for (const auto& row : t.rows) {
             std::map<std::string, std::string> m;
             for (std::size_t c = 0; c < t.header.size(); ++c) m[t.header[c]] = row[c];
-            if (m.count("eye_key") != 0) csv_by_key[m["eye_key"]] = m;
-            if (m.count("sha256") != 0) csv_by_sha[m["sha256"]] = m;
+            if (m.count(key_col) != 0) csv_by_key[m[key_col]] = m;
+            if (m.count(sha_col) != 0) csv_by_sha[m[sha_col]] = m;
         }
     }
 
@@ -272,22 +278,29 @@ Eyes read_eyes(const fs::path& outdir) {
         row.key = path.stem().string();
         const std::string type = j.value("command", std::string());
         std::string sha;
-        if (j.contains("input") && j["input"].is_object()) {
-            sha = j["input"].value("sha256", std::string());
-        }
+        const std::string& input = record::name(Name::kInput);
+        if (j.contains(input) && j[input].is_object()) sha = j[input].value(sha_col, std::string());
         const std::map<std::string, std::string>* csv = nullptr;
         if (const auto it = csv_by_key.find(row.key); it != csv_by_key.end()) {
             csv = &it->second;
         } else if (const auto is = csv_by_sha.find(sha); is != csv_by_sha.end()) {
             csv = &is->second;
         }
-        for (const char* f : {"subject_id", "eye", "visit_date", "group", "scan_type"}) {
+        const std::string& cohort = record::name(Name::kCohort);
+        // The page's own field names (the drawing's), each read from the record's name.
+        for (const auto& [field, n] : std::vector<std::pair<std::string, Name>>{
+                 {"subject_id", Name::kSubjectId},
+                 {"eye", Name::kEye},
+                 {"visit_date", Name::kVisitDate},
+                 {"group", Name::kGroup},
+                 {"scan_type", Name::kScanType}}) {
+            const std::string& f = record::name(n);
             std::string v;
-            if (j.contains("cohort") && j["cohort"].is_object() && j["cohort"].contains(f)) {
-                v = text_of(j["cohort"][f]);
+            if (j.contains(cohort) && j[cohort].is_object() && j[cohort].contains(f)) {
+                v = text_of(j[cohort][f]);
             }
             if (v.empty() && csv != nullptr && csv->count(f) != 0) v = csv->at(f);
-            row.fields[f] = v;
+            row.fields[field] = v;
         }
         if (row.fields["eye"].empty() && j.contains("scan") && j["scan"].is_object()) {
             row.fields["eye"] = text_of(j["scan"].value("eye", json()));
@@ -365,10 +378,10 @@ struct Line {
 
 std::vector<Line> table_lines(const retina::EyeTable& failures, const std::vector<EyeRow>& eyes) {
     std::vector<Line> lines;
-    const int key_col = failures.column("eye_key");
-    const int file_col = failures.column("file");
-    const int reason_col = failures.column("reason");
-    const int code_col = failures.column("exit_code");
+    const int key_col = failures.column(record::name(Name::kEyeKey));
+    const int file_col = failures.column(record::name(Name::kFile));
+    const int reason_col = failures.column(record::name(Name::kReason));
+    const int code_col = failures.column(record::name(Name::kExitCode));
     for (const auto& row : failures.rows) {
         Line l;
         l.status = 0;

@@ -41,11 +41,24 @@ std::string macula_options_text(const MaculaEyeOptions& o) {
     }
     s << " classifier_min_gap_mm=" << classifier.min_gap_mm
       << " classifier_min_bscans=" << classifier.min_bscans;
+    // The ETDRS options (a new one, e.g. for the sectors at the scan centre, is added here).
     const auto& e = o.etdrs;
     s << " etdrs(diameters_mm=" << e.diameters_mm[0] << "," << e.diameters_mm[1] << ","
       << e.diameters_mm[2] << " step_mm=" << e.step_mm << " min_coverage=" << e.min_coverage
       << " layers=" << o.etdrs_layers << ") " << segmentation_options_text(o.segmentation);
     return s.str();
+}
+
+nlohmann::ordered_json macula_options(const MaculaEyeOptions& o) {
+    return options_from_text(macula_options_text(o));
+}
+
+retina::CubeParams effective_params(const MaculaEyeOptions& o) {
+    retina::CubeParams p = o.params;
+    p.tau_mm = o.tau_um * 1e-3;
+    p.rim_point = retina::parse_rim_point(o.rim_point);
+    p.validate();
+    return p;
 }
 
 void add_macula_analysis_options(CLI::App* cmd, MaculaEyeOptions& o) {
@@ -122,9 +135,7 @@ MaculaEye analyse_macula_eye(const std::string& file,
     Provenance prov("macula");
     const io::Scan& scan = input.scan;
     const std::string& sha = input.sha256;
-    o.params.tau_mm = o.tau_um * 1e-3;
-    o.params.rim_point = retina::parse_rim_point(o.rim_point);
-    o.params.validate();
+    o.params = effective_params(o);
     if (o.check_scan_type) {
         const auto type = retina::classify_scan(scan);
         if (type.type == retina::ScanType::kOnh) {
@@ -147,12 +158,12 @@ MaculaEye analyse_macula_eye(const std::string& file,
     MaculaEye out;
     auto& j = out.json;
     j = eye_json_preamble("macula", file, sha, scan, o.record_paths);
-    const auto cube = retina::cube_json(r, o.params);
+    const auto cube = retina::cube_json(r, o.params, macula_options(o));
     for (const auto& [k, v] : cube.items()) j[k] = v;
     j["etdrs"] = retina::etdrs_json(etdrs);
     const std::string eye(io::to_string(scan.meta.laterality));
 
-    const auto cols = eyes_type_header("macula");  // the CuBe columns, then the ETDRS ones
+    const auto cols = eyes_type_header(retina::ScanType::kMacula);  // the CuBe columns, then the ETDRS ones
     auto vals = retina::cube_csv_values(r);
     for (const auto& v : retina::etdrs_csv_values(etdrs)) vals.push_back(v);
     out.csv_header = eye_csv_header(o.record_paths);
@@ -161,7 +172,8 @@ MaculaEye analyse_macula_eye(const std::string& file,
     out.csv_row.insert(out.csv_row.end(), vals.begin(), vals.end());
     const std::string options_text =
         macula_options_text(o) + " subjects=" + subjects.fingerprint();
-    attach_cohort_record(j, cols, vals, facts, options_text, "macula", scan, subjects, file);
+    attach_cohort_record(j, cols, vals, facts, options_text, retina::ScanType::kMacula, scan,
+                         subjects, file);
     prov.add_input(sha, o.record_paths ? file : std::string());
     prov.set_options(eye_provenance_options(options_text, o.qc_dir, o.record_paths));
 

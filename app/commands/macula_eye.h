@@ -16,9 +16,10 @@
 namespace octshape::app {
 
 struct MaculaEyeOptions {
-    retina::CubeParams params;  // tau_mm is set from tau_um by analyse_macula_eye
-    double tau_um = 5.0;        // pit-flat threshold above CFT (um), the user option
-    std::string rim_point = "crest";  // params.rim_point, the user option (crest | maximum)
+    retina::CubeParams params;  // tau_mm and rim_point are set from the user's by effective_params
+    // The user options behind params.tau_mm and params.rim_point, their defaults CubeParams's.
+    double tau_um = retina::CubeParams{}.tau_mm * 1e3;  // pit-flat threshold above CFT (um)
+    std::string rim_point{retina::to_string(retina::CubeParams{}.rim_point)};  // crest | maximum
     std::string qc_dir;         // empty: no QC pictures; else the scan must be read with pixels
     std::string qc_stem;        // QC file names DIR/STEM_*.png; empty: "eye" (never the input's name)
     bool record_paths = false;  // --record-paths: the input's path in the JSON and CSV (identifying)
@@ -48,8 +49,17 @@ using MaculaEye = EyeResult;
                                            MaculaEyeOptions options,
                                            const SubjectSource& subjects);
 
-// The canonical text of the analysis options (part of the resume signature).
+// The analysis's parameters with the user's tau_um and rim_point applied (validated: UsageError).
+[[nodiscard]] retina::CubeParams effective_params(const MaculaEyeOptions& options);
+
+// The one list of the analysis's effective options, under the command line's names
+// (--half-lines: half_lines, --tau-um: tau_um, ...), code defaults included: the canonical text
+// "macula half_lines=24 radius_mm=2 ..." that the fingerprint hashes (the resume signature).
+// The per-eye JSON's "options" and the provenance's options are this text parsed
+// (macula_options, options_from_text), so the three never disagree.
 [[nodiscard]] std::string macula_options_text(const MaculaEyeOptions& options);
+// The JSON "options" of a macula result: macula_options_text parsed.
+[[nodiscard]] nlohmann::ordered_json macula_options(const MaculaEyeOptions& options);
 
 // Adds the CuBe options (--half-lines, --radius-mm, ...) to a command.
 void add_macula_analysis_options(CLI::App* cmd, MaculaEyeOptions& options);

@@ -15,6 +15,7 @@
 #include "commands/eye_record.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/error.h"
+#include "octshape/retina/record.h"
 
 namespace octshape::app {
 namespace {
@@ -25,7 +26,7 @@ struct MergeOptions {
     std::vector<std::string> inputs;
     std::string out;
     std::string groups;
-    std::string type = "macula";
+    std::string type = retina::to_string(retina::ScanType::kMacula);  // --type
     bool allow_mixed = false;
     std::string inputs_map;   // eye_key,file (a private table) for a groups file keyed by file
     SubjectOptions subjects;  // to turn a groups file keyed by patient ID into subject ids
@@ -34,14 +35,16 @@ struct MergeOptions {
 // Refuses (InputError naming a file of the minority) eyes of `type` made by different code or
 // parameters, unless `allow` (then one warning; the table gets a fingerprint column).
 void check_fingerprints(const std::vector<nlohmann::json>& eyes,
-                        const std::vector<std::string>& files, const std::string& type,
+                        const std::vector<std::string>& files, retina::ScanType type,
                         bool allow) {
+    using retina::record::Name;
+    using retina::record::name;
     std::map<std::string, std::vector<std::size_t>> by;
     for (std::size_t i = 0; i < eyes.size(); ++i) {
-        const auto c = eyes[i].find("cohort");
+        const auto c = eyes[i].find(name(Name::kCohort));
         if (c == eyes[i].end() || !c->is_object()) continue;  // eyes_csv refuses it
-        if (c->value("scan_type", std::string()) != type) continue;
-        const auto f = c->find("fingerprint");
+        if (c->value(name(Name::kScanType), std::string()) != retina::to_string(type)) continue;
+        const auto f = c->find(name(Name::kFingerprint));
         by[f != c->end() && f->is_string() ? f->get<std::string>() : "none"].push_back(i);
     }
     if (by.size() <= 1) return;
@@ -98,13 +101,14 @@ void run(const MergeOptions& o) {
     for (const auto& f : files) {
         nlohmann::json j = read_json_file(f);
         nlohmann::json s;
-        for (const char* k : {"cohort", "input", "csv_row"}) {
+        for (const auto& k : retina::record::names(retina::record::slim_keys())) {
             if (j.contains(k)) s[k] = std::move(j[k]);
         }
         eyes.push_back(std::move(s));
     }
-    check_fingerprints(eyes, files, o.type, o.allow_mixed);
-    const std::string csv = eyes_csv(eyes, files, o.type, groups, o.allow_mixed);
+    const retina::ScanType type = *retina::record::parse_scan_type(o.type);  // checked by CLI11
+    check_fingerprints(eyes, files, type, o.allow_mixed);
+    const std::string csv = eyes_csv(eyes, files, type, groups, o.allow_mixed);
     groups.check_matches();
     if (o.out.empty()) {
         std::cout << csv;
@@ -117,12 +121,20 @@ void run(const MergeOptions& o) {
 
 void add_merge_command(CLI::App& app, RunContext& /*ctx*/) {
     auto opts = std::make_shared<MergeOptions>();
+    namespace record = retina::record;
+    const auto join = [](const std::vector<std::string>& v) {
+        std::string s;
+        for (const auto& x : v) s += (s.empty() ? "" : ", ") + x;
+        return s;
+    };
     CLI::App* cmd = app.add_subcommand(
         "merge",
-        "Build eyes.csv (subject_id, eye, visit_date, scan_type, eye_key, sha256, group, then "
-        "every parameter; rows sorted by subject_id, eye, visit_date, eye_key) from per-eye JSON "
-        "results of `octshape macula -o` or OUTDIR/eyes of a cohort (docs/cohort.md). Eyes made "
-        "by different code or parameters (fingerprints) are refused");
+        "Build eyes.csv (" + join(record::names(record::eyes_id_columns())) +
+            ", then every parameter, then " + join(record::names(record::eyes_scan_columns())) +
+            "; rows sorted by " + join(record::names(record::eyes_sort_columns())) +
+            ") from per-eye JSON results of `octshape macula -o` or OUTDIR/eyes of a cohort "
+            "(docs/cohort.md). Eyes made by different code or parameters (fingerprints) are "
+            "refused");
     cmd->add_option("inputs", opts->inputs, "Per-eye JSON files or folders holding them")
         ->required();
     cmd->add_option("-o,--output", opts->out, "Write the CSV here (default: stdout)");
@@ -138,6 +150,8 @@ void add_merge_command(CLI::App& app, RunContext& /*ctx*/) {
     add_subject_options(cmd, opts->subjects);
     cmd->add_option("--type", opts->type,
                     "Which eyes: macula (the eyes.csv table) or onh (eyes_onh.csv)")
+        ->check(CLI::IsMember({std::string(retina::to_string(retina::ScanType::kMacula)),
+                               std::string(retina::to_string(retina::ScanType::kOnh))}))
         ->capture_default_str();
     cmd->callback([opts] { run(*opts); });
 }

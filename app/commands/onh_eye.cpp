@@ -181,22 +181,24 @@ EyeResult analyse_onh_eye(const std::string& file,
     EyeResult out;
     auto& j = out.json;
     j = std::move(preamble);
-    const nlohmann::ordered_json body = retina::onh_json(r, o.params);
+    const nlohmann::ordered_json body =
+        retina::onh_json(r, options_from_text(onh_options_text(o)));
     for (const auto& [k, v] : body.items()) j[k] = v;
     if (!o.bmo_file.empty()) {
         // The user's BMO file by its content; its path (which may name the patient) only on
         // request.
-        j["options"]["bmo_file_sha256"] = io::sha256_file(o.bmo_file);
+        // (Its SHA-256 is the option `bmo`, "sha256:HEX".)
         if (o.record_paths) j["options"]["bmo_file"] = o.bmo_file;
     }
-    const auto cols = retina::onh_csv_header();
+    const auto cols = eyes_type_header(retina::ScanType::kOnh);
     const auto vals = retina::onh_csv_values(r);
     out.csv_header = eye_csv_header(o.record_paths);
     out.csv_row = eye_csv_values(file, sha, scan, o.record_paths);
     out.csv_header.insert(out.csv_header.end(), cols.begin(), cols.end());
     out.csv_row.insert(out.csv_row.end(), vals.begin(), vals.end());
     const std::string options_text = onh_options_text(o) + " subjects=" + subjects.fingerprint();
-    attach_cohort_record(j, cols, vals, facts, options_text, "onh", scan, subjects, file);
+    attach_cohort_record(j, cols, vals, facts, options_text, retina::ScanType::kOnh, scan,
+                         subjects, file);
     prov.add_input(sha, o.record_paths ? file : std::string());
     if (!segmentation.is_null()) {
         prov.add_input(segmentation["sha256"].get<std::string>(),

@@ -35,7 +35,10 @@ struct OnhEyeOptions {
                                         OnhEyeOptions options,
                                         const SubjectSource& subjects);
 
-// The canonical text of the analysis options (part of the resume signature).
+// The one list of the ONH analysis's effective options, under the command line's names, code
+// defaults included (the BMO file by its SHA-256, never its path): the canonical text the
+// fingerprint hashes, and, parsed (options_from_text), the per-eye JSON's "options" and the
+// provenance's options.
 [[nodiscard]] std::string onh_options_text(const OnhEyeOptions& options);
 
 // Adds the ONH analysis options (--ilm, --bmo-points, ...) to a command, and --bmo (a file of

@@ -28,7 +28,7 @@ struct MaculaOptions {
     std::string pattern = "volume";
     std::string format = "vol";  // vol | fda
     bool no_pixels = false;
-    double tau_um = 5.0;
+    double tau_um = retina::MaculaTruthOptions{}.tau_mm * 1e3;  // the truth's default, in um
     double crossing_offset_um = 0.0;
     double crossing_offset_deg = 0.0;
 };

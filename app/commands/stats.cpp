@@ -22,6 +22,7 @@
 #include "octshape/error.h"
 #include "octshape/retina/cube_report.h"
 #include "octshape/retina/eye_stats.h"
+#include "octshape/retina/record.h"
 
 namespace octshape::app {
 namespace {
@@ -208,11 +209,12 @@ nlohmann::ordered_json to_json(const retina::GroupStats& g,
 // pooled with them. Returns the analysis
 // kept ("" when the table has no such column).
 std::string keep_one_analysis(retina::EyeTable& t, const StatsOptions& o) {
-    const int col = t.column("analysis");
+    const std::string& analysis = retina::record::name(retina::record::Name::kAnalysis);
+    const int col = t.column(analysis);
     if (col < 0) {
         if (!o.analysis.empty()) {
-            throw InputError::corrupt(o.input,
-                                      "no column 'analysis' for --analysis " + o.analysis);
+            throw InputError::corrupt(o.input, "no column '" + analysis + "' for --analysis " +
+                                                   o.analysis);
         }
         return {};
     }
@@ -259,10 +261,16 @@ nlohmann::ordered_json stats_options(const StatsOptions& o, const std::string& a
 void run(const StatsOptions& o) {
     Provenance prov("stats");
     retina::EyeTable t = retina::read_eye_table_file(o.input);
-    // failures.csv (file, reason, exit_code) is the cohort's other table: say so.
-    if (t.column("reason") >= 0 && t.column("subject_id") < 0) {
-        throw InputError::corrupt(o.input, "this is a failures table (file, reason, exit_code), "
-                                           "not eyes.csv: give the eyes.csv beside it");
+    // failures.csv is the cohort's other table: say so.
+    namespace record = retina::record;
+    if (t.column(record::name(record::Name::kReason)) >= 0 &&
+        t.column(record::name(record::Name::kSubjectId)) < 0) {
+        std::string columns;
+        for (const auto& c : record::failures_columns(false)) {
+            columns += (columns.empty() ? "" : ", ") + c;
+        }
+        throw InputError::corrupt(o.input, "this is a failures table (" + columns +
+                                               "), not eyes.csv: give the eyes.csv beside it");
     }
     const std::string analysis = keep_one_analysis(t, o);
     const retina::GroupStatsParams& groups = o.groups;

@@ -85,6 +85,8 @@ std::vector<std::string> expected_header() {
                                "eye_key",    "sha256", "group"};
     for (const auto& c : retina::cube_csv_header()) h.push_back(c);
     for (const auto& c : retina::etdrs_csv_header()) h.push_back(c);  // appended after CuBe's
+    h.emplace_back("scan_pattern");  // what the scan was, after the parameters
+    h.emplace_back("num_bscans");
     return h;
 }
 
@@ -166,6 +168,13 @@ TEST(CohortCli, AnalysesEveryEyeAndRecordsEveryBadFile) {
                                                   {"c_od.vol", c.in / "sub" / "deeper" / "c_od.vol"}};
     for (std::size_t i = 1; i < eyes.size(); ++i) {
         EXPECT_EQ(eyes[i][5], io::sha256_file(path_of.at(name.at(eyes[i][4])).string()));
+        // The scan's own pattern and B-scan count, as `octshape info` reads them.
+        const auto info = test::run_octshape(
+            "info --json " + q(path_of.at(name.at(eyes[i][4]))));
+        ASSERT_EQ(info.exit_code, 0) << info.err;
+        const auto j = nlohmann::json::parse(info.out);
+        EXPECT_EQ(eyes[i][eyes[i].size() - 2], j["scan_pattern"].get<std::string>());
+        EXPECT_EQ(eyes[i].back(), std::to_string(j["num_bscans"].get<int>()));
     }
     // Sorted by subject, eye, visit date, eye key: one phantom subject, so OD (a, c; in key
     // order) before OS (b).
@@ -204,6 +213,16 @@ TEST(CohortCli, AnalysesEveryEyeAndRecordsEveryBadFile) {
     ASSERT_EQ(onh[1].size(), onh[0].size());
     EXPECT_EQ(onh[1][3], "onh");
     EXPECT_EQ(name.at(onh[1][4]), "onh.vol");
+    // Self-describing: the analysis, then the scan's pattern and B-scan count, last.
+    ASSERT_GE(onh[0].size(), 3U);
+    EXPECT_EQ(std::vector<std::string>(onh[0].end() - 3, onh[0].end()),
+              (std::vector<std::string>{"analysis", "scan_pattern", "num_bscans"}));
+    EXPECT_EQ(std::vector<std::string>(onh[1].end() - 3, onh[1].end() - 1),
+              (std::vector<std::string>{"volume", "volume"}));
+    const auto onh_info = test::run_octshape("info --json " + q(c.in / "onh.vol"));
+    ASSERT_EQ(onh_info.exit_code, 0) << onh_info.err;
+    EXPECT_EQ(onh[1].back(),
+              std::to_string(json::parse(onh_info.out)["num_bscans"].get<int>()));
     // The summary counts each table once and names it: 3 maculae, 1 ONH.
     EXPECT_NE(r.err.find("4 eyes analysed (3 in " + (out / "eyes.csv").string() + ", 1 in " +
                          (out / "eyes_onh.csv").string() + ")"),

@@ -45,6 +45,18 @@ TEST(MaculaCli, BezierSampleMatchesItsTruth) {
     EXPECT_EQ(j["centre"]["source"], "device thickness grid");
     ASSERT_EQ(j["half_lines"].size(), 24U);
     EXPECT_EQ(j["half_lines"][0]["interior_control_points_mm"].size(), 4U);
+    // One list of options (issue 33): the JSON's are the provenance's, under the command
+    // line's names (--half-lines, --tau-um), but for what the run adds (subjects, pictures,
+    // paths); what the scan resolved is apart, in "sampling" (the spacing: the scan's ScaleX).
+    json from_provenance = j["provenance"]["options"];
+    for (const char* run : {"subjects", "qc_pictures", "record_paths"}) from_provenance.erase(run);
+    EXPECT_EQ(j["options"], from_provenance);
+    EXPECT_EQ(j["options"]["half_lines"], 24);
+    EXPECT_EQ(j["options"]["tau_um"], 5);
+    EXPECT_EQ(j["options"]["spacing_mm"], 0);
+    EXPECT_EQ(j["sampling"]["half_lines"], 24);
+    EXPECT_DOUBLE_EQ(j["sampling"]["spacing_mm"].get<double>(),
+                     truth["generator"]["scale_x_mm"].get<double>());
 
     // This sample is coarse: 128 A-scans (ScaleX 70.6 um) x 61 B-scans (125 um). The bounds
     // follow from that grid (tests/retina/macula_bounds.h): centre within e, CFT within the

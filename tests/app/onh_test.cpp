@@ -58,8 +58,9 @@ TEST(OnhCli, AxialRegistrationIsOnByDefaultAndRecorded) {
     ASSERT_EQ(off.exit_code, 0) << off.err;
     const json a = json::parse(slurp(dir / "on.json"));
     const json b = json::parse(slurp(dir / "off.json"));
-    EXPECT_EQ(a["options"]["axial_registration"], true);
-    EXPECT_EQ(b["options"]["axial_registration"], false);
+    // The JSON's options are the provenance's (one list): 1 on, 0 off.
+    EXPECT_EQ(a["options"]["axial_registration"], 1);
+    EXPECT_EQ(b["options"]["axial_registration"], 0);
     EXPECT_EQ(a["axial_registration"]["applied"], true);
     EXPECT_EQ(b["axial_registration"]["applied"], false);
     EXPECT_EQ(a["provenance"]["options"]["axial_registration"], 1);
@@ -96,8 +97,13 @@ TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
     EXPECT_EQ(j["command"], "onh");
     EXPECT_EQ(j["input"]["sha256"], io::sha256_file(vol.string()));
     EXPECT_EQ(slurp(dir / "eye.json").find("FAKE-PHANTOM"), std::string::npos);  // no identifiers
-    EXPECT_EQ(j["options"]["ilm_source"], "device");
-    EXPECT_EQ(j["options"]["bmo_source"], "automatic");
+    EXPECT_EQ(j["sources"]["ilm_source"], "device");
+    EXPECT_EQ(j["sources"]["bmo_source"], "automatic");
+    // One list of options: the JSON's are the provenance's but for what the run adds.
+    json from_provenance = j["provenance"]["options"];
+    for (const char* run : {"subjects", "qc_pictures", "record_paths"}) from_provenance.erase(run);
+    EXPECT_EQ(j["options"], from_provenance);
+    EXPECT_EQ(j["options"]["ilm"], "device");
     EXPECT_NE(j["orientation"].get<std::string>().find("0 deg nasal"), std::string::npos);
     const json& v = j["parameters"];
     const json& t = truth["truth"];
@@ -127,8 +133,12 @@ TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {
     // A volume has no in-plane MRW (radial scans only): null in the JSON, NA in its columns.
     EXPECT_TRUE(v["mrw_inplane_mean_mm"].is_null());
     EXPECT_FALSE(j.contains("radial"));
-    EXPECT_EQ(hv.back(), "mrw_inplane_sector_330_mm");
-    EXPECT_EQ(rv.back(), "NA");
+    ASSERT_GE(hv.size(), 2U);
+    EXPECT_EQ(hv[hv.size() - 2], "mrw_inplane_sector_330_mm");
+    EXPECT_EQ(rv[rv.size() - 2], "NA");
+    // Appended last: which analysis read the scan.
+    EXPECT_EQ(hv.back(), "analysis");
+    EXPECT_EQ(rv.back(), "volume");
     int checked = 0;
     for (std::size_t i = 0; i < hv.size(); ++i) {
         for (const char* key : {"cup_volume_mm3", "conht_mm", "mrw_mean_mm", "bmo_area_mm2"}) {
@@ -182,7 +192,7 @@ TEST(OnhCli, UserBmoFileReplacesTheDetection) {
                            (dir / "eye.json").string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const json j = json::parse(slurp(dir / "eye.json"));
-    EXPECT_EQ(j["options"]["bmo_source"], "file");
+    EXPECT_EQ(j["sources"]["bmo_source"], "file");
     EXPECT_EQ(j["bmo"]["measured_points"], truth["bmo_points"].size());
     // Exact ellipse points: only cv::fitEllipseDirect's own error on exact points remains
     // (<= 1e-4 mm on the axes, tests/retina/bmo_test.cpp): <= 3e-4 mm2.
@@ -276,11 +286,13 @@ TEST(OnhCli, RadialSampleJsonCsvAgainstItsTruth) {
     const auto rows = read_csv(dir / "eye.csv");
     ASSERT_EQ(rows.size(), 2U);
     const auto& h = rows[0];
-    ASSERT_GE(h.size(), 13U);
-    EXPECT_EQ(h[h.size() - 13], "mrw_inplane_mean_mm");
-    EXPECT_EQ(h.back(), "mrw_inplane_sector_330_mm");
-    EXPECT_NE(rows[1][h.size() - 13], "NA");
-    EXPECT_NEAR(std::stod(rows[1][h.size() - 13]), v["mrw_inplane_mean_mm"].get<double>(), 1e-6);
+    ASSERT_GE(h.size(), 14U);
+    EXPECT_EQ(h[h.size() - 14], "mrw_inplane_mean_mm");
+    EXPECT_EQ(h[h.size() - 2], "mrw_inplane_sector_330_mm");
+    EXPECT_NE(rows[1][h.size() - 14], "NA");
+    EXPECT_NEAR(std::stod(rows[1][h.size() - 14]), v["mrw_inplane_mean_mm"].get<double>(), 1e-6);
+    EXPECT_EQ(h.back(), "analysis");  // appended after the in-plane columns
+    EXPECT_EQ(rows[1].back(), "radial");
 }
 
 // A BMO file for a radial scan: ascan,bscan,depth_px (the automatic detection's own points,
@@ -323,7 +335,7 @@ TEST(OnhCli, RadialBmoFileGivesThePointsOnTheirBscans) {
                                       (dir / "f.json").string());
     ASSERT_EQ(f.exit_code, 0) << f.err;
     const json jf = json::parse(slurp(dir / "f.json"));
-    EXPECT_EQ(jf["options"]["bmo_source"], "file");
+    EXPECT_EQ(jf["sources"]["bmo_source"], "file");
     EXPECT_NEAR(jf["parameters"]["bmo_area_mm2"].get<double>(),
                 ja["parameters"]["bmo_area_mm2"].get<double>(), 1e-6);
     EXPECT_NEAR(jf["parameters"]["mrw_inplane_mean_mm"].get<double>(),
@@ -354,7 +366,7 @@ TEST(OnhCli, RadialDefaultIsTheLevelSet) {
                                       (dir / "eye.csv").string());
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const json j = json::parse(slurp(dir / "eye.json"));
-    EXPECT_EQ(j["options"]["ilm_source"], "levelset");
+    EXPECT_EQ(j["sources"]["ilm_source"], "levelset");
     const json& v = j["parameters"];
     const json& t = truth["truth"];
     auto rel = [&](const char* k) { return v[k].get<double>() / t[k].get<double>() - 1.0; };
@@ -417,7 +429,7 @@ TEST(OnhCli, RadialDefaultsRunWithPicturesAndImpossibleGeometryWritesNothing) {
                                           (dir / "qc").string() + " -o " + out);
         ASSERT_EQ(r.exit_code, 0) << r.err;
         const json j = json::parse(slurp(out));
-        EXPECT_EQ(j["options"]["ilm_source"], "levelset");
+        EXPECT_EQ(j["sources"]["ilm_source"], "levelset");
         int pictures = 0;
         for (const auto& e : std::filesystem::directory_iterator(dir / "qc")) {
             EXPECT_EQ(e.path().extension(), ".png") << e.path();

@@ -332,12 +332,12 @@ TEST(CubeRadial, ReportCarriesTheCrossingOffsetAndItsFlag) {
     const CubeResult r = analyse_macula(ph.scan, cp);
     EXPECT_NE(std::find(r.qc_flags.begin(), r.qc_flags.end(), "centre off the line crossing"),
               r.qc_flags.end());
-    const auto j = cube_json(r, cp);
+    const auto j = cube_json(r, cp, nlohmann::ordered_json::object());
     EXPECT_EQ(j["radial"]["num_lines"], 12);
     EXPECT_NEAR(j["radial"]["centre_offset_distance_mm"].get<double>(), 0.060, 0.015);
     EXPECT_EQ(j["radial"]["centre_offset_limit_mm"].get<double>(), 0.025);
     EXPECT_FALSE(j["radial"]["bmo_fields"]["used"].get<bool>());
-    EXPECT_EQ(j["options"]["num_half_lines"], 24);
+    EXPECT_EQ(j["sampling"]["half_lines"], 24);
     EXPECT_EQ(j["radial"]["half_line_feet_mm"].size(), 24U);
     EXPECT_EQ(cube_csv_values(r).front(), "radial");
 }

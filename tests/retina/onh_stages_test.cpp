@@ -104,7 +104,7 @@ TEST(OnhStages, NoBmoFaceMakesTheTensorMissingAndTheReportWritesNullAndNA) {
     for (const double v : r.bmo_tensor_eigenvalues) EXPECT_TRUE(std::isnan(v));
     EXPECT_TRUE(std::isnan(r.conht_mm));
     EXPECT_EQ(r.qc_flags.size(), 2U);  // CONHT undefined, bending energy undefined
-    const nlohmann::ordered_json j = onh_json(r, OnhParams{});
+    const nlohmann::ordered_json j = onh_json(r, nlohmann::ordered_json::object());
     const auto& p = j.at("parameters");
     EXPECT_TRUE(p.at("bending_energy").is_null());
     EXPECT_TRUE(p.at("conht_mm").is_null());

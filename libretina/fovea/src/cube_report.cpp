@@ -1,5 +1,8 @@
 #include "octshape/retina/cube_report.h"
 
+#include "octshape/retina/etdrs.h"
+#include "octshape/retina/record.h"
+
 #include <cmath>
 #include <sstream>
 
@@ -25,51 +28,74 @@ J points(const std::array<Eigen::Vector2d, 4>& c) {
 
 std::string csv_num(double v) { return csv_number(v); }
 
+// How a CSV column stands in the JSON's "parameters" (the one list of parameter names: the CSV
+// columns in order, and the JSON's keys from them).
+enum class InJson {
+    kScalar,     // the same key, the same value (null when missing)
+    kVolume,     // the same, left out for line scans (3-D only)
+    kDiskHead,   // the first column of a disk: the disk's JSON keys (disk_json), 3-D only
+    kInDisk,     // written by its disk's head
+};
+
 struct Column {
     const char* name;
     double (*get)(const CubeResult&);
+    InJson json = InJson::kScalar;
+    const CubeDisk CubeResult::*disk = nullptr;  // kDiskHead: the disk
+    const char* disk_prefix = nullptr;           // kDiskHead: its keys' prefix
+    bool diameter = false;                       // kDiskHead: the column is the disk's diameter
+    bool missing_in_line = false;                // a line scan has none (NA, null)
 };
+
+constexpr InJson kV = InJson::kVolume;
+constexpr InJson kD = InJson::kInDisk;
 
 // The stable CSV columns, in order (docs/outputs.md).
 const std::vector<Column>& columns() {
     static const std::vector<Column> c{
         {"centre_x_mm", [](const CubeResult& r) { return r.centre_mm.x(); }},
-        {"centre_y_mm", [](const CubeResult& r) { return r.centre_mm.y(); }},
+        {"centre_y_mm", [](const CubeResult& r) { return r.centre_mm.y(); }, InJson::kScalar,
+         nullptr, nullptr, false, true},
         {"cft_mm", [](const CubeResult& r) { return r.cft_mm; }},
         {"rim_height_mm", [](const CubeResult& r) { return r.rim_height_mm; }},
         {"pit_depth_mm", [](const CubeResult& r) { return r.pit_depth_mm; }},
         {"max_pit_slope_deg", [](const CubeResult& r) { return r.max_pit_slope_deg; }},
         {"pit_flat_diameter_mm", [](const CubeResult& r) { return r.pit_flat_diameter_mm; }},
-        {"rim_diameter_mm", [](const CubeResult& r) { return r.rim.diameter_mm; }},
-        {"rim_disk_area_mm2", [](const CubeResult& r) { return r.rim.area_mm2; }},
+        {"rim_diameter_mm", [](const CubeResult& r) { return r.rim.diameter_mm; },
+         InJson::kDiskHead, &CubeResult::rim, "rim_disk", true},
+        {"rim_disk_area_mm2", [](const CubeResult& r) { return r.rim.area_mm2; }, kD},
         {"rim_disk_major_eigenvalue_mm2",
-         [](const CubeResult& r) { return r.rim.eigenvalues_mm2[0]; }},
+         [](const CubeResult& r) { return r.rim.eigenvalues_mm2[0]; }, kD},
         {"rim_disk_minor_eigenvalue_mm2",
-         [](const CubeResult& r) { return r.rim.eigenvalues_mm2[1]; }},
-        {"rim_disk_major_semi_axis_mm", [](const CubeResult& r) { return r.rim.semi_axes_mm[0]; }},
-        {"rim_disk_minor_semi_axis_mm", [](const CubeResult& r) { return r.rim.semi_axes_mm[1]; }},
-        {"slope_diameter_mm", [](const CubeResult& r) { return r.slope.diameter_mm; }},
-        {"slope_disk_area_mm2", [](const CubeResult& r) { return r.slope.area_mm2; }},
+         [](const CubeResult& r) { return r.rim.eigenvalues_mm2[1]; }, kD},
+        {"rim_disk_major_semi_axis_mm", [](const CubeResult& r) { return r.rim.semi_axes_mm[0]; },
+         kD},
+        {"rim_disk_minor_semi_axis_mm", [](const CubeResult& r) { return r.rim.semi_axes_mm[1]; },
+         kD},
+        {"slope_diameter_mm", [](const CubeResult& r) { return r.slope.diameter_mm; },
+         InJson::kDiskHead, &CubeResult::slope, "slope_disk", true},
+        {"slope_disk_area_mm2", [](const CubeResult& r) { return r.slope.area_mm2; }, kD},
         {"slope_disk_major_eigenvalue_mm2",
-         [](const CubeResult& r) { return r.slope.eigenvalues_mm2[0]; }},
+         [](const CubeResult& r) { return r.slope.eigenvalues_mm2[0]; }, kD},
         {"slope_disk_minor_eigenvalue_mm2",
-         [](const CubeResult& r) { return r.slope.eigenvalues_mm2[1]; }},
+         [](const CubeResult& r) { return r.slope.eigenvalues_mm2[1]; }, kD},
         {"slope_disk_major_semi_axis_mm",
-         [](const CubeResult& r) { return r.slope.semi_axes_mm[0]; }},
+         [](const CubeResult& r) { return r.slope.semi_axes_mm[0]; }, kD},
         {"slope_disk_minor_semi_axis_mm",
-         [](const CubeResult& r) { return r.slope.semi_axes_mm[1]; }},
-        {"pit_flat_disk_area_mm2", [](const CubeResult& r) { return r.pit_flat.area_mm2; }},
+         [](const CubeResult& r) { return r.slope.semi_axes_mm[1]; }, kD},
+        {"pit_flat_disk_area_mm2", [](const CubeResult& r) { return r.pit_flat.area_mm2; },
+         InJson::kDiskHead, &CubeResult::pit_flat, "pit_flat_disk", false},
         {"pit_flat_disk_major_eigenvalue_mm2",
-         [](const CubeResult& r) { return r.pit_flat.eigenvalues_mm2[0]; }},
+         [](const CubeResult& r) { return r.pit_flat.eigenvalues_mm2[0]; }, kD},
         {"pit_flat_disk_minor_eigenvalue_mm2",
-         [](const CubeResult& r) { return r.pit_flat.eigenvalues_mm2[1]; }},
+         [](const CubeResult& r) { return r.pit_flat.eigenvalues_mm2[1]; }, kD},
         {"pit_flat_disk_major_semi_axis_mm",
-         [](const CubeResult& r) { return r.pit_flat.semi_axes_mm[0]; }},
+         [](const CubeResult& r) { return r.pit_flat.semi_axes_mm[0]; }, kD},
         {"pit_flat_disk_minor_semi_axis_mm",
-         [](const CubeResult& r) { return r.pit_flat.semi_axes_mm[1]; }},
-        {"rim_volume_mm3", [](const CubeResult& r) { return r.rim_volume_mm3; }},
-        {"inner_rim_volume_mm3", [](const CubeResult& r) { return r.inner_rim_volume_mm3; }},
-        {"pit_volume_mm3", [](const CubeResult& r) { return r.pit_volume_mm3; }},
+         [](const CubeResult& r) { return r.pit_flat.semi_axes_mm[1]; }, kD},
+        {"rim_volume_mm3", [](const CubeResult& r) { return r.rim_volume_mm3; }, kV},
+        {"inner_rim_volume_mm3", [](const CubeResult& r) { return r.inner_rim_volume_mm3; }, kV},
+        {"pit_volume_mm3", [](const CubeResult& r) { return r.pit_volume_mm3; }, kV},
         {"alpha_mean_mm", [](const CubeResult& r) { return r.alpha_mean_mm; }},
         {"beta_mean_mm", [](const CubeResult& r) { return r.beta_mean_mm; }},
         {"rmse_um", [](const CubeResult& r) { return r.rmse_um; }},
@@ -85,9 +111,33 @@ void disk_json(J& v, const std::string& diameter, const std::string& prefix, con
     v[prefix + "_normal"] = arr(d.normal);
 }
 
+// "parameters": the CSV's columns by their names, a disk's as disk_json writes it; a line scan
+// has its 2-D ones only.
+J parameters_json(const CubeResult& r) {
+    J v;
+    for (const Column& c : columns()) {
+        switch (c.json) {
+            case InJson::kScalar:
+                v[c.name] = r.line_scan && c.missing_in_line ? J(nullptr) : num(c.get(r));
+                break;
+            case InJson::kVolume:
+                if (!r.line_scan) v[c.name] = num(c.get(r));
+                break;
+            case InJson::kDiskHead:
+                if (!r.line_scan) {
+                    disk_json(v, c.diameter ? c.name : "", c.disk_prefix, r.*(c.disk));
+                }
+                break;
+            case InJson::kInDisk:
+                break;
+        }
+    }
+    return v;
+}
+
 }  // namespace
 
-J cube_json(const CubeResult& r, const CubeParams& p) {
+J cube_json(const CubeResult& r, const CubeParams& p, const J& options) {
     J j;
     j["analysis"] = r.line_scan     ? "line scan (2-D, docs/algorithms/cube.md)"
                     : r.radial_scan ? "radial scan (3-D from the lines' half-lines)"
@@ -97,49 +147,20 @@ J cube_json(const CubeResult& r, const CubeParams& p) {
         "points in grid mm (x along a B-scan = A-scan index * ScaleX, y across B-scans = "
         "B-scan index * Distance); heights are retinal thickness ILM - BM in mm; disk normals "
         "in the grid frame with z >= 0";
-    J o;
-    o["num_half_lines"] = r.line_scan     ? 2
-                          : r.radial_scan ? static_cast<int>(r.half_lines.size())
-                                          : p.num_half_lines;
-    o["radius_mm"] = p.radius_mm;
-    o["sample_spacing_mm"] = r.sample_spacing_mm;
-    o["tau_mm"] = p.tau_mm;
-    o["inner_radius_mm"] = p.inner_radius_mm;
-    o["search_radius_mm"] = p.search_radius_mm;
-    o["tie_tolerance_mm"] = p.tie_tolerance_mm;
-    o["centre_smoothing_mm"] = p.centre_smoothing_mm;
-    o["centre_fit_radius_mm"] = p.centre_fit_radius_mm;
-    o["max_rounds"] = p.max_rounds;
-    o["energy_tolerance"] = p.energy_tolerance;
-    o["rim_point"] = to_string(p.rim_point);
-    o["local_fit_min_noise_um"] = num(p.local_fit_min_noise_um);
-    j["options"] = o;
+    j["options"] = options;
+    J s;
+    s["half_lines"] = r.line_scan     ? 2
+                      : r.radial_scan ? static_cast<int>(r.half_lines.size())
+                                      : p.num_half_lines;
+    s["spacing_mm"] = r.sample_spacing_mm;
+    j["sampling"] = s;
     J c;
     c["source"] = r.centre_source;
     c["search_centre_x_mm"] = r.search_centre_mm.x();
     c["search_centre_y_mm"] = r.search_centre_mm.y();
     c["tied_minima"] = r.num_tied_minima;
     j["centre"] = c;
-    J v;
-    v["centre_x_mm"] = r.centre_mm.x();
-    v["centre_y_mm"] = r.line_scan ? J(nullptr) : J(r.centre_mm.y());
-    v["cft_mm"] = num(r.cft_mm);
-    v["rim_height_mm"] = num(r.rim_height_mm);
-    v["pit_depth_mm"] = num(r.pit_depth_mm);
-    v["max_pit_slope_deg"] = num(r.max_pit_slope_deg);
-    v["pit_flat_diameter_mm"] = num(r.pit_flat_diameter_mm);
-    if (!r.line_scan) {
-        disk_json(v, "rim_diameter_mm", "rim_disk", r.rim);
-        disk_json(v, "slope_diameter_mm", "slope_disk", r.slope);
-        disk_json(v, "", "pit_flat_disk", r.pit_flat);
-        v["rim_volume_mm3"] = num(r.rim_volume_mm3);
-        v["inner_rim_volume_mm3"] = num(r.inner_rim_volume_mm3);
-        v["pit_volume_mm3"] = num(r.pit_volume_mm3);
-    }
-    v["alpha_mean_mm"] = num(r.alpha_mean_mm);
-    v["beta_mean_mm"] = num(r.beta_mean_mm);
-    v["rmse_um"] = num(r.rmse_um);
-    j["parameters"] = v;
+    j["parameters"] = parameters_json(r);
     J noise;  // what sets the crest of RimPoint::kCrest (docs/algorithms/cube.md "Rim point")
     noise["thickness_noise_sd_um"] = num(r.thickness_noise_sd_um);
     noise["crest_tolerance_um"] =
@@ -201,12 +222,18 @@ J cube_json(const CubeResult& r, const CubeParams& p) {
 }
 
 std::vector<std::string> cube_csv_header() {
-    std::vector<std::string> h{"analysis", "centre_source"};
+    std::vector<std::string> h{record::name(record::Name::kAnalysis), "centre_source"};
     for (const auto& c : columns()) h.emplace_back(c.name);
     h.emplace_back("qc_flags");
     // Appended after qc_flags (columns are only ever appended): the map's node noise, the
     // covariate the per-eye precision and bias depend on (docs/outputs.md, "How precise").
     h.emplace_back("thickness_noise_sd_um");
+    return h;
+}
+
+std::vector<std::string> macula_csv_header() {
+    std::vector<std::string> h = cube_csv_header();
+    for (auto& c : etdrs_csv_header()) h.push_back(std::move(c));
     return h;
 }
 
@@ -216,7 +243,7 @@ std::vector<std::string> cube_csv_values(const CubeResult& r) {
     for (const auto& c : columns()) {
         const double x = c.get(r);
         // A line scan has no y across B-scans: NA, as in the JSON.
-        v.push_back(r.line_scan && std::string(c.name) == "centre_y_mm" ? "NA" : csv_num(x));
+        v.push_back(r.line_scan && c.missing_in_line ? "NA" : csv_num(x));
     }
     std::string flags;
     for (const auto& f : r.qc_flags) flags += (flags.empty() ? "" : ";") + f;

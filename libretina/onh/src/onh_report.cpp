@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "octshape/retina/report_util.h"
+#include "octshape/retina/record.h"
 
 namespace octshape::retina {
 namespace {
@@ -62,23 +63,15 @@ J vec3(const Eigen::Vector3d& v) { return J::array({v.x(), v.y(), v.z()}); }
 
 }  // namespace
 
-J onh_json(const OnhResult& r, const OnhParams& p) {
+J onh_json(const OnhResult& r, const J& options) {
     J j;
     j["analysis"] = "optic nerve head (3-D, thesis 8.1)";
     j["orientation"] =
         "angles anatomical: 0 deg nasal, 90 deg superior, for both eyes (OS mirrored); "
         "positions in grid mm (x along a B-scan = A-scan index * ScaleX, y across B-scans = "
         "B-scan index * Distance, z = height = -depth * ScaleZ); h = ILM height above the RPE";
-    J o;
-    o["ilm_source"] = r.ilm_source;
-    o["bmo_source"] = r.bmo_source;
-    o["bmo_points"] = p.bmo_points;
-    o["disc_radius_mm"] = p.disc_radius_mm;
-    o["min_gap_area_mm2"] = p.detection.min_gap_area_mm2;
-    o["local_features"] = p.local_features;
-    o["axial_registration"] = p.axial_registration.enabled;
-    o["axial_registration_surface_degree"] = p.axial_registration.surface_degree;
-    j["options"] = o;
+    j["options"] = options;
+    j["sources"] = J{{"ilm_source", r.ilm_source}, {"bmo_source", r.bmo_source}};
     {
         // Per B-scan (index = B-scan, from 0): the axial motion estimated (+ = the B-scan lay
         // deeper than the eye) and removed when applied.
@@ -241,6 +234,9 @@ std::vector<std::string> onh_csv_header() {
     // Appended (radial scans; NA for volumes): the in-plane MRW.
     h.emplace_back("mrw_inplane_mean_mm");
     for (std::size_t k = 0; k < 12; ++k) h.push_back(inplane_sector_name(k));
+    // Appended: which analysis read the scan (volume | radial), as the macula's first column;
+    // a table's rows of two analyses are never pooled (octshape stats keeps one).
+    h.push_back(record::name(record::Name::kAnalysis));
     return h;
 }
 
@@ -253,6 +249,7 @@ std::vector<std::string> onh_csv_values(const OnhResult& r) {
     v.push_back(flags);
     v.push_back(csv_number(r.mrw_inplane_mean_mm));
     for (std::size_t k = 0; k < 12; ++k) v.push_back(csv_number(r.mrw_inplane_sector_mm[k]));
+    v.emplace_back(r.radial ? "radial" : "volume");
     return v;
 }
 

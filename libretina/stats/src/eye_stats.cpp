@@ -14,6 +14,7 @@
 
 #include "octshape/error.h"
 #include "octshape/io/csv.h"
+#include "octshape/retina/record.h"
 
 namespace octshape::retina {
 namespace {
@@ -43,10 +44,10 @@ struct Ids {
     int visit = -1;
     int file = -1;  // the eye_key column (it replaced the file name: docs/cohort.md)
     explicit Ids(const EyeTable& t)
-        : subject(require_column(t, "subject_id")),
-          eye(require_column(t, "eye")),
-          visit(require_column(t, "visit_date")),
-          file(require_column(t, "eye_key")) {}
+        : subject(require_column(t, record::name(record::Name::kSubjectId))),
+          eye(require_column(t, record::name(record::Name::kEye))),
+          visit(require_column(t, record::name(record::Name::kVisitDate))),
+          file(require_column(t, record::name(record::Name::kEyeKey))) {}
 };
 
 // Row indices grouped by key, each group in visit_date then eye_key order (ISO dates sort as
@@ -79,14 +80,10 @@ EyeTable read_eye_table(std::istream& in, const std::string& name) { return io::
 
 EyeTable read_eye_table_file(const std::string& path) { return io::read_csv_file(path); }
 
-const std::vector<std::string>& eye_table_id_columns() {
-    static const std::vector<std::string> kIds{"subject_id", "eye",    "visit_date", "scan_type",
-                                               "eye_key",    "sha256", "group"};
-    return kIds;
-}
+std::vector<std::string> eye_table_id_columns() { return record::eyes_non_parameter_columns(); }
 
 std::vector<std::string> numeric_columns(const EyeTable& t, const std::string& group_column) {
-    const auto& ids = eye_table_id_columns();
+    const auto ids = eye_table_id_columns();
     std::vector<std::string> out;
     for (std::size_t c = 0; c < t.header.size(); ++c) {
         const std::string& h = t.header[c];

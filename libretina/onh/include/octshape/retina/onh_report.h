@@ -12,7 +12,11 @@ namespace octshape::retina {
 
 // "analysis", "orientation", "options", "parameters", "bmo", "bmo_points", "qc", "qc_flags" and
 // "notes" of one eye.
-[[nodiscard]] nlohmann::ordered_json onh_json(const OnhResult& r, const OnhParams& p);
+// `options`: the caller's list of the effective options (under the command line's names, the
+// same list as the provenance's); "sources" says where the ILM and the BMO came from
+// (`ilm_source`, `bmo_source`, as the CSV's columns).
+[[nodiscard]] nlohmann::ordered_json onh_json(const OnhResult& r,
+                                              const nlohmann::ordered_json& options);
 
 // Stable CSV columns (one header line, one row per eye), without the leading file/sha256/eye
 // columns the caller adds.

@@ -3,8 +3,9 @@
 // parameter (thesis Tables 7.3 and 8.2: mean (SD), min-max) and the test-retest ICC(2,1) of
 // repeated scans of the same eye (Tables 7.1 and 8.1).
 //
-// eyes.csv (docs/outputs.md): one header line, columns subject_id, eye, visit_date, scan_type,
-// eye_key, sha256, group, then the parameters; "NA" (or an empty field) is missing.
+// eyes.csv (docs/outputs.md): one header line, the columns of octshape/retina/record.h (the
+// identifiers subject_id, eye, visit_date, scan_type, eye_key, sha256, group, then the
+// parameters, then scan_pattern, num_bscans); "NA" (or an empty field) is missing.
 
 #include <cstddef>
 #include <istream>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "octshape/io/csv.h"
+#include "octshape/retina/record.h"
 #include "octshape/retina/stats.h"
 
 namespace octshape::retina {
@@ -25,8 +27,10 @@ using EyeTable = io::CsvTable;
 // Opens and parses a file (InputError missing/unreadable when it cannot be read).
 [[nodiscard]] EyeTable read_eye_table_file(const std::string& path);
 
-// Columns that identify a scan, never treated as parameters.
-[[nodiscard]] const std::vector<std::string>& eye_table_id_columns();
+// Columns that identify or describe a scan, never treated as parameters
+// (record::eyes_non_parameter_columns(): the identifiers, analysis, scan_pattern, num_bscans,
+// fingerprint).
+[[nodiscard]] std::vector<std::string> eye_table_id_columns();
 
 // True when the field is missing: "NA" or empty.
 [[nodiscard]] bool is_missing_field(const std::string& s);
@@ -37,7 +41,7 @@ using EyeTable = io::CsvTable;
                                                        const std::string& group_column);
 
 struct GroupStatsParams {
-    std::string group_column = "group";  // absent column -> one group "all"
+    std::string group_column = record::name(record::Name::kGroup);  // absent -> one group "all"
     // false: one scan per eye (subject_id + eye), the first by visit_date then eye_key, as the
     // R recipe does; true: every row counts.
     bool all_scans = false;
