@@ -313,6 +313,9 @@ void LevelSetParams::validate() const {
     if (!(tile_mm > 0.0) || !std::isfinite(tile_mm)) bad("tile_mm", "must be finite and > 0");
     if (patience < 1) bad("patience", "must be >= 1");
     if (slab_bscans < 2) bad("slab_bscans", "must be >= 2");
+    if (!(leak_depth_mm > 0.0) || !std::isfinite(leak_depth_mm)) {
+        bad("leak_depth_mm", "must be finite and > 0");
+    }
     try {
         rofi.validate();
     } catch (const UsageError& e) {

@@ -83,6 +83,15 @@ struct LevelSetParams {
     bool smooth = true;    // RoFi on the clipped component
     mesh::RofiParams rofi = levelset_default_rofi();
 
+    // --- Leaks (radial scans: the 2-D level set per B-scan) ---
+    // A front that entered the tissue (a dark cleft, a vessel's shadow) shows as vitreous more
+    // than `leak_depth_mm` below the device ILM that is open to the vitreous only from above
+    // (an overhang's cavity opens sideways, into the cup); its A-scans fall back to the device
+    // ILM, flagged and counted (docs/algorithms/levelset.md "Leaks"). false: keep the leak
+    // (for measuring it). leak_depth_mm > 0.
+    bool leak_fallback = true;
+    double leak_depth_mm = 0.016;
+
     // Throws UsageError naming the bad field.
     void validate() const;
 };
