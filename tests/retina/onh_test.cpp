@@ -458,6 +458,10 @@ void expect_levelset_targets(const LevelSetCase& c, const std::string& name) {
     const double area_err = std::fabs(r.mrw_area_mm2 / t.mrw_area_mm2 - 1.0);
     const double mrw_err = std::fabs(r.mrw_mean_mm / t.mrw_mean_mm - 1.0);
     EXPECT_LE(area_err, std::max(0.02, mrw_err + 0.005)) << name << " mrw area";
+    // No leak on a clean eye (docs/algorithms/levelset.md "Leaks"), overhang included.
+    for (const std::string& f : r.qc_flags) {
+        EXPECT_EQ(f.find("level-set front leaked"), std::string::npos) << name << ": " << f;
+    }
     const bool overhang = name == "overhang";
     expect_mrw_points(r, t, c.ph.scan.meta.scale_x_mm, overhang ? 8.0 : 4.0, name + " LS",
                       overhang);

@@ -12,7 +12,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <string>
@@ -176,57 +175,23 @@ std::vector<std::uint8_t> vitreous_region(const std::vector<double>& phi, int ro
 // (the first tissue row from the top) is the device ILM's, up to the level set's own offset
 // (1-3 um) — also over an overhang, whose cavity lies below the lip that both see first. A
 // front that ran into the tissue (a dark cleft, a vessel's shadow) leaves its top crossing deep
-// below the device ILM. So an A-scan leaks when its top crossing is more than `leak_rows`
-// below the device ILM's running median over 9 A-scans (which drops a device-line spike of up
-// to 4 A-scans and keeps a monotone wall and a step), in a run of at least kMinLeakRun
-// A-scans (a lip's tip, thinner than a pixel where it ends, may open one or two). Returns per
-// A-scan 1 where a leak lies, widened by kLeakMarginAscans on either side.
-constexpr int kMinLeakRun = 3;
-constexpr int kLeakMarginAscans = 2;
-
+// below the device ILM: ls::leak_runs on the B-scan's top crossings.
 std::vector<std::uint8_t> leak_columns(const BscanLevelSet& l,
                                        const std::vector<std::uint8_t>& vit,
                                        const std::vector<float>& device,
                                        double leak_rows) {
     const int na = l.na;
-    std::vector<std::uint8_t> deep(static_cast<std::size_t>(na), 0);
-    std::vector<float> win;
+    std::vector<double> top(static_cast<std::size_t>(na), l.r0 + l.rows);
     for (int a = 0; a < na; ++a) {
-        if (!l.valid[static_cast<std::size_t>(a)]) continue;
-        win.clear();
-        for (int b = std::max(0, a - 4); b <= std::min(na - 1, a + 4); ++b) {
-            if (l.valid[static_cast<std::size_t>(b)]) win.push_back(device[static_cast<std::size_t>(b)]);
-        }
-        std::nth_element(win.begin(), win.begin() + static_cast<std::ptrdiff_t>(win.size() / 2),
-                         win.end());
-        const double median = win[win.size() / 2];
-        int top = l.r0 + l.rows;  // the first tissue row (the bottom row is tissue)
         for (int r = 0; r < l.rows; ++r) {
             if (!vit[static_cast<std::size_t>(r) * static_cast<std::size_t>(na) +
                      static_cast<std::size_t>(a)]) {
-                top = l.r0 + r;
+                top[static_cast<std::size_t>(a)] = l.r0 + r;
                 break;
             }
         }
-        deep[static_cast<std::size_t>(a)] = top > median + leak_rows ? 1 : 0;
     }
-    std::vector<std::uint8_t> leak(static_cast<std::size_t>(na), 0);
-    for (int a = 0; a < na;) {
-        if (!deep[static_cast<std::size_t>(a)]) {
-            ++a;
-            continue;
-        }
-        int e = a;
-        while (e < na && deep[static_cast<std::size_t>(e)]) ++e;
-        if (e - a >= kMinLeakRun) {
-            for (int b = std::max(0, a - kLeakMarginAscans); b < std::min(na, e + kLeakMarginAscans);
-                 ++b) {
-                leak[static_cast<std::size_t>(b)] = 1;
-            }
-        }
-        a = e;
-    }
-    return leak;
+    return ls::leak_runs(top, device.data(), l.valid.data(), na, leak_rows);
 }
 
 // The zero level of `val` by marching squares (linear interpolation on the cell edges, as
@@ -502,7 +467,7 @@ void report_bscans(std::vector<BscanLevelSet>& bs, IlmSurface& out) {
                                bscans_named(edge));
     }
     if (!out.leak_bscans.empty()) {
-        out.qc_flags.push_back("level-set front leaked into the tissue in radial " +
+        out.qc_flags.push_back(std::string(ls::kLeakFlag) + " in radial " +
                                bscans_named(out.leak_bscans) + ": " +
                                std::to_string(out.leak_fallback_ascans) +
                                " A-scans fell back to the device ILM");
