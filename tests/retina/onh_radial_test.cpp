@@ -459,7 +459,8 @@ ACCURACY_TEST(OnhRadialTruth, LevelSetTwelveLines) {
     }
 }
 
-// Slow (~5 s: a full-size 24-line phantom, its truth, the device ILM and one level set): the
+// Slow (2.1-3.6 s Release on the loaded machine: a full-size 24-line phantom, its truth, the
+// device ILM and one level set): the
 // reproduction of issue 32's leak. The cupped eye with 60 um of axial motion (registered),
 // vessel shadows and a dark cleft under the superior vessel: without the fallback the front
 // runs down the cleft on the cup wall of B-scan 15 and a shadow of B-scan 14 (their top
