@@ -5,6 +5,7 @@
 #include "octshape/retina/axial_registration.h"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <string>
 #include <tuple>
@@ -296,10 +297,16 @@ SLOW_TEST(OnhMovingPhantom, RadialThirtyAndSixtyMicronsWithShadowsMeetTheStillTo
         const io::Scan raw = render_onh_scan(p);
         const std::string name = "radial " + std::to_string(static_cast<int>(sd)) + " um ";
         {
-            // Unregistered, the 3-D quantities break (the failure): the MRW area by
-            // more than twice its tolerance (bench onh_motion: +4.9 % at 30 um, +14.8 % at 60).
+            // Unregistered, the 3-D quantities break (the failure): CONHT by far more
+            // than its 5 um (bench onh_motion: +40 um at 30 um, +81 um at 60; the ILM and the
+            // RPE at the crossing come from different lines' depths). (The MRW area, +4.9 % and
+            // +14.8 % there, broke mostly through the BMO heights' steps between lines; with
+            // the heights linear in angle it is +1.1 % at 30 um: docs/algorithms/onh.md
+            // "3-D MRW per point".)
             const OnhResult r = analyse_onh(raw, device_ilm_surface(raw));
-            EXPECT_GT(std::fabs(r.mrw_area_mm2 / t.mrw_area_mm2 - 1.0), 0.04) << name;
+            std::printf("%sunregistered: CONHT %+.1f um, MRW area %+.2f %%\n", name.c_str(),
+                        1e3 * (r.conht_mm - t.conht_mm), 100.0 * (r.mrw_area_mm2 / t.mrw_area_mm2 - 1.0));
+            EXPECT_GT(std::fabs(r.conht_mm - t.conht_mm), 0.02) << name;
         }
         io::Scan scan = raw;
         const AxialRegistration reg = register_axially(scan);
@@ -319,9 +326,13 @@ SLOW_TEST(OnhMovingPhantom, VolumeSixtyMicronsWithShadowsMeetsTheStillTolerances
     const OnhTruth t = compute_onh_truth(p);
     const io::Scan raw = render_onh_scan(p);
     {
-        // Unregistered: the MRW area off by more than its 2 % (bench: +5.1 %).
+        // Unregistered: the MRW area off by more than its 2 % (bench: +5.1 % with the BMO
+        // heights of the nearest measured point; +3.3 % with them linear in angle, which
+        // removed their steps between B-scans: docs/algorithms/onh.md "3-D MRW per point").
         const OnhResult r = analyse_onh(raw, device_ilm_surface(raw));
-        EXPECT_GT(std::fabs(r.mrw_area_mm2 / t.mrw_area_mm2 - 1.0), 0.04);
+        std::printf("volume 60 um unregistered: MRW area %+.2f %%, 3-D MRW %+.2f um\n",
+                    100.0 * (r.mrw_area_mm2 / t.mrw_area_mm2 - 1.0), 1e3 * (r.mrw_mean_mm - t.mrw_mean_mm));
+        EXPECT_GT(std::fabs(r.mrw_area_mm2 / t.mrw_area_mm2 - 1.0), 0.02);
     }
     io::Scan scan = raw;
     const AxialRegistration reg = register_axially(scan);

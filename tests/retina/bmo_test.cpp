@@ -5,10 +5,13 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <limits>
 #include <numbers>
+#include <utility>
+#include <vector>
 
 #include "octshape/error.h"
 #include "test_paths.h"
@@ -64,25 +67,39 @@ TEST(BmoEllipse, RecoversAKnownEllipseInEveryOrientation) {
     }
 }
 
-TEST(BmoEllipse, ResampledHeightsComeFromTheNearestMeasuredPointInAngle) {
-    // A circle of 8 measured points with distinct heights; every resampled point takes the
-    // height of the measured point nearest in polar angle.
-    const auto pts = ellipse_points({1.0, 1.0}, 0.5, 0.5 - 1e-9, 0.0, 8, 0.0);
+TEST(BmoEllipse, ResampledHeightsAreLinearInAngleBetweenTheMeasuredPoints) {
+    // A circle of 8 measured points (45 deg apart) with distinct heights; every resampled point
+    // takes the height linear in polar angle between the two measured points that bracket it,
+    // across +-180 deg too. (It took the nearest point's height: a step between neighbouring
+    // resampled points of up to the two ends' difference; docs/algorithms/onh.md "3-D MRW per
+    // point".)
+    auto pts = ellipse_points({1.0, 1.0}, 0.5, 0.5 - 1e-9, 0.0, 8, 0.0);
+    for (std::size_t k = 0; k < pts.size(); ++k) pts[k].mm.z() = -1.0 + 0.01 * static_cast<double>(k * k);
     const BmoEllipse e = fit_bmo_ellipse(pts, 64);
-    for (const auto& p : e.points_mm) {
+    std::vector<std::pair<double, double>> sorted;
+    for (const auto& m : pts) sorted.emplace_back(std::atan2(m.mm.y() - 1.0, m.mm.x() - 1.0), m.mm.z());
+    std::sort(sorted.begin(), sorted.end());
+    double largest_step = 0.0;
+    for (std::size_t i = 0; i < e.points_mm.size(); ++i) {
+        const auto& p = e.points_mm[i];
         const double ang = std::atan2(p.y() - 1.0, p.x() - 1.0);
-        double best = 1e9;
-        double z = 0.0;
-        for (const auto& m : pts) {
-            double d = std::fabs(ang - std::atan2(m.mm.y() - 1.0, m.mm.x() - 1.0));
-            d = std::min(d, 2 * kPi - d);
-            if (d < best) {
-                best = d;
-                z = m.mm.z();
-            }
-        }
-        EXPECT_EQ(p.z(), z);
+        // The bracketing pair, by brute force over the sorted angles (periodic).
+        std::size_t j = 0;
+        while (j < sorted.size() && sorted[j].first <= ang) ++j;
+        const auto& after = sorted[j % sorted.size()];
+        const auto& before = sorted[(j + sorted.size() - 1) % sorted.size()];
+        double span = after.first - before.first;
+        double from = ang - before.first;
+        if (span <= 0.0) span += 2 * kPi;
+        if (from < 0.0) from += 2 * kPi;
+        const double w = from / span;
+        EXPECT_NEAR(p.z(), (1.0 - w) * before.second + w * after.second, 1e-12) << i;
+        largest_step = std::max(largest_step,
+                                std::fabs(e.points_mm[(i + 1) % e.points_mm.size()].z() - p.z()));
     }
+    // 64 points over 8 ends: a step is 1/8 of the two bracketing ends' difference (at most
+    // 0.49, between the last and the first), never the whole of it.
+    EXPECT_LE(largest_step, 0.49 / 8.0 + 1e-9);
 }
 
 TEST(BmoEllipse, RefusesTooFewPoints) {

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -138,6 +139,51 @@ TEST(LevelSetStages, InitialPhiIsTheSignedVerticalDistanceToTheDeviceIlm) {
         for (int r = 0; r < w.len[c]; ++r) {
             const double want = (20.25 - (w.lo[c] + r)) * d.h.hz;  // > 0 above (vitreous)
             EXPECT_FLOAT_EQ(phi[static_cast<std::size_t>(w.offset[c] + r)], static_cast<float>(want));
+        }
+    }
+}
+
+// Leaks (docs/algorithms/levelset.md "Leaks"): a flat ILM at row 20.25 (hz 4 um; leak depth
+// 16 um = 4 rows). B-scan 1 holds a leak 5 A-scans wide whose top crossing is 10 rows deep, a
+// 2-A-scan dip of the same depth (shorter than the 3-A-scan run: a lip's tip) and a device-line
+// spike of 3 A-scans 12 rows up into the vitreous (the level set is right there; the 9-A-scan
+// median drops the spike). Only the leak, widened by 2 A-scans, falls back to phi0; B-scan 0 is
+// left alone.
+TEST(LevelSetStages, LeaksFallBackToTheDeviceIlmAndLipTipsAndSpikesDoNot) {
+    DeviceIlm d = flat_ilm(2, 40, 60, 20.25F);
+    const int na = 40;
+    for (int a = 30; a < 33; ++a) d.ilm[static_cast<std::size_t>(na + a)] = 8.25F;  // spike
+    LevelSetParams p;
+    const Windows w = depth_windows(d, p);
+    const DeviceIlm flat = flat_ilm(2, 40, 60, 20.25F);
+    std::vector<float> phi = initial_phi(w, flat);  // the true surface, spike or not
+    auto top_at = [&](int b, int a, double row) {
+        const auto c = static_cast<std::size_t>(w.column(b, a));
+        for (int r = 0; r < w.len[c]; ++r) {
+            phi[static_cast<std::size_t>(w.offset[c] + r)] =
+                static_cast<float>((row - (w.lo[c] + r)) * d.h.hz);
+        }
+    };
+    for (int a = 10; a < 15; ++a) top_at(1, a, 30.25);  // the leak
+    for (int a = 20; a < 22; ++a) top_at(1, a, 30.25);  // the dip
+    const std::vector<float> before = phi;
+    std::vector<int> bscans;
+    const std::int64_t n = fall_back_leaks(w, phi, d, p.leak_depth_mm, bscans);
+    EXPECT_EQ(n, 9);  // A-scans 8-16
+    EXPECT_EQ(bscans, std::vector<int>{1});
+    for (int b = 0; b < 2; ++b) {
+        for (int a = 0; a < na; ++a) {
+            const auto c = static_cast<std::size_t>(w.column(b, a));
+            const bool fell = b == 1 && a >= 8 && a <= 16;
+            for (int r = 0; r < w.len[c]; ++r) {
+                const auto i = static_cast<std::size_t>(w.offset[c] + r);
+                if (fell) {
+                    EXPECT_FLOAT_EQ(phi[i], static_cast<float>((20.25 - (w.lo[c] + r)) * d.h.hz))
+                        << b << " " << a;
+                } else {
+                    EXPECT_EQ(phi[i], before[i]) << b << " " << a;
+                }
+            }
         }
     }
 }

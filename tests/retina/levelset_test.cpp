@@ -440,6 +440,9 @@ TEST(LevelSet, ValidateNamesTheBadField) {
     p = {};
     p.rofi.sigma_s = -1.0;
     EXPECT_NE(message(p).find("rofi"), std::string::npos);
+    p = {};
+    p.leak_depth_mm = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_NE(message(p).find("leak_depth_mm"), std::string::npos);
 }
 
 TEST(LevelSet, RefusesScansWithoutPixelsOrVolume) {

@@ -29,10 +29,13 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include "octshape/error.h"
+#include "octshape/retina/axial_registration.h"
 #include "octshape/retina/phantom_onh.h"
 #include "octshape/retina/radial_geometry.h"
+#include "onh_mrw_points.h"
 #include "slow_test.h"
 
 namespace octshape::retina {
@@ -190,6 +193,33 @@ void print_row(const std::string& name, const RadialCase& c) {
         pct(r.mrw_area_mm2, t.mrw_area_mm2), r.bending_energy - t.bending_energy, r.seconds);
 }
 
+// 3-D MRW per point (issue 32 item 4): the 360 resampled BMO points against the truth's point
+// at the nearest anatomical angle (onh_mrw_points.h; the match moves the true MRW by <= its
+// largest 1 deg step, added to the bound). The measured 3-D MRW is the exact distance to
+// the mesh, 1-Lipschitz in the BMO point; its error per point is the BMO point's (the fitted
+// ellipse within ds/2 of the true one where the 48 ends are, each end within +-ds/2 along its
+// line; the height linear in angle between two ends 7.5 deg apart, off by A dtheta^2 / 8 <=
+// 0.1 um for a BM tilt A <= 50 um across the BMO) plus the surface's error near the closest
+// point (`surface_um`: the device ILM is exact on the lines and interpolated between them,
+// < 1 um of height at the rim; the level set as the in-plane bound below, 4 um).
+// Neighbouring points are 1 deg (~16 um) apart: their errors differ by what the error sources
+// change over 16 um. The ellipse and now the BMO height are smooth in angle, the mesh's normal
+// errs by a few degrees (tan 5 deg x 16 um = 1.4 um): a jump beyond the truth's own by more
+// than 1.5 um is not the geometry's. (The height used to be the nearest measured end's, a step
+// function: jumps of 2-10 um on these phantoms, 40-44 um on a real eye whose lines were not
+// registered in depth.)
+void expect_mrw_points(const RadialCase& c, double surface_um, const std::string& name) {
+    ASSERT_EQ(c.r.mrw_mm.size(), 360U) << name;
+    const MrwPointErrors e = mrw_point_errors(c.r, c.ph.truth);
+    const double ds = c.ph.scan.meta.scale_x_mm;
+    const double bound = 0.5 * ds + 1e-3 * surface_um + e.truth_jump_mm;
+    std::printf("%-22s 3-D MRW points: worst error %.2f um (bound %.2f), largest 1 deg jump %.2f um "
+                "(truth %.2f)\n",
+                name.c_str(), 1e3 * e.worst_mm, 1e3 * bound, 1e3 * e.jump_mm, 1e3 * e.truth_jump_mm);
+    EXPECT_LE(e.worst_mm, bound) << name;
+    EXPECT_LE(e.jump_mm, e.truth_jump_mm + 0.0015) << name;
+}
+
 // What every shape meets with the device ILM: the BMO, the annulus (one crossing per vertical
 // line outside the BMO) and CONHT (the centre line meets the ILM once).
 void expect_common(const RadialCase& c, const std::string& name) {
@@ -252,6 +282,10 @@ void expect_accurate(const RadialCase& c, const std::string& name) {
     }
     // The MRW area within 2 % (Eq. 8.23 on the low-passed closest-point curve).
     EXPECT_NEAR(r.mrw_area_mm2, t.mrw_area_mm2, 0.02 * t.mrw_area_mm2) << name;
+    expect_mrw_points(c, 1.0, name);
+    // No face facing down: the phantom's ILM is nowhere steeper than ~65 deg outside the
+    // overhang, and a graph mesh has none.
+    EXPECT_EQ(r.ilm_quality.negative_projected_area_mm2, 0.0) << name;
 }
 
 // Slow: four radial phantoms and their truths (~1.5 s each).
@@ -321,8 +355,9 @@ ACCURACY_TEST(OnhRadialTruth, OverhangWithDeviceIlmIsBlindToTheCavity) {
 // curve: the volume's level set is 3.5 um mean |d| on the reduced overhang and 3.9 um on its
 // hidden wall, levelset.md "Accuracy").
 
-void expect_levelset_accurate(const RadialCase& c, const std::string& name) {
-    expect_common(c, name);
+// The level set's targets against the truth (without expect_common's checks of the flags and
+// the measured points).
+void expect_levelset_targets(const RadialCase& c, const std::string& name, bool overhang) {
     const OnhTruth& t = c.ph.truth;
     const OnhResult& r = c.r;
     EXPECT_EQ(r.ilm_source, "levelset") << name;
@@ -351,6 +386,36 @@ void expect_levelset_accurate(const RadialCase& c, const std::string& name) {
     std::printf("%-22s in-plane points: RMS error %.2f um, worst %.2f um (ds/2 = %.2f um)\n",
                 name.c_str(), 1e3 * rms, 1e3 * worst, 0.5e3 * ds);
     EXPECT_LE(rms, ds / std::sqrt(12.0) + 0.004) << name;
+    expect_mrw_points(c, 4.0, name);
+    if (overhang) return;  // the lip's underside faces down: the truth's own
+
+    // One surface, no fold: the cupped and swollen ILM is nowhere steeper than ~65 deg, so a
+    // face facing down is a marching-cubes sliver on the steepest wall tipped over by rounding;
+    // measured <= 8e-6 mm2, bounded by a tenth of one grid cell (step^2 / 10 = 2.9e-5 mm2).
+    // The leak of OnhRadialLeak below folded 7.2e-5 mm2 before the fallback.
+    const double step = r.radial_grid_step_mm;
+    EXPECT_LT(r.ilm_quality.negative_projected_area_mm2, 0.1 * step * step) << name;
+}
+
+void expect_levelset_accurate(const RadialCase& c, const std::string& name, bool overhang) {
+    expect_common(c, name);
+    expect_levelset_targets(c, name, overhang);
+}
+
+// The issue's target for the level set against the device ILM on an eye without an overhang
+// (where the device line is the ILM): in-plane MRW per eye within 5 um, per point within 15 um
+// (the two lines meet the same BMO points; the level set's offset is 1-3 um and its per-point
+// curve error up to ~2 x ds/2, docs/algorithms/levelset.md; 15 um is what the issue asks).
+void expect_inplane_near_device(const OnhResult& ls, const OnhResult& dev, const std::string& name) {
+    ASSERT_EQ(ls.mrw_inplane.size(), dev.mrw_inplane.size()) << name;
+    double worst = 0.0;
+    for (std::size_t i = 0; i < ls.mrw_inplane.size(); ++i) {
+        worst = std::max(worst, std::fabs(ls.mrw_inplane[i].mrw_mm - dev.mrw_inplane[i].mrw_mm));
+    }
+    std::printf("%-22s in-plane MRW vs device ILM %+.2f um per eye, worst point %.2f um\n",
+                name.c_str(), 1e3 * (ls.mrw_inplane_mean_mm - dev.mrw_inplane_mean_mm), 1e3 * worst);
+    EXPECT_NEAR(ls.mrw_inplane_mean_mm, dev.mrw_inplane_mean_mm, 0.005) << name;
+    EXPECT_LE(worst, 0.015) << name;
 }
 
 // Both eyes of one shape, 24 lines, level-set ILM (phantom and truth ~2 s, the level set
@@ -361,7 +426,11 @@ void levelset_both_eyes(OnhShape shape) {
             "levelset " + to_string(shape) + (eye == io::Laterality::kOD ? " OD" : " OS");
         const RadialCase c = run_radial(radial_params(shape, eye), IlmSource::kLevelSet);
         print_row(name, c);
-        expect_levelset_accurate(c, name);
+        expect_levelset_accurate(c, name, shape == OnhShape::kOverhang);
+        if (shape != OnhShape::kOverhang) {
+            expect_inplane_near_device(
+                c.r, analyse_onh(c.ph.scan, device_ilm_surface(c.ph.scan)), name);
+        }
     }
 }
 
@@ -386,8 +455,48 @@ ACCURACY_TEST(OnhRadialTruth, LevelSetTwelveLines) {
         const RadialCase c = run_radial(radial_params(shape, io::Laterality::kOD, 0.0, 12),
                                         IlmSource::kLevelSet);
         print_row(name, c);
-        expect_levelset_accurate(c, name);
+        expect_levelset_accurate(c, name, shape == OnhShape::kOverhang);
     }
+}
+
+// Slow (2.1-3.6 s Release on the loaded machine: a full-size 24-line phantom, its truth, the
+// device ILM and one level set): the
+// reproduction of issue 32's leak. The cupped eye with 60 um of axial motion (registered),
+// vessel shadows and a dark cleft under the superior vessel: without the fallback the front
+// runs down the cleft on the cup wall of B-scan 15 and a shadow of B-scan 14 (their top
+// crossings 20-35 px below the device ILM over 15-20 A-scans), that B-scan's in-plane MRW point
+// is 23 um short of the device ILM's, the 3-D MRW 21 um off the truth at one point and the mesh
+// folds (7.2e-5 mm2 facing down). The leak is found and its A-scans fall back to the device ILM
+// (flagged, counted); then the issue's targets hold: level set vs device ILM in-plane MRW
+// within 5 um per eye and 15 um per point, the still eye's tolerances against the truth.
+SLOW_TEST(OnhRadialLeak, CleftAndShadowsFallBackToTheDeviceIlm) {
+    OnhPhantomParams p = radial_params(OnhShape::kCupped);
+    p.artefacts.motion_sd_um = 60.0;
+    p.artefacts.vessel_shadows = true;
+    p.artefacts.cleft = true;
+    const OnhPhantom ph = make_onh_phantom(p);
+    io::Scan scan = ph.scan;
+    (void)register_axially(scan);
+    const OnhResult dev = analyse_onh(scan, device_ilm_surface(scan));
+    const RadialCase c{ph, analyse_onh(scan, levelset_ilm_surface(scan))};
+    const OnhResult& r = c.r;
+    print_row("leak phantom levelset", c);
+    EXPECT_EQ(r.levelset_leak_bscans, (std::vector<int>{14, 15}));
+    // Each leak's run of A-scans plus two on either side; well under a B-scan's 384.
+    EXPECT_GE(r.levelset_leak_fallback_ascans, 2 * (15 + 4));
+    EXPECT_LE(r.levelset_leak_fallback_ascans, 2 * (40 + 4));
+    bool flagged = false;
+    for (const std::string& f : r.qc_flags) {
+        flagged = flagged || f.find("level-set front leaked into the tissue in radial B-scans 14, "
+                                    "15: ") == 0;
+    }
+    EXPECT_TRUE(flagged);
+    expect_inplane_near_device(r, dev, "leak phantom levelset");
+    const OnhTruth& t = c.ph.truth;
+    EXPECT_NEAR(r.ellipse.area_mm2, t.bmo_area_mm2, 0.01 * t.bmo_area_mm2);
+    EXPECT_NEAR(r.annular_volume_mm3, t.annular_volume_mm3, 0.02 * t.annular_volume_mm3);
+    EXPECT_NEAR(r.conht_mm, t.conht_mm, 0.005);
+    expect_levelset_targets(c, "leak phantom levelset", false);
 }
 
 // Without pixels, or with a B-scan that holds no image, the level set refuses (naming the

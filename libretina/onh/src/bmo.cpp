@@ -6,6 +6,8 @@
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
+#include <utility>
+#include <vector>
 
 #include "octshape/error.h"
 
@@ -212,6 +214,32 @@ double BmoEllipse::normalised_radius(double x, double y) const {
 
 bool BmoEllipse::inside(double x, double y) const { return normalised_radius(x, y) < 1.0; }
 
+namespace {
+
+// The BMO height at polar angle `ang` about the ellipse centre: linear in angle between the
+// two measured points that bracket it (periodic; `polar_z` sorted by angle). It was the
+// nearest point's height, a step function: on a tilted BMO or with the B-scans' residual
+// axial offsets it jumped at every switch (5-40 um between neighbouring 1 deg points), and the
+// 3-D MRW with it (docs/algorithms/onh.md "3-D MRW per point").
+double bmo_height_at_angle(const std::vector<std::pair<double, double>>& polar_z, double ang) {
+    const std::size_t n = polar_z.size();
+    auto upper = std::upper_bound(polar_z.begin(), polar_z.end(), ang,
+                                  [](double v, const std::pair<double, double>& p) {
+                                      return v < p.first;
+                                  });
+    const std::size_t j = static_cast<std::size_t>(upper - polar_z.begin()) % n;  // after
+    const std::size_t i = (j + n - 1) % n;                                         // before
+    double span = polar_z[j].first - polar_z[i].first;
+    double from_i = ang - polar_z[i].first;
+    if (span <= 0.0) span += 2.0 * kPi;  // the pair straddles +-pi (or n == 1)
+    if (from_i < 0.0) from_i += 2.0 * kPi;
+    if (!(span > 1e-12)) return 0.5 * (polar_z[i].second + polar_z[j].second);
+    const double w = std::clamp(from_i / span, 0.0, 1.0);
+    return (1.0 - w) * polar_z[i].second + w * polar_z[j].second;
+}
+
+}  // namespace
+
 BmoEllipse fit_bmo_ellipse(const std::vector<BmoPoint>& points, int num_points) {
     if (points.size() < 6) {
         throw AnalysisError("BMO ellipse: " + std::to_string(points.size()) +
@@ -249,16 +277,18 @@ BmoEllipse fit_bmo_ellipse(const std::vector<BmoPoint>& points, int num_points) 
     e.orientation_deg = th;
     e.area_mm2 = kPi * a * b;  // Eq. 8.24
     double ss = 0.0;
-    std::vector<double> polar;
-    polar.reserve(points.size());
+    std::vector<std::pair<double, double>> polar_z;  // (polar angle about the centre, z)
+    polar_z.reserve(points.size());
     for (const auto& p : points) {
         const double rho = e.normalised_radius(p.mm.x(), p.mm.y());
         const double dist = (p.mm.head<2>() - e.centre_mm).norm();
         const double radial = rho > 0.0 ? dist * (1.0 - 1.0 / rho) : 0.0;
         ss += radial * radial;
-        polar.push_back(std::atan2(p.mm.y() - e.centre_mm.y(), p.mm.x() - e.centre_mm.x()));
+        polar_z.emplace_back(std::atan2(p.mm.y() - e.centre_mm.y(), p.mm.x() - e.centre_mm.x()),
+                             p.mm.z());
     }
     e.rms_residual_mm = std::sqrt(ss / static_cast<double>(points.size()));
+    std::sort(polar_z.begin(), polar_z.end());
     const double ct = std::cos(th * kPi / 180.0);
     const double st = std::sin(th * kPi / 180.0);
     for (int i = 0; i < num_points; ++i) {
@@ -267,17 +297,7 @@ BmoEllipse fit_bmo_ellipse(const std::vector<BmoPoint>& points, int num_points) 
         const double v = b * std::sin(t);
         const Eigen::Vector2d xy = e.centre_mm + Eigen::Vector2d(ct * u - st * v, st * u + ct * v);
         const double ang = std::atan2(xy.y() - e.centre_mm.y(), xy.x() - e.centre_mm.x());
-        std::size_t best = 0;
-        double best_d = 1e300;
-        for (std::size_t k = 0; k < polar.size(); ++k) {
-            double d = std::fabs(ang - polar[k]);
-            d = std::min(d, 2.0 * kPi - d);
-            if (d < best_d) {
-                best_d = d;
-                best = k;
-            }
-        }
-        e.points_mm.emplace_back(xy.x(), xy.y(), points[best].mm.z());
+        e.points_mm.emplace_back(xy.x(), xy.y(), bmo_height_at_angle(polar_z, ang));
         e.parameter_rad.push_back(t);
     }
     return e;

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <ctime>
 #include <limits>
@@ -281,6 +282,85 @@ std::vector<float> initial_phi(const Windows& w, const DeviceIlm& ilm) {
     return phi;
 }
 
+std::vector<std::uint8_t> leak_runs(const std::vector<double>& top,
+                                     const float* device,
+                                     const std::uint8_t* valid,
+                                     int na,
+                                     double leak_rows) {
+    // The median drops a device-line spike of up to 4 A-scans into the vitreous (there the level
+    // set is right) and keeps a monotone wall and a step; a run of 3 leaves out a lip's tip,
+    // thinner than a pixel where it ends, which may open one or two A-scans to its cavity.
+    constexpr int kHalfWindow = 4;
+    constexpr int kMinRun = 3;
+    constexpr int kMargin = 2;
+    std::vector<std::uint8_t> deep(static_cast<std::size_t>(na), 0);
+    std::vector<float> win;
+    for (int a = 0; a < na; ++a) {
+        if (!valid[a]) continue;
+        win.clear();
+        for (int b = std::max(0, a - kHalfWindow); b <= std::min(na - 1, a + kHalfWindow); ++b) {
+            if (valid[b]) win.push_back(device[b]);
+        }
+        std::nth_element(win.begin(), win.begin() + static_cast<std::ptrdiff_t>(win.size() / 2),
+                         win.end());
+        deep[static_cast<std::size_t>(a)] =
+            top[static_cast<std::size_t>(a)] > win[win.size() / 2] + leak_rows ? 1 : 0;
+    }
+    std::vector<std::uint8_t> leak(static_cast<std::size_t>(na), 0);
+    for (int a = 0; a < na;) {
+        if (!deep[static_cast<std::size_t>(a)]) {
+            ++a;
+            continue;
+        }
+        int e = a;
+        while (e < na && deep[static_cast<std::size_t>(e)]) ++e;
+        if (e - a >= kMinRun) {
+            for (int b = std::max(0, a - kMargin); b < std::min(na, e + kMargin); ++b) {
+                leak[static_cast<std::size_t>(b)] = 1;
+            }
+        }
+        a = e;
+    }
+    return leak;
+}
+
+std::int64_t fall_back_leaks(const Windows& w, std::vector<float>& phi, const DeviceIlm& ilm,
+                             double leak_depth_mm, std::vector<int>& bscans) {
+    const int na = w.na;
+    const double hz = ilm.h.hz;
+    std::int64_t columns = 0;
+    std::vector<double> top(static_cast<std::size_t>(na));
+    for (int b = 0; b < w.nb; ++b) {
+        for (int a = 0; a < na; ++a) {
+            const auto c = static_cast<std::size_t>(w.column(b, a));
+            int t = w.lo[c] + w.len[c];  // below the window: tissue
+            for (int d = 0; d < w.len[c]; ++d) {
+                if (phi[static_cast<std::size_t>(w.offset[c] + d)] <= 0.0F) {
+                    t = w.lo[c] + d;
+                    break;
+                }
+            }
+            top[static_cast<std::size_t>(a)] = t;
+        }
+        const std::size_t row = static_cast<std::size_t>(b) * static_cast<std::size_t>(na);
+        const std::vector<std::uint8_t> leak =
+            leak_runs(top, ilm.ilm.data() + row, ilm.valid.data() + row, na, leak_depth_mm / hz);
+        bool any = false;
+        for (int a = 0; a < na; ++a) {
+            if (!leak[static_cast<std::size_t>(a)]) continue;
+            any = true;
+            ++columns;
+            const auto c = static_cast<std::size_t>(w.column(b, a));
+            for (int d = 0; d < w.len[c]; ++d) {
+                phi[static_cast<std::size_t>(w.offset[c] + d)] =
+                    static_cast<float>((ilm.ilm[row + static_cast<std::size_t>(a)] - (w.lo[c] + d)) * hz);
+            }
+        }
+        if (any) bscans.push_back(b);
+    }
+    return columns;
+}
+
 }  // namespace levelset_detail
 
 mesh::RofiParams levelset_default_rofi() {
@@ -313,6 +393,9 @@ void LevelSetParams::validate() const {
     if (!(tile_mm > 0.0) || !std::isfinite(tile_mm)) bad("tile_mm", "must be finite and > 0");
     if (patience < 1) bad("patience", "must be >= 1");
     if (slab_bscans < 2) bad("slab_bscans", "must be >= 2");
+    if (!(leak_depth_mm > 0.0) || !std::isfinite(leak_depth_mm)) {
+        bad("leak_depth_mm", "must be finite and > 0");
+    }
     try {
         rofi.validate();
     } catch (const UsageError& e) {
@@ -376,6 +459,17 @@ LevelSetResult finish(Prepared p, const LevelSetParams& params) {
     Stopwatch t0;
     evolve(p.windows, p.phi, p.image, params, p.ilm.h, res);
     p.image = std::vector<float>();  // released before the mesh stages
+    if (params.leak_fallback) {
+        std::vector<int> bscans;
+        const std::int64_t n = fall_back_leaks(p.windows, p.phi, p.ilm, params.leak_depth_mm, bscans);
+        if (n > 0) {
+            std::string list;
+            for (const int b : bscans) list += (list.empty() ? "" : ", ") + std::to_string(b);
+            res.warnings.push_back(std::string(kLeakFlag) + " in " + std::to_string(n) +
+                                   " columns of B-scan" + (bscans.size() > 1 ? "s " : " ") + list +
+                                   ": they fell back to the device ILM");
+        }
+    }
     res.evolve = t0.elapsed();
 
     t0 = Stopwatch();

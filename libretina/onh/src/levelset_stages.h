@@ -101,6 +101,31 @@ void binomial_pass(std::vector<float>& buf, std::vector<float>& tmp, int rows, i
 void evolve(const Windows& w, std::vector<float>& phi, const std::vector<float>& image,
             const LevelSetParams& params, const Spacing& h, LevelSetResult& res);
 
+// ---- stage 4b: leaks (docs/algorithms/levelset.md "Leaks") -----------------------------------
+
+// The first words of the QC flag a leak raises (levelset_ilm puts the whole flag among its
+// warnings; the ONH analysis moves it to the QC flags).
+inline constexpr const char* kLeakFlag = "level-set front leaked into the tissue";
+
+// One B-scan's leaking A-scans: `top` = each A-scan's top crossing (the first tissue row from
+// the top, px), `device` its device ILM (px), `valid` its valid A-scans. An A-scan leaks when its
+// top crossing lies more than `leak_rows` below the device ILM's running median over 9 A-scans,
+// in a run of at least 3 leaking A-scans; returns 1 per A-scan of such a run, widened by 2
+// A-scans on either side.
+[[nodiscard]] std::vector<std::uint8_t> leak_runs(const std::vector<double>& top,
+                                                  const float* device,
+                                                  const std::uint8_t* valid,
+                                                  int na,
+                                                  double leak_rows);
+
+// The volume's leaks after the evolution: per B-scan the columns' top crossings on phi (rows
+// above a window are vitreous, below tissue), leak_runs, and phi of every leaking column set to
+// phi0 (the device ILM's signed vertical distance). Returns the number of such columns and the
+// B-scans they lie in.
+[[nodiscard]] std::int64_t fall_back_leaks(const Windows& w, std::vector<float>& phi,
+                                           const DeviceIlm& ilm, double leak_depth_mm,
+                                           std::vector<int>& bscans);
+
 // ---- stages 5-7: the mesh (levelset_mesh.cpp) ------------------------------------------------
 
 struct Surface {

@@ -16,6 +16,7 @@
 #include "octshape/mesh/envt.h"
 #include "octshape/mesh/metrics.h"
 #include "octshape/retina/levelset.h"
+#include "levelset_stages.h"
 #include "onh_stages.h"
 #include "octshape/retina/radial_geometry.h"
 #include "octshape/retina/scan_geometry.h"
@@ -75,7 +76,9 @@ IlmSurface surface_from_levelset(const LevelSetResult& ls) {
     out.V = ls.V;
     out.F = ls.F;
     out.source = "levelset";
-    out.notes = ls.warnings;
+    for (const std::string& w : ls.warnings) {
+        (w.rfind(levelset_detail::kLeakFlag, 0) == 0 ? out.qc_flags : out.notes).push_back(w);
+    }
     std::ostringstream s;
     s << "level-set ILM: " << ls.iterations << " iterations ("
       << (ls.converged ? "converged" : "stopped at the iteration limit") << "), "

@@ -5,7 +5,9 @@
 // radial_height_field interpolates heights) onto a Cartesian grid over the scanned circle, and
 // the volume's marching cubes, clean-up and RoFi on that grid. Each line keeps its own curve
 // (the interpolation weight is 0 on it), and an overhang in the lines' planes is carried into
-// the surface between them: nothing here is a height field.
+// the surface between them: nothing here is a height field. Where a B-scan's front leaked
+// into the tissue (a cleft, a vessel's shadow), those A-scans take the device ILM
+// (docs/algorithms/levelset.md "Leaks").
 
 #include <algorithm>
 #include <array>
@@ -50,6 +52,7 @@ struct BscanLevelSet {
     bool converged = false;
     bool reached_edge = false;
     int missing_ilm_columns = 0;
+    int leak_ascans = 0;  // A-scans that fell back to the device ILM (a leak)
 
     [[nodiscard]] double at(int d, int a) const {
         if (d < r0) return kDistanceCapMm;
@@ -91,10 +94,16 @@ void flood(std::vector<std::uint8_t>& mark,
     }
 }
 
-BscanLevelSet bscan_level_set(const io::Scan& scan,
-                              const RadialOnhGrid& grid,
-                              int k,
-                              const LevelSetParams& params) {
+// The B-scan's 2-D evolution; fills `out`'s windows, valid columns, diagnostics and dense rows
+// (one row of vitreous above and of tissue below every window) and returns phi on them
+// (rows x na, row-major; +-hz outside the windows). `device` receives the device ILM (px,
+// missing values filled).
+std::vector<double> evolve_bscan(const io::Scan& scan,
+                                 const RadialOnhGrid& grid,
+                                 int k,
+                                 const LevelSetParams& params,
+                                 BscanLevelSet& out,
+                                 std::vector<float>& device) {
     ls::require_image(scan, k, 1, "radial B-scan " + std::to_string(k));
     const int na = scan.meta.size_x;
     const double ds = grid.geo.lines[static_cast<std::size_t>(k)].length_mm / (na - 1);
@@ -107,7 +116,6 @@ BscanLevelSet bscan_level_set(const io::Scan& scan,
         throw AnalysisError("level-set ILM: radial B-scan " + std::to_string(k) +
                             " has no device ILM to start from");
     }
-    BscanLevelSet out;
     out.na = na;
     out.missing_ilm_columns = ilm.missing_columns;
     const ls::Windows w = ls::depth_windows(ilm, params);
@@ -115,11 +123,11 @@ BscanLevelSet bscan_level_set(const io::Scan& scan,
     std::vector<float> phi = ls::initial_phi(w, ilm);
     LevelSetResult res;
     ls::evolve(w, phi, image, params, ilm.h, res);
-    image = std::vector<float>();
     out.iterations = res.iterations;
     out.converged = res.converged;
     out.reached_edge = res.front_reached_window_edge;
     out.valid = ilm.valid;
+    device = ilm.ilm;
     out.lo.resize(static_cast<std::size_t>(na));
     out.hi.resize(static_cast<std::size_t>(na));
     int top = std::numeric_limits<int>::max(), bottom = 0;
@@ -130,59 +138,70 @@ BscanLevelSet bscan_level_set(const io::Scan& scan,
         top = std::min(top, out.lo[c]);
         bottom = std::max(bottom, out.hi[c]);
     }
-    // Dense rows with one row of vitreous above and of tissue below every window.
     out.r0 = top - 1;
     out.rows = bottom + 1 - out.r0;
-    const int rows = out.rows;
-    const auto ncell = static_cast<std::size_t>(rows) * static_cast<std::size_t>(na);
-    auto phi_at = [&](int r, int a) -> double {
+    std::vector<double> dense(static_cast<std::size_t>(out.rows) * static_cast<std::size_t>(na));
+    for (int r = 0; r < out.rows; ++r) {
         const int d = out.r0 + r;
-        const auto c = static_cast<std::size_t>(a);
-        if (d < out.lo[c]) return hz;
-        if (d >= out.hi[c]) return -hz;
-        return phi[static_cast<std::size_t>(w.offset[c] + (d - out.lo[c]))];
-    };
-    // The vitreous is what connects to the top row through phi > 0, the tissue what connects
-    // to the bottom row through the rest: specks of either inside the other (speckle) are
-    // absorbed, and the zero level is the one interface between them (the volume keeps the
-    // largest component of its mesh for the same reason).
-    std::vector<std::uint8_t> mark(ncell, 0);
-    for (int r = 0; r < rows; ++r) {
         for (int a = 0; a < na; ++a) {
-            mark[static_cast<std::size_t>(r) * static_cast<std::size_t>(na) +
-                 static_cast<std::size_t>(a)] = phi_at(r, a) > 0.0 ? 1 : 0;
+            const auto c = static_cast<std::size_t>(a);
+            double f = -hz;
+            if (d < out.lo[c]) {
+                f = hz;
+            } else if (d < out.hi[c]) {
+                f = phi[static_cast<std::size_t>(w.offset[c] + (d - out.lo[c]))];
+            }
+            dense[static_cast<std::size_t>(r) * static_cast<std::size_t>(na) + c] = f;
         }
     }
+    return dense;
+}
+
+// The vitreous (1) and the tissue (0) of a dense phi: the vitreous is what connects to the top
+// row through phi > 0, the tissue what connects to the bottom row through the rest: specks of
+// either inside the other (speckle) are absorbed, and the zero level is the one interface
+// between them (the volume keeps the largest component of its mesh for the same reason).
+std::vector<std::uint8_t> vitreous_region(const std::vector<double>& phi, int rows, int na) {
+    std::vector<std::uint8_t> mark(phi.size(), 0);
+    for (std::size_t i = 0; i < phi.size(); ++i) mark[i] = phi[i] > 0.0 ? 1 : 0;
     flood(mark, rows, na, 0, 1, 2);           // 2: the vitreous
     for (auto& v : mark) v = v == 2 ? 2 : 0;  // vitreous specks inside the tissue: tissue
     flood(mark, rows, na, rows - 1, 0, 3);    // 3: the tissue (specks inside the vitreous are not)
-    // The values marching squares reads: phi where its sign agrees with the region, else the
-    // region's sign at one pixel of depth; |phi| kept off zero as in the volume's mesh stage.
-    const double eps = 1e-2 * hz;
-    std::vector<double> val(ncell);
-    std::vector<std::uint8_t> vit(ncell);
-    for (int r = 0; r < rows; ++r) {
-        for (int a = 0; a < na; ++a) {
-            const std::size_t i = static_cast<std::size_t>(r) * static_cast<std::size_t>(na) +
-                                  static_cast<std::size_t>(a);
-            const bool v = mark[i] != 3;
-            double f = phi_at(r, a);
-            if ((f > 0.0) != v) f = v ? hz : -hz;
-            if (std::abs(f) < eps) f = v ? eps : -eps;
-            val[i] = f;
-            vit[i] = v ? 1 : 0;
+    for (auto& v : mark) v = v != 3 ? 1 : 0;
+    return mark;
+}
+
+// Leaks (docs/algorithms/levelset.md "Leaks"). Where the level set is right, its top crossing
+// (the first tissue row from the top) is the device ILM's, up to the level set's own offset
+// (1-3 um) — also over an overhang, whose cavity lies below the lip that both see first. A
+// front that ran into the tissue (a dark cleft, a vessel's shadow) leaves its top crossing deep
+// below the device ILM: ls::leak_runs on the B-scan's top crossings.
+std::vector<std::uint8_t> leak_columns(const BscanLevelSet& l,
+                                       const std::vector<std::uint8_t>& vit,
+                                       const std::vector<float>& device,
+                                       double leak_rows) {
+    const int na = l.na;
+    std::vector<double> top(static_cast<std::size_t>(na), l.r0 + l.rows);
+    for (int a = 0; a < na; ++a) {
+        for (int r = 0; r < l.rows; ++r) {
+            if (!vit[static_cast<std::size_t>(r) * static_cast<std::size_t>(na) +
+                     static_cast<std::size_t>(a)]) {
+                top[static_cast<std::size_t>(a)] = l.r0 + r;
+                break;
+            }
         }
     }
-    phi = std::vector<float>();
-    mark = std::vector<std::uint8_t>();
-    // Marching squares (linear interpolation on the cell edges, as marching cubes), over the
-    // cells between two valid A-scans.
-    auto s_of = [&](double a) { return a * ds; };
-    auto z_of = [&](double r) { return -(out.r0 + r) * hz; };
-    for (int r = 0; r + 1 < rows; ++r) {
+    return ls::leak_runs(top, device.data(), l.valid.data(), na, leak_rows);
+}
+
+// The zero level of `val` by marching squares (linear interpolation on the cell edges, as
+// marching cubes), over the cells between two valid A-scans, into l.curve.
+void marching_squares(BscanLevelSet& l, const std::vector<double>& val, double ds, double hz) {
+    const int na = l.na;
+    auto z_of = [&](double r) { return -(l.r0 + r) * hz; };
+    for (int r = 0; r + 1 < l.rows; ++r) {
         for (int a = 0; a + 1 < na; ++a) {
-            if (!out.valid[static_cast<std::size_t>(a)] ||
-                !out.valid[static_cast<std::size_t>(a) + 1]) {
+            if (!l.valid[static_cast<std::size_t>(a)] || !l.valid[static_cast<std::size_t>(a) + 1]) {
                 continue;
             }
             // Corners counter-clockwise in (a, r): 0 = (a, r), 1 = (a+1, r), 2 = (a+1, r+1),
@@ -190,21 +209,18 @@ BscanLevelSet bscan_level_set(const io::Scan& scan,
             const std::array<std::pair<int, int>, 4> cn{
                 {{a, r}, {a + 1, r}, {a + 1, r + 1}, {a, r + 1}}};
             std::array<double, 4> f{};
-            for (int c = 0; c < 4; ++c) {
-                f[static_cast<std::size_t>(c)] =
-                    val[static_cast<std::size_t>(cn[static_cast<std::size_t>(c)].second) *
-                            static_cast<std::size_t>(na) +
-                        static_cast<std::size_t>(cn[static_cast<std::size_t>(c)].first)];
+            for (std::size_t c = 0; c < 4; ++c) {
+                f[c] = val[static_cast<std::size_t>(cn[c].second) * static_cast<std::size_t>(na) +
+                           static_cast<std::size_t>(cn[c].first)];
             }
             std::array<std::array<double, 2>, 4> pt{};
             std::array<bool, 4> cut{};
             int ncut = 0;
-            for (int e = 0; e < 4; ++e) {
-                const auto i0 = static_cast<std::size_t>(e);
-                const auto i1 = static_cast<std::size_t>((e + 1) % 4);
+            for (std::size_t i0 = 0; i0 < 4; ++i0) {
+                const std::size_t i1 = (i0 + 1) % 4;
                 if ((f[i0] > 0.0) == (f[i1] > 0.0)) continue;
                 const double t = f[i0] / (f[i0] - f[i1]);
-                pt[i0] = {s_of(cn[i0].first + t * (cn[i1].first - cn[i0].first)),
+                pt[i0] = {(cn[i0].first + t * (cn[i1].first - cn[i0].first)) * ds,
                           z_of(cn[i0].second + t * (cn[i1].second - cn[i0].second))};
                 cut[i0] = true;
                 ++ncut;
@@ -212,7 +228,7 @@ BscanLevelSet bscan_level_set(const io::Scan& scan,
             auto add = [&](int e0, int e1) {
                 const auto& p = pt[static_cast<std::size_t>(e0)];
                 const auto& q = pt[static_cast<std::size_t>(e1)];
-                out.curve.push_back({p[0], p[1], q[0], q[1]});
+                l.curve.push_back({p[0], p[1], q[0], q[1]});
             };
             if (ncut == 2) {
                 int e0 = -1, e1 = -1;
@@ -235,21 +251,26 @@ BscanLevelSet bscan_level_set(const io::Scan& scan,
             }
         }
     }
-    // Signed distance to the curve within the cap: each segment updates the pixels of its
-    // cap neighbourhood (exact point-to-segment distance).
+}
+
+// Signed distance to l.curve within the cap (+ in the vitreous `vit`): each segment updates the
+// pixels of its cap neighbourhood (exact point-to-segment distance), into l.dist.
+void signed_distance(BscanLevelSet& l, const std::vector<std::uint8_t>& vit, double ds, double hz) {
+    const int na = l.na, rows = l.rows;
+    const std::size_t ncell = vit.size();
     std::vector<float> m(ncell, static_cast<float>(kDistanceCapMm));
     const double cap = kDistanceCapMm;
-    for (const PlaneSegment& g : out.curve) {
+    for (const PlaneSegment& g : l.curve) {
         const double smin = std::min(g.s0, g.s1) - cap, smax = std::max(g.s0, g.s1) + cap;
         const double dmin = -std::max(g.z0, g.z1) - cap, dmax = -std::min(g.z0, g.z1) + cap;
         const int a0 = std::max(0, static_cast<int>(std::ceil(smin / ds)));
         const int a1 = std::min(na - 1, static_cast<int>(std::floor(smax / ds)));
-        const int q0 = std::max(0, static_cast<int>(std::ceil(dmin / hz)) - out.r0);
-        const int q1 = std::min(rows - 1, static_cast<int>(std::floor(dmax / hz)) - out.r0);
+        const int q0 = std::max(0, static_cast<int>(std::ceil(dmin / hz)) - l.r0);
+        const int q1 = std::min(rows - 1, static_cast<int>(std::floor(dmax / hz)) - l.r0);
         const double es = g.s1 - g.s0, ez = g.z1 - g.z0;
         const double len2 = es * es + ez * ez;
         for (int r = q0; r <= q1; ++r) {
-            const double z = z_of(r);
+            const double z = -(l.r0 + r) * hz;
             for (int a = a0; a <= a1; ++a) {
                 const double s = a * ds;
                 const double t =
@@ -263,8 +284,47 @@ BscanLevelSet bscan_level_set(const io::Scan& scan,
             }
         }
     }
-    out.dist.resize(ncell);
-    for (std::size_t i = 0; i < ncell; ++i) out.dist[i] = vit[i] ? m[i] : -m[i];
+    l.dist.resize(ncell);
+    for (std::size_t i = 0; i < ncell; ++i) l.dist[i] = vit[i] ? m[i] : -m[i];
+}
+
+BscanLevelSet bscan_level_set(const io::Scan& scan,
+                              const RadialOnhGrid& grid,
+                              int k,
+                              const LevelSetParams& params) {
+    BscanLevelSet out;
+    std::vector<float> device;
+    std::vector<double> phi = evolve_bscan(scan, grid, k, params, out, device);
+    const int na = out.na, rows = out.rows;
+    const double ds = grid.geo.lines[static_cast<std::size_t>(k)].length_mm / (na - 1);
+    const double hz = scan.meta.scale_z_mm;
+    std::vector<std::uint8_t> vit = vitreous_region(phi, rows, na);
+    if (params.leak_fallback) {
+        const std::vector<std::uint8_t> leak =
+            leak_columns(out, vit, device, params.leak_depth_mm / hz);
+        for (int a = 0; a < na; ++a) {
+            if (!leak[static_cast<std::size_t>(a)]) continue;
+            ++out.leak_ascans;
+            // phi0 of the device ILM in this A-scan (its signed vertical distance).
+            for (int r = 0; r < rows; ++r) {
+                phi[static_cast<std::size_t>(r) * static_cast<std::size_t>(na) +
+                    static_cast<std::size_t>(a)] =
+                    (static_cast<double>(device[static_cast<std::size_t>(a)]) - (out.r0 + r)) * hz;
+            }
+        }
+        if (out.leak_ascans > 0) vit = vitreous_region(phi, rows, na);
+    }
+    // The values marching squares reads: phi where its sign agrees with the region, else the
+    // region's sign at one pixel of depth; |phi| kept off zero as in the volume's mesh stage.
+    const double eps = 1e-2 * hz;
+    for (std::size_t i = 0; i < phi.size(); ++i) {
+        const bool v = vit[i] != 0;
+        double& f = phi[i];
+        if ((f > 0.0) != v) f = v ? hz : -hz;
+        if (std::abs(f) < eps) f = v ? eps : -eps;
+    }
+    marching_squares(out, phi, ds, hz);
+    signed_distance(out, vit, ds, hz);
     return out;
 }
 
@@ -274,41 +334,49 @@ std::string bscan_list(const std::vector<int>& ks) {
     return s;
 }
 
-}  // namespace
+// " B-scan 3" or " B-scans 3, 7".
+std::string bscans_named(const std::vector<int>& ks) {
+    return std::string(ks.size() > 1 ? "B-scans " : "B-scan ") + bscan_list(ks);
+}
 
-IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParams& params) {
-    params.validate();
-    if (!scan.pixels_loaded) throw AnalysisError("level-set ILM needs the B-scan pixels");
-    const RadialOnhGrid grid = radial_onh_grid(scan);
-    if (scan.meta.size_z < 4) throw AnalysisError("level-set ILM: B-scans of fewer than 4 rows");
-    // Memory bound, before any work: the grid's depth windows hold at most n x n x SizeZ
-    // voxels (4 bytes each; the per-B-scan level sets are smaller). A real radial scan has
-    // n <= 257 nodes per side and 496-1024 rows (<= 68 M voxels); a file whose depth would need
-    // more than 2^28 voxels (1 GiB of distances) is refused rather than allocating what its
-    // few lines of pixels do not justify.
-    constexpr std::int64_t kMaxGridVoxels = std::int64_t{1} << 28;
-    const std::int64_t grid_voxels = std::int64_t{grid.n} * grid.n * scan.meta.size_z;
-    if (grid_voxels > kMaxGridVoxels) {
-        throw AnalysisError("level-set ILM: the radial grid would need " +
-                            std::to_string(grid_voxels) + " voxels (" + std::to_string(grid.n) +
-                            " x " + std::to_string(grid.n) + " nodes x " +
-                            std::to_string(scan.meta.size_z) + " rows), more than " +
-                            std::to_string(kMaxGridVoxels) + "; use --ilm device");
+// The B-scans' signed distances on the grid's nodes, with the grid's depth windows and the
+// nodes whose face the clip keeps.
+struct GridPhi {
+    ls::Windows w;
+    std::vector<float> phi;
+    std::vector<std::uint8_t> valid;
+};
+
+// The clip keeps a face when the node nearest its centroid is valid; with the valid nodes
+// eroded by one (every 8-neighbour scanned and valid) such a centroid lies in cells whose
+// corners are all scanned, where the RPE (NaN outside the circle) is defined: no ILM face
+// outside the RPE grid, as on the device ILM's mesh of the scanned cells.
+std::vector<std::uint8_t> eroded(const std::vector<std::uint8_t>& valid, int n) {
+    std::vector<std::uint8_t> out(valid.size(), 0);
+    auto at = [n](int b, int a) {
+        return static_cast<std::size_t>(b) * static_cast<std::size_t>(n) +
+               static_cast<std::size_t>(a);
+    };
+    for (int b = 1; b + 1 < n; ++b) {
+        for (int a = 1; a + 1 < n; ++a) {
+            bool ok = true;
+            for (int db = -1; db <= 1 && ok; ++db) {
+                for (int da = -1; da <= 1 && ok; ++da) ok = valid[at(b + db, a + da)] != 0;
+            }
+            out[at(b, a)] = ok ? 1 : 0;
+        }
     }
-    const int nl = static_cast<int>(grid.geo.lines.size());
-    const int na = scan.meta.size_x;
-    const double hz = scan.meta.scale_z_mm;
+    return out;
+}
 
-    // 1. A 2-D level set per B-scan.
-    std::vector<BscanLevelSet> bs;
-    bs.reserve(static_cast<std::size_t>(nl));
-    for (int k = 0; k < nl; ++k) bs.push_back(bscan_level_set(scan, grid, k, params));
-
-    // 2. Their signed distances interpolated between neighbouring half-lines (linear in angle
-    // at constant distance r from the crossing, each linear between A-scans; no interpolation
-    // in depth: all B-scans share the rows) onto the grid's nodes. Nodes outside the scanned
-    // circle take the values at its edge (r clamped), so that the surface runs on smoothly to
-    // the clip instead of ending in a wall.
+// The signed distances interpolated between neighbouring half-lines (linear in angle at
+// constant distance r from the crossing, each linear between A-scans; no interpolation in depth:
+// all B-scans share the rows) onto the grid's nodes. Nodes outside the scanned circle take the
+// values at its edge (r clamped), so that the surface runs on smoothly to the clip instead of
+// ending in a wall.
+GridPhi interpolate_between_lines(const std::vector<BscanLevelSet>& bs,
+                                  const RadialOnhGrid& grid,
+                                  int na) {
     const int n = grid.n;
     const auto nn = static_cast<std::size_t>(n) * static_cast<std::size_t>(n);
     struct Tap {
@@ -316,12 +384,12 @@ IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParam
         double f = 0.0, w = 0.0;  // A-scan fraction, angular weight
     };
     std::vector<std::array<Tap, 2>> taps(nn);
-    ls::Windows wc;
-    wc.nb = n;
-    wc.na = n;
-    wc.lo.resize(nn);
-    wc.len.resize(nn);
-    wc.offset.resize(nn + 1);
+    GridPhi g;
+    g.w.nb = n;
+    g.w.na = n;
+    g.w.lo.resize(nn);
+    g.w.len.resize(nn);
+    g.w.offset.resize(nn + 1);
     std::vector<std::uint8_t> valid(nn, 0);
     std::int64_t off = 0;
     for (int b = 0; b < n; ++b) {
@@ -347,40 +415,20 @@ IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParam
                     ok = ok && l.valid[static_cast<std::size_t>(c)] != 0;
                 }
             }
-            valid[i] = ok ? 1 : 0;  // eroded below (the clip's nearest-node rule)
-            wc.lo[i] = lo;
-            wc.len[i] = hi - lo;
-            wc.offset[i] = off;
+            valid[i] = ok ? 1 : 0;
+            g.w.lo[i] = lo;
+            g.w.len[i] = hi - lo;
+            g.w.offset[i] = off;
             off += hi - lo;
         }
     }
-    wc.offset[nn] = off;
-    wc.size = off;
-    // The clip keeps a face when the node nearest its centroid is valid; with the valid nodes
-    // eroded by one (every 8-neighbour scanned and valid) such a centroid lies in cells whose
-    // corners are all scanned, where the RPE (NaN outside the circle) is defined: no ILM face
-    // outside the RPE grid, as on the device ILM's mesh of the scanned cells.
-    {
-        std::vector<std::uint8_t> eroded(nn, 0);
-        for (int b = 1; b + 1 < n; ++b) {
-            for (int a = 1; a + 1 < n; ++a) {
-                bool ok = true;
-                for (int db = -1; db <= 1 && ok; ++db) {
-                    for (int da = -1; da <= 1 && ok; ++da) {
-                        ok = valid[static_cast<std::size_t>(b + db) * static_cast<std::size_t>(n) +
-                                   static_cast<std::size_t>(a + da)] != 0;
-                    }
-                }
-                eroded[static_cast<std::size_t>(b) * static_cast<std::size_t>(n) +
-                       static_cast<std::size_t>(a)] = ok ? 1 : 0;
-            }
-        }
-        valid.swap(eroded);
-    }
-    std::vector<float> phi(static_cast<std::size_t>(off));
+    g.w.offset[nn] = off;
+    g.w.size = off;
+    g.valid = eroded(valid, n);
+    g.phi.resize(static_cast<std::size_t>(off));
     for (std::size_t i = 0; i < nn; ++i) {
         const auto& tp = taps[i];
-        for (int d = wc.lo[i]; d < wc.lo[i] + wc.len[i]; ++d) {
+        for (int d = g.w.lo[i]; d < g.w.lo[i] + g.w.len[i]; ++d) {
             double v = 0.0;
             for (const Tap& t : tp) {
                 if (t.w == 0.0) continue;
@@ -389,60 +437,41 @@ IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParam
                 const double f1 = t.f > 0.0 ? l.at(d, t.a + 1) : f0;
                 v += t.w * ((1.0 - t.f) * f0 + t.f * f1);
             }
-            phi[static_cast<std::size_t>(wc.offset[i] + (d - wc.lo[i]))] = static_cast<float>(v);
+            g.phi[static_cast<std::size_t>(g.w.offset[i] + (d - g.w.lo[i]))] = static_cast<float>(v);
         }
     }
-    taps = {};
+    return g;
+}
 
-    // 3. The volume's mesh stages on the grid: marching cubes, clip to the scanned circle (and
-    // the valid A-scans), largest component, normals up, RoFi.
-    const ls::Spacing h{grid.step_mm, grid.step_mm, hz};
-    ls::Surface s = ls::surface(wc, phi, h, params.slab_bscans);
-    phi = std::vector<float>();
-    const std::int64_t raw_faces = s.F.rows();
-    const ls::CleanUp c = ls::clean_up(s, valid, n, n, h);
-    LevelSetResult res;
-    ls::smooth(std::move(s), params, res);
-
-    IlmSurface out;
-    out.V = std::move(res.V);
-    out.F = std::move(res.F);
-    out.source = "levelset";
+// The per-B-scan diagnostics as QC flags and notes; moves each B-scan's curve into `out`.
+void report_bscans(std::vector<BscanLevelSet>& bs, IlmSurface& out) {
+    const int nl = static_cast<int>(bs.size());
     out.bscan_curves.resize(static_cast<std::size_t>(nl));
-    int it_min = std::numeric_limits<int>::max(), it_max = 0, missing = 0;
+    int missing = 0;
     std::vector<int> unconverged, edge, iterations;
     for (int k = 0; k < nl; ++k) {
         BscanLevelSet& l = bs[static_cast<std::size_t>(k)];
         iterations.push_back(l.iterations);
-        it_min = std::min(it_min, l.iterations);
-        it_max = std::max(it_max, l.iterations);
         missing += l.missing_ilm_columns;
         if (!l.converged) unconverged.push_back(k);
         if (l.reached_edge) edge.push_back(k);
+        if (l.leak_ascans > 0) out.leak_bscans.push_back(k);
+        out.leak_fallback_ascans += l.leak_ascans;
         out.bscan_curves[static_cast<std::size_t>(k)] = std::move(l.curve);
     }
     if (!unconverged.empty()) {
-        out.qc_flags.push_back("level set did not converge in radial B-scan" +
-                               std::string(unconverged.size() > 1 ? "s " : " ") +
-                               bscan_list(unconverged));
+        out.qc_flags.push_back("level set did not converge in radial " + bscans_named(unconverged));
     }
     if (!edge.empty()) {
-        out.qc_flags.push_back(
-            "level-set front reached the edge of its depth window in radial "
-            "B-scan" +
-            std::string(edge.size() > 1 ? "s " : " ") + bscan_list(edge));
+        out.qc_flags.push_back("level-set front reached the edge of its depth window in radial " +
+                               bscans_named(edge));
     }
-    for (const auto& wmsg : res.warnings) out.notes.push_back(wmsg);
-    out.notes.push_back(
-        "level-set ILM (radial): a 2-D level set per B-scan (" + std::to_string(nl) + " B-scans, " +
-        std::to_string(it_min) + "-" + std::to_string(it_max) + " iterations, " +
-        std::to_string(nl - static_cast<int>(unconverged.size())) +
-        " converged), their signed "
-        "distances interpolated between the lines (linear in angle about the crossing) on a " +
-        fixed_number(grid.step_mm * 1e3, 1) + " um grid; " + std::to_string(raw_faces) +
-        " marching-cubes faces, " + std::to_string(out.F.rows()) +
-        " after the clip to the scanned circle and the largest of " + std::to_string(c.components) +
-        " components, " + std::to_string(res.rofi_iterations) + " RoFi iterations");
+    if (!out.leak_bscans.empty()) {
+        out.qc_flags.push_back(std::string(ls::kLeakFlag) + " in radial " +
+                               bscans_named(out.leak_bscans) + ": " +
+                               std::to_string(out.leak_fallback_ascans) +
+                               " A-scans fell back to the device ILM");
+    }
     out.notes.push_back("level-set iterations per radial B-scan (0, 1, ...): " +
                         bscan_list(iterations));
     if (missing > 0) {
@@ -450,6 +479,75 @@ IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParam
                             " A-scans without a device ILM value were filled for the level "
                             "set's start (and left out of the surface)");
     }
+}
+
+// AnalysisError unless the scan can be afforded. Memory bound, before any work: the grid's
+// depth windows hold at most n x n x SizeZ voxels (4 bytes each; the per-B-scan level sets are
+// smaller). A real radial scan has n <= 257 nodes per side and 496-1024 rows (<= 68 M voxels);
+// a file whose depth would need more than 2^28 voxels (1 GiB of distances) is refused rather
+// than allocating what its few lines of pixels do not justify.
+void require_affordable(const io::Scan& scan, const RadialOnhGrid& grid) {
+    if (scan.meta.size_z < 4) throw AnalysisError("level-set ILM: B-scans of fewer than 4 rows");
+    constexpr std::int64_t kMaxGridVoxels = std::int64_t{1} << 28;
+    const std::int64_t grid_voxels = std::int64_t{grid.n} * grid.n * scan.meta.size_z;
+    if (grid_voxels > kMaxGridVoxels) {
+        throw AnalysisError("level-set ILM: the radial grid would need " +
+                            std::to_string(grid_voxels) + " voxels (" + std::to_string(grid.n) +
+                            " x " + std::to_string(grid.n) + " nodes x " +
+                            std::to_string(scan.meta.size_z) + " rows), more than " +
+                            std::to_string(kMaxGridVoxels) + "; use --ilm device");
+    }
+}
+
+}  // namespace
+
+IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParams& params) {
+    params.validate();
+    if (!scan.pixels_loaded) throw AnalysisError("level-set ILM needs the B-scan pixels");
+    const RadialOnhGrid grid = radial_onh_grid(scan);
+    require_affordable(scan, grid);
+    const int nl = static_cast<int>(grid.geo.lines.size());
+
+    // 1. A 2-D level set per B-scan (its leaks fallen back to the device ILM).
+    std::vector<BscanLevelSet> bs;
+    bs.reserve(static_cast<std::size_t>(nl));
+    for (int k = 0; k < nl; ++k) bs.push_back(bscan_level_set(scan, grid, k, params));
+
+    // 2. Their signed distances interpolated between the lines onto the grid's nodes.
+    GridPhi g = interpolate_between_lines(bs, grid, scan.meta.size_x);
+
+    // 3. The volume's mesh stages on the grid: marching cubes, clip to the scanned circle (and
+    // the valid A-scans), largest component, normals up, RoFi.
+    const ls::Spacing h{grid.step_mm, grid.step_mm, scan.meta.scale_z_mm};
+    ls::Surface s = ls::surface(g.w, g.phi, h, params.slab_bscans);
+    g.phi = std::vector<float>();
+    const std::int64_t raw_faces = s.F.rows();
+    const ls::CleanUp c = ls::clean_up(s, g.valid, grid.n, grid.n, h);
+    LevelSetResult res;
+    ls::smooth(std::move(s), params, res);
+
+    IlmSurface out;
+    out.V = std::move(res.V);
+    out.F = std::move(res.F);
+    out.source = "levelset";
+    int it_min = std::numeric_limits<int>::max(), it_max = 0, converged = 0;
+    for (const BscanLevelSet& l : bs) {
+        it_min = std::min(it_min, l.iterations);
+        it_max = std::max(it_max, l.iterations);
+        converged += l.converged ? 1 : 0;
+    }
+    for (const auto& wmsg : res.warnings) out.notes.push_back(wmsg);
+    out.notes.push_back(
+        "level-set ILM (radial): a 2-D level set per B-scan (" + std::to_string(nl) + " B-scans, " +
+        std::to_string(it_min) + "-" + std::to_string(it_max) + " iterations, " +
+        std::to_string(converged) +
+        " converged), their signed "
+        "distances interpolated between the lines (linear in angle about the crossing) on a " +
+        fixed_number(grid.step_mm * 1e3, 1) + " um grid; " + std::to_string(raw_faces) +
+        " marching-cubes faces, " + std::to_string(out.F.rows()) +
+        " after the clip to the scanned circle and the largest of " + std::to_string(c.components) +
+        " components, " + std::to_string(res.rofi_iterations) + " RoFi iterations");
+    report_bscans(bs, out);
     return out;
 }
 

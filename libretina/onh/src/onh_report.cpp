@@ -61,6 +61,47 @@ const std::vector<Column>& columns() {
 
 J vec3(const Eigen::Vector3d& v) { return J::array({v.x(), v.y(), v.z()}); }
 
+// The `radial` object of a radial scan's JSON (docs/outputs.md).
+J radial_json(const OnhResult& r) {
+    J rad;
+    rad["lines"] = r.radial_lines;
+    rad["crossing_mm"] = J::array({r.radial_crossing_mm.x(), r.radial_crossing_mm.y()});
+    rad["scanned_radius_mm"] = r.radial_scanned_radius_mm;
+    rad["grid_step_mm"] = r.radial_grid_step_mm;
+    rad["max_line_miss_mm"] = r.radial_max_miss_mm;
+    rad["max_step_deg"] = r.radial_max_step_deg;
+    rad["interpolation"] =
+        "between the lines linear in angle at constant distance from the crossing";
+    rad["mrw_inplane_mean_mm"] = json_number(r.mrw_inplane_mean_mm);
+    rad["mrw_inplane_min_mm"] = json_number(r.mrw_inplane_min_mm);
+    rad["mrw_inplane_max_mm"] = json_number(r.mrw_inplane_max_mm);
+    if (r.ilm_source == "levelset") {
+        rad["levelset_leak_bscans"] = r.levelset_leak_bscans;
+        rad["levelset_leak_fallback_ascans"] = r.levelset_leak_fallback_ascans;
+    }
+    J isec = J::object();
+    J ipts_n = J::object();
+    for (std::size_t k = 0; k < 12; ++k) {
+        isec[std::to_string(30 * k)] = json_number(r.mrw_inplane_sector_mm[k]);
+        ipts_n[std::to_string(30 * k)] = r.mrw_inplane_sector_points[k];
+    }
+    rad["mrw_inplane_sector_mm"] = isec;
+    rad["mrw_inplane_sector_points"] = ipts_n;
+    J ip = J::array();
+    for (const InplaneMrw& m : r.mrw_inplane) {
+        J e;
+        e["bscan"] = m.bscan;
+        e["side"] = m.side;
+        e["anatomical_deg"] = m.anatomical_deg;
+        e["point_mm"] = vec3(m.bmo_mm);
+        e["mrw_point_mm"] = vec3(m.ilm_mm);
+        e["mrw_mm"] = m.mrw_mm;
+        ip.push_back(std::move(e));
+    }
+    rad["mrw_inplane_points"] = std::move(ip);
+    return rad;
+}
+
 }  // namespace
 
 J onh_json(const OnhResult& r, const J& options) {
@@ -164,41 +205,7 @@ J onh_json(const OnhResult& r, const J& options) {
     }
     j["bmo_points"] = std::move(pts);
 
-    if (r.radial) {
-        J rad;
-        rad["lines"] = r.radial_lines;
-        rad["crossing_mm"] = J::array({r.radial_crossing_mm.x(), r.radial_crossing_mm.y()});
-        rad["scanned_radius_mm"] = r.radial_scanned_radius_mm;
-        rad["grid_step_mm"] = r.radial_grid_step_mm;
-        rad["max_line_miss_mm"] = r.radial_max_miss_mm;
-        rad["max_step_deg"] = r.radial_max_step_deg;
-        rad["interpolation"] =
-            "between the lines linear in angle at constant distance from the crossing";
-        rad["mrw_inplane_mean_mm"] = json_number(r.mrw_inplane_mean_mm);
-        rad["mrw_inplane_min_mm"] = json_number(r.mrw_inplane_min_mm);
-        rad["mrw_inplane_max_mm"] = json_number(r.mrw_inplane_max_mm);
-        J isec = J::object();
-        J ipts_n = J::object();
-        for (std::size_t k = 0; k < 12; ++k) {
-            isec[std::to_string(30 * k)] = json_number(r.mrw_inplane_sector_mm[k]);
-            ipts_n[std::to_string(30 * k)] = r.mrw_inplane_sector_points[k];
-        }
-        rad["mrw_inplane_sector_mm"] = isec;
-        rad["mrw_inplane_sector_points"] = ipts_n;
-        J ip = J::array();
-        for (const InplaneMrw& m : r.mrw_inplane) {
-            J e;
-            e["bscan"] = m.bscan;
-            e["side"] = m.side;
-            e["anatomical_deg"] = m.anatomical_deg;
-            e["point_mm"] = vec3(m.bmo_mm);
-            e["mrw_point_mm"] = vec3(m.ilm_mm);
-            e["mrw_mm"] = m.mrw_mm;
-            ip.push_back(std::move(e));
-        }
-        rad["mrw_inplane_points"] = std::move(ip);
-        j["radial"] = std::move(rad);
-    }
+    if (r.radial) j["radial"] = radial_json(r);
 
     J q;
     q["rpe_filled_vertices"] = r.rpe_filled_vertices;

@@ -67,8 +67,8 @@ struct BmoEllipse {
     double rms_residual_mm = 0.0;  // RMS over the measured points of their distance to the
                                    // ellipse along the ray from the centre
     // Resampled points: uniform in the parameter angle t (t = 0 on the major axis, counter-
-    // clockwise from +x towards +y), (x, y) on the ellipse, z from the measured point nearest in
-    // polar angle about the centre.
+    // clockwise from +x towards +y), (x, y) on the ellipse, z linear in polar angle about the
+    // centre between the two measured points that bracket it.
     std::vector<Eigen::Vector3d> points_mm;
     std::vector<double> parameter_rad;
 

@@ -83,6 +83,15 @@ struct LevelSetParams {
     bool smooth = true;    // RoFi on the clipped component
     mesh::RofiParams rofi = levelset_default_rofi();
 
+    // --- Leaks (every B-scan: a radial scan's 2-D level sets, a volume's columns) ---
+    // A front that entered the tissue (a dark cleft, a vessel's shadow) leaves its top crossing
+    // more than `leak_depth_mm` below the device ILM's running median over >= 3 A-scans (an
+    // overhang's cavity lies under the lip both see first); those A-scans fall back to the
+    // device ILM, flagged and counted (docs/algorithms/levelset.md "Leaks"). false: keep the
+    // leak (for measuring it). leak_depth_mm > 0.
+    bool leak_fallback = true;
+    double leak_depth_mm = 0.016;
+
     // Throws UsageError naming the bad field.
     void validate() const;
 };

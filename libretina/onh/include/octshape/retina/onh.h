@@ -50,6 +50,11 @@ struct IlmSurface {
     // its 2-D level set in the B-scan's own plane; the in-plane MRW is measured on it. Empty
     // for the device ILM (the in-plane MRW then uses each B-scan's device ILM line).
     std::vector<std::vector<PlaneSegment>> bscan_curves;
+    // Radial level set: the B-scans where the front leaked into the tissue (a cleft, a shadow)
+    // and the leaking A-scans fell back to the device ILM, and how many A-scans in all
+    // (docs/algorithms/levelset.md "Leaks").
+    std::vector<int> leak_bscans;
+    int leak_fallback_ascans = 0;
 };
 
 // The device ILM line as a graph mesh on the scan grid, missing values thin-plate filled
@@ -192,6 +197,8 @@ struct OnhResult {
                                                  kMissing, kMissing, kMissing, kMissing,
                                                  kMissing, kMissing, kMissing, kMissing};
     std::array<int, 12> mrw_inplane_sector_points{};
+    std::vector<int> levelset_leak_bscans;  // IlmSurface::leak_bscans (radial level set)
+    int levelset_leak_fallback_ascans = 0;
 
     // Axial registration of the B-scans (set by the caller that registered the scan).
     AxialRegistration axial_registration;
