@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -20,6 +21,7 @@
 #include <limits>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "octshape/io/topcon.h"
 
