@@ -9,6 +9,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 
+#include "fixtures/etdrs_json.h"
 #include "fixtures/iowa_xml.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/io/sha256.h"
@@ -253,19 +254,7 @@ TEST(IowaCli, RealCirrusCubeInTheProtocolsOrientationWithinCirrusNormativeRanges
                 1e3 * central, 1e3 * e["outer_nasal"]["thickness_mm"].get<double>(),
                 1e3 * e["outer_temporal"]["thickness_mm"].get<double>(),
                 v["rmse_um"].get<double>());
-    // The grid at the scan centre: the 6 x 6 mm cube holds the whole 6 mm grid about its
-    // middle, so every sector is reported.
-    const json& sc = j["etdrs"]["at_scan_centre"];
-    for (const auto& [k, x] : sc["sectors"].items()) {
-        EXPECT_TRUE(x["thickness_mm"].is_number()) << k;
-    }
-    std::printf("Cirrus real cube at the scan centre: central subfield %.1f um, %.0f um from the "
-                "fovea centre\n",
-                1e3 * sc["sectors"]["central"]["thickness_mm"].get<double>(),
-                1e3 * std::hypot(sc["centre_grid_mm"][0].get<double>() -
-                                     j["etdrs"]["at_fovea_centre"]["centre_grid_mm"][0].get<double>(),
-                                 sc["centre_grid_mm"][1].get<double>() -
-                                     j["etdrs"]["at_fovea_centre"]["centre_grid_mm"][1].get<double>()));
+    test::expect_whole_grid_at_scan_centre(j, "Cirrus real cube");
     for (const auto& f : j["qc_flags"]) {
         EXPECT_EQ(f.get<std::string>().find("orientation assumed"), std::string::npos) << f;
     }

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "fixtures/etdrs_json.h"
 #include "octshape/io/sha256.h"
 #include "test_paths.h"
 
@@ -129,19 +130,7 @@ TEST(TopconCli, MaculaOnTheRealFileToTheInnerRpeWithinTopconNormativeRange) {
     expect_finite_and_oriented(j);
     const json& v = j["parameters"];
     const double central = central_subfield(j);
-    // The grid at the scan centre: the 6 x 6 mm raster holds the whole 6 mm grid about its
-    // middle, so every sector is reported (Topcon's own grid is not in the file to compare).
-    const json& sc = j["etdrs"]["at_scan_centre"];
-    for (const auto& [k, x] : sc["sectors"].items()) {
-        EXPECT_TRUE(x["thickness_mm"].is_number()) << k;
-    }
-    std::printf("Topcon real volume at the scan centre: central subfield %.1f um, %.0f um from "
-                "the fovea centre\n",
-                1e3 * sc["sectors"]["central"]["thickness_mm"].get<double>(),
-                1e3 * std::hypot(sc["centre_grid_mm"][0].get<double>() -
-                                     j["etdrs"]["at_fovea_centre"]["centre_grid_mm"][0].get<double>(),
-                                 sc["centre_grid_mm"][1].get<double>() -
-                                     j["etdrs"]["at_fovea_centre"]["centre_grid_mm"][1].get<double>()));
+    test::expect_whole_grid_at_scan_centre(j, "Topcon real volume");
     EXPECT_GE(central, 0.222 - 3 * 0.019);
     EXPECT_LE(central, 0.222 + 3 * 0.019);
     // CFT (the thickness at the pit's bottom): no published Topcon range for this point value
