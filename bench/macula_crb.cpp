@@ -28,8 +28,8 @@
 // estimator's RMS, seeds 7, 8, ... as bench/macula_accuracy; 0 = the bound only. FIT_SEEDS
 // default 0: a joint least-squares fit of the model itself on that many seeds, ~1 s each at 193
 // B-scans, to see whether the bound is attained.)
-//        macula_crb bias [REALISATIONS]   (the bias table at 61 B-scans, 0.5 / 1 / 2 px per
-// surface; see bias_table)
+//        macula_crb bias [REALISATIONS [PX...]]   (the bias table at 61 B-scans, 0.5 / 1 / 2 px
+// per surface unless PX are given; see bias_table)
 
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
@@ -558,7 +558,7 @@ Eigen::VectorXd joint_fit(const Eigen::VectorXd& th0,
 // sqrt(2) x that). The CRB scales linearly with the node SD. Seeds 1001, 1002, ... at every
 // noise level (common random numbers). The bias's standard error is SD / sqrt(REALISATIONS):
 // <= 0.1 CRB needs REALISATIONS >= 100 (SD / CRB)^2, i.e. ~300 for SD up to 1.7 CRB.
-int bias_table(int realisations) {
+int bias_table(int realisations, std::vector<double> levels) {
     const int nb = 61;
     const MaculaPhantomParams p = phantom_params(nb);
     const MaculaTruthOptions topt;
@@ -589,11 +589,13 @@ int bias_table(int realisations) {
                         (rb[k] - tv[k]) / crb_sd);
         }
     }
-    for (const double px : {0.5, 1.0, 2.0}) {
+    if (levels.empty()) levels = {0.5, 1.0, 2.0};
+    for (const double px : levels) {
         const double surface_um = px * 3.8717;
         const double node_um = std::sqrt(2.0) * surface_um;
         std::vector<std::vector<double>> err(kParams.size());
         double cpu_s = 0.0;
+        double cx = 0.0, cy = 0.0;
         for (int s = 0; s < realisations; ++s) {
             MaculaPhantomParams q = p;
             q.noise_um = surface_um;
@@ -603,6 +605,8 @@ int bias_table(int realisations) {
             const CubeResult r = analyse_macula(ph.scan);
             cpu_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
             const std::vector<double> rv = parameter_values(r);
+            cx += (r.centre_mm - ph.centre_mm).x() / realisations;
+            cy += (r.centre_mm - ph.centre_mm).y() / realisations;
             // A disk or volume is omitted (NaN) when a half-line fails: counted, not averaged.
             for (std::size_t k = 0; k < kParams.size(); ++k) {
                 if (std::isfinite(rv[k])) err[k].push_back(rv[k] - tv[k]);
@@ -614,6 +618,9 @@ int bias_table(int realisations) {
             px, surface_um, node_um, 1e3 * cpu_s / realisations, "parameter", "unit", "truth",
             "CRB", "CRB %", "bias %", "RMS %", "bias/CRB", "SE/CRB", "RMS/CRB", "|b|<=0.3?",
             "omitted");
+        // The centre's mean error (estimated minus true, grid x and y): a deterministic offset
+        // moves every parameter measured about it (V_IR most: docs/algorithms/cube.md).
+        std::printf("mean centre error %+.2f %+.2f um (grid x, y)\n", 1e3 * cx, 1e3 * cy);
         for (std::size_t k = 0; k < kParams.size(); ++k) {
             const double crb_sd = c.sd_free[k] * node_um / kSigmaUm;
             double sum = 0.0;
@@ -644,7 +651,11 @@ int bias_table(int realisations) {
 // read top to bottom against the table it prints; it ships no result.
 int main(int argc, char** argv) {
     if (argc > 1 && std::string(argv[1]) == "bias") {
-        return bias_table(argc > 2 ? std::max(2, std::atoi(argv[2])) : 300);
+        // Further arguments: other noise levels (px per surface), e.g. 0.1 to see the part of
+        // a bias that does not shrink with the noise.
+        std::vector<double> levels;
+        for (int a = 3; a < argc; ++a) levels.push_back(std::atof(argv[a]));
+        return bias_table(argc > 2 ? std::max(2, std::atoi(argv[2])) : 300, levels);
     }
     const int seeds = argc > 1 ? std::max(0, std::atoi(argv[1])) : 36;
     const int fit_seeds = argc > 2 ? std::max(0, std::atoi(argv[2])) : 0;

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Bounded libFuzzer runs of the .vol reader, the Iowa surfaces XML reader and the Topcon
 # .fda/.fds reader (clang, ASan + UBSan): configures and builds the `fuzz` preset, writes seed
-# corpora (write_vol; the tests' Iowa document fixture; write_topcon) and fuzzes them for
+# corpora (write_vol; the tests' Iowa document fixture; write_topcon, half of them with JPEG 2000
+# frames coded by OpenJPEG) and fuzzes them for
 # 2/3, 1/3 and 1/2 of SECONDS (default 60): 1.5 x SECONDS in all, as before the Topcon target.
 # Exits non-zero if a fuzzer finds a crash, a sanitizer report, a leak or a timeout; the
 # reproducer is left in build/fuzz/NAME/artifacts/ (NAME = vol, iowa, topcon).
@@ -29,7 +30,7 @@ fuzz() {
 }
 
 # max_len: the .vol seeds are 1.5-4 kB (16 kB leaves room to grow every structure); the Iowa
-# seeds 1-3 kB of XML; the Topcon seeds 0.7-0.9 kB.
+# seeds 1-3 kB of XML; the Topcon seeds 0.7-0.9 kB, 1.1-2.6 kB with their JPEG 2000 frames.
 fuzz vol ".vol reader" "$((secs * 2 / 3))" 16384
 fuzz iowa "Iowa surfaces reader" "$((secs / 3))" 8192
 fuzz topcon "Topcon .fda reader" "$((secs / 2))" 8192

@@ -9,6 +9,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 
+#include "fixtures/etdrs_json.h"
 #include "fixtures/iowa_xml.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/io/sha256.h"
@@ -253,6 +254,7 @@ TEST(IowaCli, RealCirrusCubeInTheProtocolsOrientationWithinCirrusNormativeRanges
                 1e3 * central, 1e3 * e["outer_nasal"]["thickness_mm"].get<double>(),
                 1e3 * e["outer_temporal"]["thickness_mm"].get<double>(),
                 v["rmse_um"].get<double>());
+    test::expect_whole_grid_at_scan_centre(j, "Cirrus real cube");
     for (const auto& f : j["qc_flags"]) {
         EXPECT_EQ(f.get<std::string>().find("orientation assumed"), std::string::npos) << f;
     }

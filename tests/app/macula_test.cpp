@@ -94,8 +94,9 @@ TEST(MaculaCli, BezierSampleMatchesItsTruth) {
     const auto hv = split_csv_line(h);
     const auto rv = split_csv_line(row);
     ASSERT_EQ(hv.size(), rv.size());
-    // Columns are only ever appended: the noise estimate after qc_flags, then the ETDRS ones.
-    EXPECT_EQ(hv.back(), "device_central_difference_um");
+    // Columns are only ever appended: the noise estimate after qc_flags, then the ETDRS ones,
+    // the grid at the scan centre last.
+    EXPECT_EQ(hv.back(), "etdrs_at_scan_centre_total_volume_mm3");
     for (std::size_t i = 0; i < hv.size(); ++i) {
         if (hv[i] == "cft_mm") {
             EXPECT_NEAR(std::stod(rv[i]), v["cft_mm"].get<double>(), 1e-9);
@@ -112,6 +113,12 @@ TEST(MaculaCli, BezierSampleMatchesItsTruth) {
         if (hv[i] == "etdrs_central_mm") {
             EXPECT_NEAR(std::stod(rv[i]),
                         j["etdrs"]["at_fovea_centre"]["sectors"]["central"]["thickness_mm"]
+                            .get<double>(),
+                        1e-9);
+        }
+        if (hv[i] == "etdrs_at_scan_centre_central_mm") {
+            EXPECT_NEAR(std::stod(rv[i]),
+                        j["etdrs"]["at_scan_centre"]["sectors"]["central"]["thickness_mm"]
                             .get<double>(),
                         1e-9);
         }

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "fixtures/etdrs_json.h"
 #include "octshape/io/sha256.h"
 #include "test_paths.h"
 
@@ -129,6 +130,7 @@ TEST(TopconCli, MaculaOnTheRealFileToTheInnerRpeWithinTopconNormativeRange) {
     expect_finite_and_oriented(j);
     const json& v = j["parameters"];
     const double central = central_subfield(j);
+    test::expect_whole_grid_at_scan_centre(j, "Topcon real volume");
     EXPECT_GE(central, 0.222 - 3 * 0.019);
     EXPECT_LE(central, 0.222 + 3 * 0.019);
     // CFT (the thickness at the pit's bottom): no published Topcon range for this point value

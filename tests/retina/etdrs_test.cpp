@@ -12,6 +12,7 @@
 
 #include "octshape/error.h"
 #include "octshape/io/scan_reader.h"
+#include "octshape/io/topcon.h"
 #include "octshape/retina/phantom_macula.h"
 #include "test_paths.h"
 
@@ -85,18 +86,23 @@ double truth_mean(const MaculaPhantomParams& p, const MaculaPhantom& ph, const V
 // The bilinear interpolant of nodes dx, dy apart errs by at most (dx^2 max|T_xx| + dy^2
 // max|T_yy|) / 8 at any point (tensor-product linear interpolation); a mean over a sector errs
 // by at most the largest such bound over the cells it touches. The second derivatives are
-// measured on the generating surface by central differences (h = 2 um) at 4 um steps over the
-// sector widened by one cell.
+// measured on the generating surface by central differences (h = 2 um) at 8 um steps over the
+// sector widened by one cell. 8 um (a quarter of the cost of 4 um, which cost ~1 s a test): the
+// phantoms' T'' varies over their pits' handles (alpha 0.26 mm, beta 0.55 mm), so the sampled
+// maximum misses the true one by a few percent at most (the 36 sector bounds of these tests
+// moved by 0 to -2.4 % from 4 to 8 um), and the bound, the worst point's error applied to the
+// whole sector, is 10-100x the errors measured.
 double bilinear_bound(const MaculaPhantomParams& p, const MaculaPhantom& ph, const V2& c,
                       std::size_t k, double dx, double dy) {
+    constexpr double grid = 0.008;
     const SectorShape s = sector_shape(k);
     const double margin = std::hypot(dx, dy);
     constexpr double h = 0.002;
     double txx = 0.0;
     double tyy = 0.0;
     const double rmax = s.r1 + margin;
-    for (double x = -rmax; x <= rmax; x += 0.004) {
-        for (double y = -rmax; y <= rmax; y += 0.004) {
+    for (double x = -rmax; x <= rmax; x += grid) {
+        for (double y = -rmax; y <= rmax; y += grid) {
             const V2 q = c + V2(x, y);
             const double r = std::hypot(x, y);
             if (r > rmax || r < std::max(0.0, s.r0 - margin)) continue;
@@ -226,6 +232,64 @@ TEST(Etdrs, DeviceGridIsComparedSectorBySector) {
             if ((i <= 4) != (j <= 4)) continue;
             EXPECT_GT(std::fabs(truth_mean(p, ph, hint, i) - truth_mean(p, ph, hint, j)), 1e-3)
                 << kEtdrsSectorNames[i] << " " << kEtdrsSectorNames[j];
+        }
+    }
+}
+
+// The grid at the scan centre (the raster's middle, where a device puts the fixation target
+// and centres its own grid when it has no fovea finder) on an eye whose fovea is 0.6 mm nasal
+// and 0.45 mm inferior of it, as a Heidelberg .vol (in memory) and as a Topcon .fda (written
+// and read back: B-scan 0 is inferior there, so a mistaken row order would swap superior and
+// inferior). Each sector against the dense quadrature of the generating surface about the scan
+// centre, which is known independently: the phantom's fovea minus its offset. Depth pixels of
+// 1 um (not 3.87) so that the .fda's whole-pixel contours cost at most 1 um (below).
+TEST(Etdrs, GridAtTheScanCentreOfAnEyeWhoseFoveaIsOffIt) {
+    MaculaPhantomParams p;
+    p.pixels = false;
+    p.eye = io::Laterality::kOD;  // grid +x nasal
+    p.fovea_dx_mm = 0.6;
+    p.fovea_dy_mm = -0.45;
+    p.scale_z_mm = 0.001;
+    p.size_z = 1920;  // the 496 x 3.87 um of the default depth
+    const MaculaPhantom ph = make_macula_phantom(p);
+    const V2 scan_centre = ph.centre_mm - V2(p.fovea_dx_mm, p.fovea_dy_mm);
+    const ThicknessMap m = thickness_map(ph.scan);
+    std::array<double, kEtdrsSectors> truth{};
+    std::array<double, kEtdrsSectors> bound{};
+    for (std::size_t k = 0; k < kEtdrsSectorNames.size(); ++k) {
+        truth[k] = truth_mean(p, ph, scan_centre, k);
+        bound[k] = bilinear_bound(p, ph, scan_centre, k, m.dx_mm, m.dy_mm);
+    }
+    // The test tells apart what it guards against: the grid at the fovea (central subfield
+    // 0.268 against 0.325 mm here), superior and inferior swapped (inner ring, 28 um apart),
+    // nasal and temporal swapped (outer ring, 60 um apart); each by more than twice the
+    // largest tolerance below (bound + 1 um).
+    const double fovea_central = truth_mean(p, ph, ph.centre_mm, 0);
+    EXPECT_GT(std::fabs(fovea_central - truth[0]), 2.0 * (bound[0] + 1e-3));
+    EXPECT_GT(std::fabs(truth[1] - truth[3]), 2.0 * (std::max(bound[1], bound[3]) + 1e-3));
+    EXPECT_GT(std::fabs(truth[6] - truth[8]), 2.0 * (std::max(bound[6], bound[8]) + 1e-3));
+    test::TempDir dir;
+    const std::string fda = (dir / "off.fda").string();
+    io::write_topcon_file(ph.scan, fda);
+    const io::Scan topcon = io::read_scan(fda);
+    for (const io::Scan* scan : {&ph.scan, &topcon}) {
+        const bool is_fda = scan == &topcon;
+        SCOPED_TRACE(is_fda ? "Topcon .fda" : "Heidelberg .vol");
+        const CubeResult res = analyse_macula(*scan);
+        const EtdrsReport r = etdrs_report(*scan, res);
+        ASSERT_TRUE(r.at_scan_centre.has_value());
+        EXPECT_NEAR((r.at_scan_centre->centre_mm - scan_centre).norm(), 0.0, 1e-9);
+        for (std::size_t k = 0; k < kEtdrsSectorNames.size(); ++k) {
+            // .vol: the interpolation bound plus 0.05 um (quadrature and float depths, as in
+            // SectorsMatchDenseQuadratureOfTheGeneratingSurface). .fda: its contours are whole
+            // pixels, each surface rounded by at most half a pixel, so a node's thickness by at
+            // most one pixel (1 um) and a sector's mean by no more.
+            const double tol = bound[k] + (is_fda ? p.scale_z_mm : 5e-5);
+            const EtdrsSector& s = r.at_scan_centre->sectors[k];
+            EXPECT_NEAR(s.thickness_mm, truth[k], tol) << kEtdrsSectorNames[k];
+            std::printf("%s %-15s truth %.5f ours %.5f diff %+.3f um tol %.3f um\n",
+                        is_fda ? "fda" : "vol", std::string(kEtdrsSectorNames[k]).c_str(),
+                        truth[k], s.thickness_mm, 1e3 * (s.thickness_mm - truth[k]), 1e3 * tol);
         }
     }
 }

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <numbers>
 #include <sstream>
+#include <utility>
 
 #include "cube_stages.h"
 #include "octshape/error.h"
@@ -188,15 +189,19 @@ EtdrsReport etdrs_report(const io::Scan& scan,
     if (!res.line_scan) {
         out.at_fovea = etdrs_grid(m, geo, res.centre_mm, p);
         if (out.device) out.at_device = etdrs_grid(m, geo, out.device->centre_mm, p);
-        for (const auto* g : {&out.at_fovea, &out.at_device}) {
+        // The raster's middle in grid mm (nodes at 0 ... (cols - 1) dx and (rows - 1) dy).
+        const Eigen::Vector2d scan_centre(0.5 * (m.cols - 1) * m.dx_mm, 0.5 * (m.rows - 1) * m.dy_mm);
+        out.at_scan_centre = etdrs_grid(m, geo, scan_centre, p);
+        for (const auto& [g, where] :
+             {std::pair{&out.at_fovea, "(fovea centre)"}, std::pair{&out.at_device, "(device centre)"},
+              std::pair{&out.at_scan_centre, "(scan centre)"}}) {
             if (!*g) continue;
             for (std::size_t k = 0; k < kEtdrsSectorNames.size(); ++k) {
                 if (std::isnan((**g).sectors[k].thickness_mm)) {
-                    out.notes.push_back(
-                        "ETDRS " + std::string(kEtdrsSectorNames[k]) + " sector " +
-                        std::string(g == &out.at_fovea ? "(fovea centre)" : "(device centre)") +
-                        " is " + fixed(100.0 * (**g).sectors[k].coverage, 0) +
-                        " % measured: not reported");
+                    out.notes.push_back("ETDRS " + std::string(kEtdrsSectorNames[k]) + " sector " +
+                                        where + " is " +
+                                        fixed(100.0 * (**g).sectors[k].coverage, 0) +
+                                        " % measured: not reported");
                 }
             }
         }

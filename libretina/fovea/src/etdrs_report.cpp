@@ -1,6 +1,9 @@
 // The ETDRS part of the per-eye outputs (etdrs.h, docs/outputs.md).
 
 #include <cmath>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "octshape/retina/etdrs.h"
 #include "octshape/retina/report_util.h"
@@ -28,6 +31,19 @@ J grid_json(const EtdrsGrid& g) {
 }
 
 const char* const kAtDevice = "etdrs_at_device_";
+const char* const kAtScanCentre = "etdrs_at_scan_centre_";
+
+void add_grid_header(std::vector<std::string>& h, const char* prefix) {
+    for (const auto name : kEtdrsSectorNames) h.push_back(prefix + std::string(name) + "_mm");
+    h.push_back(prefix + std::string("total_volume_mm3"));
+}
+
+void add_grid_values(std::vector<std::string>& v, const std::optional<EtdrsGrid>& g) {
+    for (std::size_t k = 0; k < kEtdrsSectorNames.size(); ++k) {
+        v.push_back(csv_number(g ? g->sectors[k].thickness_mm : kMissing));
+    }
+    v.push_back(csv_number(g ? g->total_volume_mm3 : kMissing));
+}
 
 }  // namespace
 
@@ -41,6 +57,7 @@ J etdrs_json(const EtdrsReport& r) {
                     {"quadrature_step_mm", r.params.step_mm}};
     j["at_fovea_centre"] = r.at_fovea ? grid_json(*r.at_fovea) : J();
     j["at_device_centre"] = r.at_device ? grid_json(*r.at_device) : J();
+    j["at_scan_centre"] = r.at_scan_centre ? grid_json(*r.at_scan_centre) : J();
     if (r.device) {
         const DeviceEtdrs& d = *r.device;
         J sectors = J::object();
@@ -72,27 +89,22 @@ J etdrs_json(const EtdrsReport& r) {
 
 std::vector<std::string> etdrs_csv_header() {
     std::vector<std::string> h;
-    for (const char* prefix : {"etdrs_", kAtDevice}) {
-        for (const auto name : kEtdrsSectorNames) h.push_back(prefix + std::string(name) + "_mm");
-        h.push_back(prefix + std::string("total_volume_mm3"));
-    }
+    for (const char* prefix : {"etdrs_", kAtDevice}) add_grid_header(h, prefix);
     h.emplace_back("device_central_thickness_mm");
     h.emplace_back("thickness_at_device_centre_mm");
     h.emplace_back("device_central_difference_um");
+    // Appended after the device's columns (positions of the earlier ones unchanged).
+    add_grid_header(h, kAtScanCentre);
     return h;
 }
 
 std::vector<std::string> etdrs_csv_values(const EtdrsReport& r) {
     std::vector<std::string> v;
-    for (const auto* g : {&r.at_fovea, &r.at_device}) {
-        for (std::size_t k = 0; k < kEtdrsSectorNames.size(); ++k) {
-            v.push_back(csv_number(*g ? (**g).sectors[k].thickness_mm : kMissing));
-        }
-        v.push_back(csv_number(*g ? (**g).total_volume_mm3 : kMissing));
-    }
+    for (const auto* g : {&r.at_fovea, &r.at_device}) add_grid_values(v, *g);
     v.push_back(csv_number(r.device ? r.device->central_thickness_mm : kMissing));
     v.push_back(csv_number(r.ours_at_device_centre_mm));
     v.push_back(csv_number(r.central_difference_um));
+    add_grid_values(v, r.at_scan_centre);
     return v;
 }
 

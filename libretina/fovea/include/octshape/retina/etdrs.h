@@ -83,6 +83,9 @@ struct EtdrsReport {
     bool line_scan = false;
     std::optional<EtdrsGrid> at_fovea;   // centred on the analysis's fovea centre (volumes)
     std::optional<EtdrsGrid> at_device;  // centred on the device grid's centre (volumes)
+    // Centred on the scan's centre (volumes): the middle of the A-scan x B-scan raster, where
+    // the device put the fixation target; the grid a device without a stored grid reports.
+    std::optional<EtdrsGrid> at_scan_centre;
     std::optional<DeviceEtdrs> device;
     // Ours at the device grid's centre (volumes: bilinear; line scans: along the line at the
     // centre's projection) and its difference from the device's central thickness.
@@ -116,7 +119,8 @@ namespace octshape::retina {
 // name: thickness, volume, coverage), the device's grid beside them and the differences.
 [[nodiscard]] nlohmann::ordered_json etdrs_json(const EtdrsReport& r);
 // Stable CSV columns and their values (the fovea-centred grid, the device-centred grid, the
-// device's central thickness, ours at its centre and the difference).
+// device's central thickness, ours at its centre and the difference, then the grid at the scan
+// centre).
 [[nodiscard]] std::vector<std::string> etdrs_csv_header();
 [[nodiscard]] std::vector<std::string> etdrs_csv_values(const EtdrsReport& r);
 
