@@ -12,6 +12,8 @@
 // caller uses the pool at a time; a second caller at the same moment (another thread of the
 // application, or a loop nested in a loop body) runs on threads of its own as before.
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
@@ -24,30 +26,23 @@ namespace octshape::mesh::detail {
 
 class WorkerPool {
 public:
-    // The process's pool.
+    // The process's pool. Never destroyed: its threads sleep on the futex until the process
+    // ends (no join at exit, which could wait on a thread of a loop still running elsewhere).
     static WorkerPool& instance() {
-        static WorkerPool pool;
-        return pool;
+        static WorkerPool* const pool = new WorkerPool;
+        return *pool;
     }
 
     WorkerPool(const WorkerPool&) = delete;
     WorkerPool& operator=(const WorkerPool&) = delete;
 
-    ~WorkerPool() {
-        {
-            const std::lock_guard<std::mutex> lock(use_);
-            stop_ = true;
-            pending_.store(static_cast<int>(threads_.size()), std::memory_order_relaxed);
-            generation_.fetch_add(1, std::memory_order_release);
-            generation_.notify_all();
-        }
-        for (auto& t : threads_) t.join();
-    }
-
     // Runs chunk(w) for w = 0 .. workers − 1, chunk 0 on the calling thread. Returns false
-    // (nothing run) when the pool is in use by another caller.
+    // (nothing run) when the pool is in use by another caller, or in a child process forked
+    // after the pool's threads were started (`cohort` forks its workers; a child has none of
+    // the parent's threads).
     template <class Chunk>
     bool run(int workers, const Chunk& chunk) {
+        if (::getpid() != owner_) return false;
         std::unique_lock<std::mutex> lock(use_, std::try_to_lock);
         if (!lock.owns_lock()) return false;
         try {
@@ -86,7 +81,7 @@ private:
     // the machine may have fewer free cores than threads.
     static constexpr int kSpins = 200;
 
-    WorkerPool() = default;
+    WorkerPool() : owner_(::getpid()) {}
 
     static void pause() {
 #if defined(__x86_64__) || defined(__i386__)
@@ -106,7 +101,6 @@ private:
                 }
             }
             seen = now;
-            if (stop_) return;
             if (k < workers_) call_(context_, k);
             if (pending_.fetch_sub(1, std::memory_order_acq_rel) == 1) pending_.notify_one();
         }
@@ -120,7 +114,7 @@ private:
     int workers_ = 0;
     const void* context_ = nullptr;
     void (*call_)(const void*, int) = nullptr;
-    bool stop_ = false;
+    pid_t owner_;                        // the process whose threads these are
 };
 
 // The number of chunks parallel_for uses for n items: at most one per 256 items.

@@ -1,6 +1,8 @@
 // libmesh's parallel loop on its persistent worker pool (libmesh/src/parallel.h, header-only
 // and private: included by path) and RoFi's progress callback.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <stdexcept>
@@ -80,6 +82,33 @@ TEST(ParallelFor, ConcurrentCallersBothComplete) {
     const long long expected = 50LL * n * (n - 1) / 2;
     EXPECT_EQ(sums[0], expected);
     EXPECT_EQ(sums[1], expected);
+}
+
+// A child forked after the pool's threads started (as `cohort` forks its workers) has none of
+// them: its loops run on threads of their own and finish (a pool waiting for the parent's
+// threads would hang the child).
+TEST(ParallelFor, ForkedChildRunsItsLoops) {
+    const auto sum = [](int n) {
+        std::atomic<long long> s{0};
+        detail::parallel_for(n, 2, [&](int begin, int end) {
+            long long t = 0;
+            for (int i = begin; i < end; ++i) t += i;
+            s += t;
+        });
+        return s.load();
+    };
+    ASSERT_EQ(sum(10000), 10000LL * 9999 / 2);  // the pool's thread now runs
+    const pid_t pid = ::fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+        bool ok = true;
+        for (int r = 0; r < 20; ++r) ok = ok && sum(10000) == 10000LL * 9999 / 2;
+        ::_exit(ok ? 0 : 1);
+    }
+    int status = -1;
+    ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+    EXPECT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 0);
 }
 
 // RofiParams::progress is called once per iteration, with k = 1, 2, … and the maximum.
