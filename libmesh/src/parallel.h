@@ -7,10 +7,12 @@
 //
 // The threads are started once per process (on the first loop that asks for them) and then
 // wait on a futex (std::atomic::wait) between loops: a loop costs a wake-up (a few µs), not a
-// thread start and join (~30–60 µs per thread on this kind of machine; RoFi runs 4–5 loops
-// per iteration, which made two threads slower than one on a 13k-face mesh, issue 35). One
-// caller uses the pool at a time; a second caller at the same moment (another thread of the
-// application, or a loop nested in a loop body) runs on threads of its own as before.
+// thread start and join (~36 µs per thread measured here; RoFi runs 4 loops per iteration,
+// which made two threads slower than one on a 13k-face mesh, issue 35). The chunks are fixed
+// by n and the thread count; which thread runs a chunk is decided at run time (the first to
+// claim it), which changes nothing in what it computes. One caller uses the pool at a time;
+// a second caller at the same moment (another thread of the application, or a loop nested in
+// a loop body) runs on threads of its own as before.
 
 #include <unistd.h>
 
@@ -36,41 +38,47 @@ public:
     WorkerPool(const WorkerPool&) = delete;
     WorkerPool& operator=(const WorkerPool&) = delete;
 
-    // Runs chunk(w) for w = 0 .. workers − 1, chunk 0 on the calling thread. Returns false
-    // (nothing run) when the pool is in use by another caller, or in a child process forked
-    // after the pool's threads were started (`cohort` forks its workers; a child has none of
-    // the parent's threads).
+    // Runs chunk(w) for w = 0 .. workers − 1 (workers ≤ 65535). The chunks are claimed one at
+    // a time by whichever thread comes first, the caller included: a pool thread that the
+    // machine has not scheduled yet (a loaded machine) leaves its chunk to the others instead
+    // of holding the loop up, so a loop is never much slower than on one thread. Which thread
+    // runs a chunk does not change what the chunk computes. Returns false (nothing run) when
+    // the pool is in use by another caller, or in a child process forked after the pool's
+    // threads were started (`cohort` forks its workers; a child has none of the parent's
+    // threads).
     template <class Chunk>
     bool run(int workers, const Chunk& chunk) {
-        if (::getpid() != owner_) return false;
+        if (workers > 0xffff || ::getpid() != owner_) return false;
         std::unique_lock<std::mutex> lock(use_, std::try_to_lock);
         if (!lock.owns_lock()) return false;
         try {
             while (static_cast<int>(threads_.size()) < workers - 1) {
-                const int k = static_cast<int>(threads_.size()) + 1;
-                // The generation before this loop's: the new thread waits for the next one.
+                // The generation before this loop's: the new thread looks at this loop too.
                 const std::uint64_t seen = generation_.load(std::memory_order_relaxed);
-                threads_.emplace_back([this, k, seen] { serve(k, seen); });
+                threads_.emplace_back([this, seen] { serve(seen); });
             }
         } catch (...) {
             return false;  // no thread could be started: the caller's fallback reports it
         }
-        workers_ = workers;
         context_ = &chunk;
         call_ = [](const void* c, int w) { (*static_cast<const Chunk*>(c))(w); };
-        pending_.store(static_cast<int>(threads_.size()), std::memory_order_relaxed);
+        done_.store(0, std::memory_order_relaxed);
+        ++loop_;
+        // Publishes the fields above to every thread whose claim succeeds (acquire).
+        claim_.store(pack(loop_, workers, 0), std::memory_order_release);
         generation_.fetch_add(1, std::memory_order_release);
         generation_.notify_all();
-        chunk(0);
-        // Every pool thread acknowledges the loop (those beyond `workers` at once), so no
-        // thread can still be reading this loop's fields when the next loop writes them.
-        for (int spin = 0; pending_.load(std::memory_order_acquire) != 0; ++spin) {
+        work();
+        // Every chunk claimed has to finish before the fields are written again; a thread
+        // that comes late finds the loop fully claimed (or a newer one) and touches nothing.
+        for (int spin = 0;; ++spin) {
+            const int d = done_.load(std::memory_order_acquire);
+            if (d == workers) break;
             if (spin < kSpins) {
                 pause();
-                continue;
+            } else {
+                done_.wait(d, std::memory_order_acquire);
             }
-            const int p = pending_.load(std::memory_order_acquire);
-            if (p != 0) pending_.wait(p, std::memory_order_acquire);
         }
         return true;
     }
@@ -89,7 +97,31 @@ private:
 #endif
     }
 
-    void serve(int k, std::uint64_t seen) {
+    // The claim word: loop number (32 bits), chunk count (16), next chunk to claim (16).
+    static std::uint64_t pack(std::uint32_t loop, int workers, int next) {
+        return static_cast<std::uint64_t>(loop) << 32 |
+               static_cast<std::uint64_t>(workers) << 16 | static_cast<std::uint64_t>(next);
+    }
+
+    // Claims and runs chunks of the current loop until none is left.
+    void work() {
+        std::uint64_t c = claim_.load(std::memory_order_acquire);
+        for (;;) {
+            const auto workers = static_cast<int>((c >> 16) & 0xffff);
+            const auto next = static_cast<int>(c & 0xffff);
+            if (next >= workers) return;
+            if (!claim_.compare_exchange_weak(c, c + 1, std::memory_order_acquire,
+                                              std::memory_order_acquire)) {
+                continue;  // c now holds the current word
+            }
+            // The loop cannot end before this chunk is done: its fields stay valid.
+            call_(context_, next);
+            if (done_.fetch_add(1, std::memory_order_acq_rel) + 1 == workers) done_.notify_one();
+            c = claim_.load(std::memory_order_acquire);
+        }
+    }
+
+    void serve(std::uint64_t seen) {
         for (;;) {
             std::uint64_t now = seen;
             for (int spin = 0; (now = generation_.load(std::memory_order_acquire)) == seen;
@@ -101,17 +133,17 @@ private:
                 }
             }
             seen = now;
-            if (k < workers_) call_(context_, k);
-            if (pending_.fetch_sub(1, std::memory_order_acq_rel) == 1) pending_.notify_one();
+            work();
         }
     }
 
     std::mutex use_;                     // one caller at a time
-    std::vector<std::thread> threads_;   // thread k − 1 runs chunk k
-    std::atomic<std::uint64_t> generation_{0};  // one more per loop
-    std::atomic<int> pending_{0};        // pool threads yet to acknowledge the loop
-    // The loop, written before generation_ is raised (release) and read after (acquire).
-    int workers_ = 0;
+    std::vector<std::thread> threads_;   // the pool (workers − 1 at most are needed)
+    std::atomic<std::uint64_t> generation_{0};  // one more per loop: wakes the pool
+    std::atomic<std::uint64_t> claim_{0};       // pack(loop, workers, next chunk)
+    std::atomic<int> done_{0};           // chunks of the current loop finished
+    std::uint32_t loop_ = 0;             // the caller's loop counter (under use_)
+    // The loop, written before claim_ is stored (release), read after a claim (acquire).
     const void* context_ = nullptr;
     void (*call_)(const void*, int) = nullptr;
     pid_t owner_;                        // the process whose threads these are
