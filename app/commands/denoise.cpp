@@ -1,6 +1,7 @@
 // `octshape denoise IN -o OUT --method rofi|envt|bilateral`: feature-preserving mesh
 // denoising (thesis §5 RoFi, §3 ENVT; docs/algorithms/rofi.md, envt.md).
 
+#include <chrono>
 #include <iostream>
 #include <optional>
 #include <string>
@@ -175,6 +176,17 @@ void run_denoise(const DenoiseOptions& o) {
         if (o.sigma_c_factor) p.sigma_c_factor = *o.sigma_c_factor;
         p.threads = o.threads;
         p.repair_folds = !o.no_fold_repair;
+        // Progress on stderr for long runs (a 5 M-face mesh takes minutes): a line every
+        // 5 s once 5 s have passed, none for a run that ends sooner.
+        const auto started = std::chrono::steady_clock::now();
+        auto reported = started;
+        p.progress = [&, started, reported](int k, int total) mutable {
+            const auto now = std::chrono::steady_clock::now();
+            if (now - reported < std::chrono::seconds(5)) return;
+            reported = now;
+            spdlog::info("{}: iteration {} of at most {} ({:.0f} s)", log_name(o.input, "mesh"),
+                         k, total, std::chrono::duration<double>(now - started).count());
+        };
         p.validate();
         params = {{"sigma_s", p.sigma_s},
                   {"lambda_i", p.lambda_i},

@@ -729,9 +729,17 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
     double last_whiteness = 0;  // its W
     for (int it = 0; it <= params.iterations; ++it) {
         if (it == params.iterations && !measure) break;
+        auto t_phase = Clock::now();
+        // Adds the time since the last mark to `phase` and moves the mark.
+        const auto lap = [&t_phase](double& phase) {
+            const auto now = Clock::now();
+            phase += std::chrono::duration<double>(now - t_phase).count();
+            t_phase = now;
+        };
         detail::parallel_for(m, params.threads, [&](int begin, int end) {
             detail::update_faces(result.V, F, begin, end, current.data(), avx2);
         });
+        lap(result.phases.faces);
         if (measure && it > 0 && (params.observer || tested(it))) {
             // The residual of the mesh after `it` iterations: the observer sees it, the stop
             // tests it (rofi.md, "Stopping": white while it is noise, smoother once signal).
@@ -771,6 +779,7 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
                 last_whiteness = progress.whiteness;
             }
             previous = progress;
+            lap(result.phases.stop);
         }
         if (it == params.iterations) break;
         const auto rows = [&](int kind) {
@@ -789,18 +798,22 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
             // The pair weights (each row writes its own pairs and their mirror slots), then
             // the sums: two passes, so that every slot is written before any row reads it.
             rows(0);
+            lap(result.phases.weights);
             rows(1);
         } else {
-            rows(2);
+            rows(2);  // weights and sums in one pass: counted as sums
         }
+        lap(result.phases.sums);
         // Eq. 5.9.
         detail::parallel_for(n, params.threads, [&](int begin, int end) {
             detail::vertex_step(result.V, faces.data(), setup.adjacency, setup.fixed, lambda,
                                 begin, end, next, avx2);
         });
+        lap(result.phases.vertices);
         result.V.swap(next);
         lambda *= params.lambda_decay;
         ++result.iterations;
+        if (params.progress) params.progress(result.iterations, params.iterations);
     }
     if (params.repair_folds && result.iterations > 0) {
         const auto t2 = Clock::now();

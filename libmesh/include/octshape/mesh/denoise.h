@@ -27,6 +27,17 @@ struct DenoiseResult {
     int folds_repaired = 0;
     int folds_left = 0;                 // fold-overs left after the last repair
     double seconds_fold_repair = 0;     // the repairs alone (part of seconds_iterations)
+    // RoFi / bilateral: seconds_iterations split by phase (wall clock, summed over the
+    // iterations; the rest of seconds_iterations is the fold repair and loop overhead): face
+    // normals, areas and centroids; the pair weights f g; the sums of Eq. 5.1; the vertex
+    // step; the stop's residual test (docs/algorithms/rofi.md, "Roofline").
+    struct Phases {
+        double faces = 0;
+        double weights = 0;
+        double sums = 0;
+        double vertices = 0;
+        double stop = 0;
+    } phases;
     std::vector<std::string> warnings;  // e.g. "mesh has non-manifold edges"
 };
 

@@ -79,6 +79,10 @@ struct RofiParams {
     // Called after every iteration k = 1, 2, … with the vertices (before the fold repair) and
     // the residual's measures (RofiProgress); for measurements (bench/). Empty = none.
     std::function<void(int iteration, const Vertices& V, const RofiProgress& progress)> observer;
+    // Called after every iteration k = 1, 2, … with k and `iterations` (the maximum), from
+    // the calling thread; for progress reports (`octshape denoise` on large meshes). Unlike
+    // `observer` it costs nothing measured. Empty = none.
+    std::function<void(int iteration, int iterations)> progress;
     int threads = 1;            // std::threads; results do not depend on it; ≥ 1
     // Instruction set of the vector kernels; results do not depend on it (simd_exp.h).
     // kAvx2 / kAvx512 need a CPU with AVX2 / AVX-512.
