@@ -11,7 +11,7 @@
 #include "octshape/io/scan.h"
 #include "octshape/retina/cube.h"
 
-namespace octshape::app {
+namespace octshape::qc {
 
 // Writes DIR/STEM_thickness.png, DIR/STEM_profiles.png and DIR/STEM_bscan.png (atomically).
 // `scan` is the analysed scan; its pixels are drawn when loaded. Throws OutputError.
@@ -44,4 +44,4 @@ struct RadialThicknessLayout {
 // The thickness colour range of the thickness pictures: [lo, hi] mm (VIRIDIS, lo dark).
 [[nodiscard]] std::pair<double, double> macula_thickness_range(const retina::CubeResult& r);
 
-}  // namespace octshape::app
+}  // namespace octshape::qc

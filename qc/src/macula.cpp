@@ -1,4 +1,4 @@
-#include "commands/macula_qc.h"
+#include "octshape/qc/macula.h"
 
 #include <algorithm>
 #include <cmath>
@@ -10,12 +10,12 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
-#include "commands/qc_draw.h"
-#include "commands/qc_names.h"
+#include "octshape/qc/draw.h"
+#include "octshape/qc/names.h"
 #include "octshape/error.h"
 #include "octshape/retina/radial_geometry.h"
 
-namespace octshape::app {
+namespace octshape::qc {
 namespace {
 
 const cv::Scalar& kRim = palette::kRed;
@@ -547,9 +547,9 @@ void write_macula_qc(const retina::CubeResult& r, const io::Scan& scan, const st
                                     : thickness_map_picture(r, title);
     const cv::Mat p = profiles_picture(r, title);
     const cv::Mat b = macula_bscan_picture(r, scan, title);
-    save_png(t, (d / qc::picture_name(stem, qc::kThickness)).string());
-    save_png(p, (d / qc::picture_name(stem, qc::kProfiles)).string());
-    save_png(b, (d / qc::picture_name(stem, qc::kBscan)).string());
+    save_png(t, (d / picture_name(stem, kind::kThickness)).string());
+    save_png(p, (d / picture_name(stem, kind::kProfiles)).string());
+    save_png(b, (d / picture_name(stem, kind::kBscan)).string());
 }
 
-}  // namespace octshape::app
+}  // namespace octshape::qc

@@ -1,6 +1,6 @@
-#include "commands/onh_qc.h"
+#include "octshape/qc/onh.h"
 
-#include "commands/onh_qc_radial.h"
+#include "octshape/qc/onh_radial.h"
 
 #include <algorithm>
 #include <cmath>
@@ -12,14 +12,14 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
-#include "commands/qc_draw.h"
-#include "commands/qc_names.h"
+#include "octshape/qc/draw.h"
+#include "octshape/qc/names.h"
 #include "octshape/error.h"
 
-namespace octshape::app {
+namespace octshape::qc {
 namespace {
 
-using namespace onh_colours;  // onh_qc_radial.h
+using namespace onh_colours;  // octshape/qc/onh_radial.h
 const cv::Scalar& kFilled = palette::kCyan;
 const cv::Scalar& kInplane = palette::kDeepBlue;  // radial scans: the in-plane MRW
 
@@ -320,8 +320,8 @@ void write_onh_qc(const io::Scan& scan,
     const std::string title = scan_title(scan.meta, scan.num_bscans());
     // A radial scan's pictures under the volume's names (the gallery and the cohort's resume
     // know them): its lines on the scanned circle, and every radial B-scan.
-    const std::string enface = (d / qc::picture_name(stem, qc::kEnface)).string();
-    const std::string bscans = (d / qc::picture_name(stem, qc::kBscans)).string();
+    const std::string enface = (d / picture_name(stem, kind::kEnface)).string();
+    const std::string bscans = (d / picture_name(stem, kind::kBscans)).string();
     // Every picture is drawn before any is written: a drawing error leaves no picture behind.
     const cv::Mat e =
         r.radial ? radial_enface_picture(scan, r, p, title) : enface_picture(r, p, title);
@@ -330,7 +330,7 @@ void write_onh_qc(const io::Scan& scan,
     const cv::Mat m = onh_mrw_picture(r, title);
     save_png(e, enface);
     save_png(b, bscans);
-    save_png(m, (d / qc::picture_name(stem, qc::kMrw)).string());
+    save_png(m, (d / picture_name(stem, kind::kMrw)).string());
 }
 
-}  // namespace octshape::app
+}  // namespace octshape::qc

@@ -1,4 +1,4 @@
-#include "commands/qc_draw.h"
+#include "octshape/qc/draw.h"
 
 #include <algorithm>
 #include <cmath>
@@ -13,7 +13,7 @@
 #include "octshape/error.h"
 #include "octshape/io/image.h"
 
-namespace octshape::app {
+namespace octshape::qc {
 
 void save_png(const cv::Mat& img, const std::string& path) {
     cv::Mat px;
@@ -203,4 +203,4 @@ int draw_legend(cv::Mat& img, cv::Point p, const std::vector<LegendItem>& items,
     return y + 10;
 }
 
-}  // namespace octshape::app
+}  // namespace octshape::qc

@@ -1,6 +1,6 @@
 #pragma once
-// The names of the QC pictures of one eye, in one place: the picture writers (macula_qc,
-// onh_qc), the cohort's resume (an eye is done with --qc only when its pictures exist) and
+// The names of the QC pictures of one eye, in one place: the picture writers (macula.h,
+// onh.h), the cohort's resume (an eye is done with --qc only when its pictures exist) and
 // the gallery (which picture belongs to which eye and what it shows) all use these.
 // DIR/STEM_KIND.png; STEM is the -o stem of a single-eye command or the eye key in a cohort,
 // never the input's name (docs/outputs.md).
@@ -8,8 +8,9 @@
 #include <string>
 #include <vector>
 
-namespace octshape::app::qc {
+namespace octshape::qc {
 
+namespace kind {
 // Macula: the thickness map (a profile for a line scan), the half-line profiles, the B-scan.
 inline constexpr const char* kThickness = "thickness";
 inline constexpr const char* kProfiles = "profiles";
@@ -18,11 +19,12 @@ inline constexpr const char* kBscan = "bscan";
 inline constexpr const char* kEnface = "enface";
 inline constexpr const char* kBscans = "bscans";
 inline constexpr const char* kMrw = "mrw";
+}  // namespace kind
 
 // The kinds a scan type ("macula", "onh") gets, in the order they are drawn.
 inline std::vector<std::string> kinds(const std::string& scan_type) {
-    if (scan_type == "onh") return {kEnface, kBscans, kMrw};
-    return {kThickness, kProfiles, kBscan};
+    if (scan_type == "onh") return {kind::kEnface, kind::kBscans, kind::kMrw};
+    return {kind::kThickness, kind::kProfiles, kind::kBscan};
 }
 
 // "STEM_KIND.png".
@@ -49,4 +51,4 @@ inline std::string picture_kind(const std::string& stem, const std::string& file
     return file.substr(prefix.size(), file.size() - prefix.size() - suffix.size());
 }
 
-}  // namespace octshape::app::qc
+}  // namespace octshape::qc

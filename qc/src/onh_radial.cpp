@@ -1,4 +1,4 @@
-#include "commands/onh_qc_radial.h"
+#include "octshape/qc/onh_radial.h"
 
 #include <algorithm>
 #include <array>
@@ -9,12 +9,12 @@
 #include <utility>
 #include <vector>
 
-#include "commands/qc_draw.h"
+#include "octshape/qc/draw.h"
 
-namespace octshape::app {
+namespace octshape::qc {
 namespace {
 
-// The ONH pictures' colours (onh_qc_radial.h), and those of what only a radial scan has.
+// The ONH pictures' colours (octshape/qc/onh_radial.h), and those of what only a radial scan has.
 using namespace onh_colours;
 const cv::Scalar& kCrossing = palette::kCyan;
 const cv::Scalar kLine(200, 200, 200);
@@ -364,4 +364,4 @@ cv::Mat radial_bscans_picture(const io::Scan& scan,
     return out;
 }
 
-}  // namespace octshape::app
+}  // namespace octshape::qc

@@ -8,7 +8,7 @@
 
 #include "octshape/io/scan.h"
 
-namespace octshape::app {
+namespace octshape::qc {
 
 // The one palette of every QC picture (BGR), so that a layer or a kind of mark has the same
 // colour in the macula's and the optic nerve head's pictures; each picture names its uses.
@@ -83,4 +83,4 @@ struct LegendItem {
 int draw_legend(cv::Mat& img, cv::Point p, const std::vector<LegendItem>& items, double font,
                 cv::Scalar text, int max_x);
 
-}  // namespace octshape::app
+}  // namespace octshape::qc
