@@ -277,30 +277,6 @@ cv::Mat profiles_picture(const retina::CubeResult& r, const std::string& title) 
     return stack({title_strip(img.cols, 34, title), legend, img});
 }
 
-// The fitted thickness h(r) of half-line `h` at distance `rr` from its origin, or NaN.
-double fitted_thickness(const retina::CubeHalfLine& h, double rr) {
-    if (!h.valid || rr < 0.0 || rr > h.r_mm.back()) return std::numeric_limits<double>::quiet_NaN();
-    // The Bezier segments are monotone in r: bisect for the parameter giving rr.
-    for (const auto* fit : {&h.interior, &h.exterior}) {
-        const double r0 = retina::bezier_point(fit->control, 0.0).x();
-        const double r1 = retina::bezier_point(fit->control, 1.0).x();
-        if (rr < std::min(r0, r1) || rr > std::max(r0, r1)) continue;
-        double t0 = 0.0;
-        double t1 = 1.0;
-        for (int it = 0; it < 40; ++it) {
-            const double tm = 0.5 * (t0 + t1);
-            const double rm = retina::bezier_point(fit->control, tm).x();
-            if ((rm < rr) == (r0 < r1)) {
-                t0 = tm;
-            } else {
-                t1 = tm;
-            }
-        }
-        return retina::bezier_point(fit->control, 0.5 * (t0 + t1)).y();
-    }
-    return std::numeric_limits<double>::quiet_NaN();
-}
-
 // The fitted thickness at position `p` (grid or radial mm) of a B-scan running along `u`: from
 // the half-line along that B-scan (direction +-u) pointing towards p.
 double fitted_thickness_at(const retina::CubeResult& r, const Eigen::Vector2d& u,
@@ -310,7 +286,7 @@ double fitted_thickness_at(const retina::CubeResult& r, const Eigen::Vector2d& u
         const Eigen::Vector2d o = std::isnan(h.origin_mm.x()) ? r.centre_mm : h.origin_mm;
         const double rr = (p - o).dot(h.direction);
         if (rr < 0.0) continue;
-        return fitted_thickness(h, rr);
+        return retina::fitted_thickness_mm(h, rr);
     }
     return std::numeric_limits<double>::quiet_NaN();
 }
