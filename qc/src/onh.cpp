@@ -15,6 +15,7 @@
 #include "octshape/qc/draw.h"
 #include "octshape/qc/names.h"
 #include "octshape/error.h"
+#include "octshape/mesh/section.h"
 
 namespace octshape::qc {
 namespace {
@@ -113,27 +114,6 @@ cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
     return out;
 }
 
-// Segments where the plane y = y0 cuts the mesh, as (x, z) pairs.
-std::vector<std::array<Eigen::Vector2d, 2>> plane_cut(const mesh::Vertices& V,
-                                                      const mesh::Faces& F,
-                                                      double y0) {
-    std::vector<std::array<Eigen::Vector2d, 2>> segs;
-    for (Eigen::Index f = 0; f < F.rows(); ++f) {
-        std::vector<Eigen::Vector2d> hits;
-        for (int k = 0; k < 3; ++k) {
-            const Eigen::Vector3d a = V.row(F(f, k));
-            const Eigen::Vector3d b = V.row(F(f, (k + 1) % 3));
-            const double da = a.y() - y0;
-            const double db = b.y() - y0;
-            if ((da < 0.0) == (db < 0.0)) continue;
-            const double t = da / (da - db);
-            hits.emplace_back(a.x() + t * (b.x() - a.x()), a.z() + t * (b.z() - a.z()));
-        }
-        if (hits.size() == 2) segs.push_back({hits[0], hits[1]});
-    }
-    return segs;
-}
-
 cv::Mat bscan_panel(const io::Scan& scan, const retina::OnhResult& r, int b) {
     const int W = scan.meta.size_x;
     const int H = scan.meta.size_z;
@@ -166,8 +146,9 @@ cv::Mat bscan_panel(const io::Scan& scan, const retina::OnhResult& r, int b) {
         if (g.filled[i]) cv::circle(img, px(a * g.dx_mm, g.z[i]), 0, kFilled, -1);
     }
     // The ILM used: the mesh cut by the B-scan's plane (nudged off the grid lines).
-    for (const auto& s : plane_cut(r.ilm_V, r.ilm_F, b * g.dy_mm + 1e-7)) {
-        cv::line(img, px(s[0].x(), s[0].y()), px(s[1].x(), s[1].y()), kUsedIlm, 1, cv::LINE_AA);
+    for (const auto& s :
+         mesh::plane_section(r.ilm_V, r.ilm_F, Eigen::Vector3d::UnitY(), b * g.dy_mm + 1e-7)) {
+        cv::line(img, px(s.a.x(), s.a.z()), px(s.b.x(), s.b.z()), kUsedIlm, 1, cv::LINE_AA);
     }
     for (const auto& m : r.bmo_measured) {
         if (m.bscan == b) cv::circle(img, px(m.mm.x(), m.mm.z()), 4, kDisc, 1, cv::LINE_AA);

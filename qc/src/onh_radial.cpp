@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "octshape/mesh/section.h"
 #include "octshape/qc/draw.h"
 
 namespace octshape::qc {
@@ -35,30 +36,14 @@ std::vector<std::array<Eigen::Vector2d, 2>> line_cut(const io::Scan& scan,
     const Eigen::Vector2d n(-u.y(), u.x());
     const double ds = geo.lines[static_cast<std::size_t>(line)].length_mm / (nx - 1);
     const double dz = scan.meta.scale_z_mm;
-    // Signed distance of every vertex from the plane, nudged so that none lies on it (a line
-    // along a grid row or column passes through vertices).
-    const Eigen::Index nv = r.ilm_V.rows();
-    std::vector<double> d(static_cast<std::size_t>(nv));
-    for (Eigen::Index v = 0; v < nv; ++v) {
-        d[static_cast<std::size_t>(v)] =
-            (Eigen::Vector2d(r.ilm_V(v, 0), r.ilm_V(v, 1)) - o).dot(n) + 1e-9;
-    }
+    // The line's vertical plane n . (x, y) = n . o, moved off the vertices (a line along a grid
+    // row or column passes through them).
     std::vector<std::array<Eigen::Vector2d, 2>> segs;
-    for (Eigen::Index f = 0; f < r.ilm_F.rows(); ++f) {
-        std::array<Eigen::Vector2d, 2> hit;
-        int hits = 0;
-        for (int k = 0; k < 3 && hits < 2; ++k) {
-            const int ia = r.ilm_F(f, k);
-            const int ib = r.ilm_F(f, (k + 1) % 3);
-            const double da = d[static_cast<std::size_t>(ia)];
-            const double db = d[static_cast<std::size_t>(ib)];
-            if ((da < 0.0) == (db < 0.0)) continue;
-            const double t = da / (da - db);
-            const Eigen::Vector3d p = r.ilm_V.row(ia) + t * (r.ilm_V.row(ib) - r.ilm_V.row(ia));
-            const double s = (p.head<2>() - o).dot(u);
-            hit[static_cast<std::size_t>(hits++)] = {s / ds, -p.z() / dz};
-        }
-        if (hits == 2) segs.push_back(hit);
+    for (const mesh::SectionSegment& sg : mesh::plane_section(r.ilm_V, r.ilm_F, {n.x(), n.y(), 0.0}, n.dot(o) - 1e-9)) {
+        auto at = [&](const Eigen::Vector3d& p) -> Eigen::Vector2d {
+            return {(p.head<2>() - o).dot(u) / ds, -p.z() / dz};
+        };
+        segs.push_back({at(sg.a), at(sg.b)});
     }
     return segs;
 }
