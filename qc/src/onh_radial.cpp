@@ -71,31 +71,13 @@ cv::Point RadialSheetLayout::px(int line, double ascan, double depth_px) const {
 }
 
 CellHeights onh_cell_heights(const retina::OnhResult& r) {
-    const retina::GridSurface& g = r.rpe;
-    const int cw = g.cols - 1;
-    const int ch = g.rows - 1;
-    std::vector<double> h(static_cast<std::size_t>(cw) * static_cast<std::size_t>(ch),
-                          std::numeric_limits<double>::quiet_NaN());
-    std::vector<double> top(h.size(), -std::numeric_limits<double>::infinity());
-    const mesh::FaceGeometry fg = mesh::face_geometry(r.ilm_V, r.ilm_F);
-    for (Eigen::Index f = 0; f < r.ilm_F.rows(); ++f) {
-        if (std::isnan(r.face_height_mm(f))) continue;
-        const int a = std::clamp(static_cast<int>(fg.centroids(f, 0) / g.dx_mm), 0, cw - 1);
-        const int b = std::clamp(static_cast<int>(fg.centroids(f, 1) / g.dy_mm), 0, ch - 1);
-        const auto i = static_cast<std::size_t>(b) * static_cast<std::size_t>(cw) +
-                       static_cast<std::size_t>(a);
-        if (fg.centroids(f, 2) > top[i]) {
-            top[i] = fg.centroids(f, 2);
-            h[i] = r.face_height_mm(f);
-        }
-    }
     CellHeights out;
-    for (const double v : h) {
+    out.h = retina::onh_enface_heights(r).height_mm;
+    for (const double v : out.h) {
         if (std::isnan(v)) continue;
         out.lo = std::min(out.lo, v);
         out.hi = std::max(out.hi, v);
     }
-    out.h = std::move(h);
     return out;
 }
 

@@ -71,9 +71,9 @@ struct RadialSheetLayout {
     [[nodiscard]] cv::Point px(int line, double ascan, double depth_px) const;
 };
 
-// Height above the RPE of the topmost ILM face over each cell of r.rpe (NaN: no face),
-// row-major (b * (cols - 1) + a) over its (cols - 1) x (rows - 1) cells: the en-face pictures'
-// values, a volume's and a radial scan's; with their colour range [lo, hi] (lo <= 0, hi >= 0.1
+// The analysis's en-face map (retina::onh_enface_heights: height above the RPE of the topmost
+// ILM face over each RPE grid cell, NaN: no face, row-major b * (cols - 1) + a): the en-face
+// pictures' values, a volume's and a radial scan's; with their colour range [lo, hi] (lo <= 0, hi >= 0.1
 // mm, so that a flat disc is not stretched over the whole scale).
 struct CellHeights {
     std::vector<double> h;
