@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "octshape/qc/draw.h"
+#include "octshape/qc/fundus.h"
 #include "octshape/qc/names.h"
 #include "octshape/error.h"
 #include "octshape/retina/radial_geometry.h"
@@ -85,21 +86,23 @@ void draw_disks(cv::Mat& img, const retina::CubeResult& r, const ToPx& to_px) {
     poly(r.pit_flat, kFlat);
 }
 
-cv::Mat thickness_map_picture(const retina::CubeResult& r, const std::string& title) {
+// The map in the fundus frame (fundus.h): superior up, whichever way the B-scans ran.
+cv::Mat thickness_map_picture(const retina::CubeResult& r, const io::Scan& scan,
+                              const std::string& title) {
     const retina::ThicknessMap& m = r.map;
-    const double width_mm = (m.cols - 1) * m.dx_mm;
-    const double height_mm = (m.rows - 1) * m.dy_mm;
+    const FundusFrame ff = fundus_frame(scan, (m.cols - 1) * m.dx_mm, (m.rows - 1) * m.dy_mm);
     const int W = 800;
-    const double px_per_mm = W / width_mm;
-    const int H = std::max(40, static_cast<int>(std::lround(height_mm * px_per_mm)));
+    const double px_per_mm = W / ff.width_mm;
+    const int H = std::max(40, static_cast<int>(std::lround(ff.height_mm * px_per_mm)));
     const auto [lo, hi] = thickness_range(r);
     cv::Mat grey(H, W, CV_8UC1);
     cv::Mat valid(H, W, CV_8UC1);
     for (int y = 0; y < H; ++y) {
-        // Image row 0 at the top = largest grid y (superior for the usual placement).
-        const double gy = (H - 1 - y) / px_per_mm;
+        // Image row 0 at the top = the largest fundus y (superior).
+        const double fy = (H - 1 - y) / px_per_mm;
         for (int x = 0; x < W; ++x) {
-            const double v = m.sample(x / px_per_mm, gy);
+            const Eigen::Vector2d g = ff.to_grid({x / px_per_mm, fy});
+            const double v = m.sample(g.x(), g.y());
             valid.at<uchar>(y, x) = std::isnan(v) ? 0 : 255;
             const double u = std::isnan(v) ? 0.0 : std::clamp((v - lo) / (hi - lo), 0.0, 1.0);
             grey.at<uchar>(y, x) = static_cast<uchar>(std::lround(255 * u));
@@ -109,8 +112,9 @@ cv::Mat thickness_map_picture(const retina::CubeResult& r, const std::string& ti
     cv::applyColorMap(grey, img, cv::COLORMAP_VIRIDIS);
     img.setTo(cv::Scalar(60, 60, 60), valid == 0);
     auto to_px = [&](double gx, double gy) {
-        return cv::Point(static_cast<int>(std::lround(gx * px_per_mm)),
-                         static_cast<int>(std::lround(H - 1 - gy * px_per_mm)));
+        const Eigen::Vector2d f = ff.to_fundus({gx, gy});
+        return cv::Point(static_cast<int>(std::lround(f.x() * px_per_mm)),
+                         static_cast<int>(std::lround(H - 1 - f.y() * px_per_mm)));
     };
     for (const auto& h : r.half_lines) {
         const Eigen::Vector2d e = r.centre_mm + h.r_mm.back() * h.direction;
@@ -520,7 +524,7 @@ void write_macula_qc(const retina::CubeResult& r, const io::Scan& scan, const st
     // Every picture is drawn before any is written: a drawing error leaves no picture behind.
     const cv::Mat t = r.radial_scan ? macula_radial_thickness_picture(r, scan, title)
                       : one_row     ? thickness_line_picture(r, title)
-                                    : thickness_map_picture(r, title);
+                                    : thickness_map_picture(r, scan, title);
     const cv::Mat p = profiles_picture(r, title);
     const cv::Mat b = macula_bscan_picture(r, scan, title);
     save_png(t, (d / picture_name(stem, kind::kThickness)).string());

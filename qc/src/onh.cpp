@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "octshape/qc/draw.h"
+#include "octshape/qc/fundus.h"
 #include "octshape/qc/names.h"
 #include "octshape/error.h"
 #include "octshape/mesh/section.h"
@@ -24,9 +25,10 @@ using namespace onh_colours;  // octshape/qc/onh_radial.h
 const cv::Scalar& kFilled = palette::kCyan;
 const cv::Scalar& kInplane = palette::kDeepBlue;  // radial scans: the in-plane MRW
 
-// Height above the RPE of the topmost ILM face over each grid cell.
-cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
-                       const std::string& title) {
+// Height above the RPE of the topmost ILM face over each grid cell (retina::onh_enface_heights),
+// in the fundus frame (fundus.h): superior up, whichever way the B-scans ran.
+cv::Mat enface_picture(const io::Scan& scan, const retina::OnhResult& r,
+                       const retina::OnhParams& p, const std::string& title) {
     const retina::GridSurface& g = r.rpe;
     const int cw = g.cols - 1;
     const int ch = g.rows - 1;
@@ -34,38 +36,42 @@ cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
     const std::vector<double>& h = heights.h;
     const double lo = heights.lo;
     const double hi = heights.hi;
-    cv::Mat grey(ch, cw, CV_8UC1, cv::Scalar(0));
+    const FundusFrame ff = fundus_frame(scan, cw * g.dx_mm, ch * g.dy_mm);
+    // The cells in the fundus frame: fw x fh of them; cell (a, b) of the grid at column fa and
+    // row fh - 1 - fb (row 0 at the top = superior).
+    const int fw = ff.keeps_axes() ? cw : ch;
+    const int fh = ff.keeps_axes() ? ch : cw;
+    auto cell = [&](int a, int b) {
+        const int i[2] = {a, b};
+        const int n[2] = {cw, ch};
+        const int fa = ff.sx > 0.0 ? i[ff.ix] : n[ff.ix] - 1 - i[ff.ix];
+        const int fb = ff.sy > 0.0 ? i[ff.iy] : n[ff.iy] - 1 - i[ff.iy];
+        return cv::Point(fa, fh - 1 - fb);
+    };
+    cv::Mat grey(fh, fw, CV_8UC1, cv::Scalar(0));
+    cv::Mat cup(fh, fw, CV_8UC1, cv::Scalar(0));
     for (int b = 0; b < ch; ++b) {
         for (int a = 0; a < cw; ++a) {
             const double v = h[static_cast<std::size_t>(b) * static_cast<std::size_t>(cw) +
                                static_cast<std::size_t>(a)];
             const double u = std::isnan(v) ? 0.0 : (v - lo) / (hi - lo);
-            // Image row 0 at the top = largest grid y.
-            grey.at<uchar>(ch - 1 - b, a) = static_cast<uchar>(std::lround(255 * u));
+            grey.at<uchar>(cell(a, b)) = static_cast<uchar>(std::lround(255 * u));
+            // Cup outline: the boundary of the cells below the RPE, in black.
+            if (v < 0.0) cup.at<uchar>(cell(a, b)) = 255;
         }
     }
-    const double width_mm = cw * g.dx_mm;
-    const double height_mm = ch * g.dy_mm;
     const int W = 800;
-    const double ppm = W / width_mm;
-    const int H = std::max(40, static_cast<int>(std::lround(height_mm * ppm)));
+    const double ppm = W / ff.width_mm;
+    const int H = std::max(40, static_cast<int>(std::lround(ff.height_mm * ppm)));
     cv::Mat big;
     cv::resize(grey, big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
     cv::Mat img;
     cv::applyColorMap(big, img, cv::COLORMAP_VIRIDIS);
     auto px = [&](double x, double y) {
-        return cv::Point(static_cast<int>(std::lround(x * ppm)),
-                         static_cast<int>(std::lround(H - 1 - y * ppm)));
+        const Eigen::Vector2d f = ff.to_fundus({x, y});
+        return cv::Point(static_cast<int>(std::lround(f.x() * ppm)),
+                         static_cast<int>(std::lround(H - 1 - f.y() * ppm)));
     };
-    // Cup outline: the boundary of the cells below the RPE, in black.
-    cv::Mat cup(ch, cw, CV_8UC1, cv::Scalar(0));
-    for (int b = 0; b < ch; ++b) {
-        for (int a = 0; a < cw; ++a) {
-            const double v = h[static_cast<std::size_t>(b) * static_cast<std::size_t>(cw) +
-                               static_cast<std::size_t>(a)];
-            if (v < 0.0) cup.at<uchar>(ch - 1 - b, a) = 255;
-        }
-    }
     cv::Mat cup_big;
     cv::resize(cup, cup_big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
     std::vector<std::vector<cv::Point>> contours;
@@ -305,7 +311,7 @@ void write_onh_qc(const io::Scan& scan,
     const std::string bscans = (d / picture_name(stem, kind::kBscans)).string();
     // Every picture is drawn before any is written: a drawing error leaves no picture behind.
     const cv::Mat e =
-        r.radial ? radial_enface_picture(scan, r, p, title) : enface_picture(r, p, title);
+        r.radial ? radial_enface_picture(scan, r, p, title) : enface_picture(scan, r, p, title);
     const cv::Mat b =
         r.radial ? radial_bscans_picture(scan, r, title) : bscans_picture(scan, r, title);
     const cv::Mat m = onh_mrw_picture(r, title);
