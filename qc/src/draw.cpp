@@ -61,6 +61,14 @@ std::string scan_title(const io::ScanMeta& meta, int num_bscans) {
     return t;
 }
 
+const char* anatomical_label(double deg) {
+    if (deg == 0.0) return "N";
+    if (deg == 90.0) return "S";
+    if (deg == 180.0) return "T";
+    if (deg == 270.0) return "I";
+    return nullptr;
+}
+
 std::vector<double> nice_ticks(double lo, double hi, int count) {
     std::vector<double> t;
     if (!(hi > lo) || !std::isfinite(lo) || !std::isfinite(hi) || count < 1) return t;

@@ -93,16 +93,14 @@ cv::Mat thickness_map_picture(const retina::CubeResult& r, const io::Scan& scan,
     const FundusFrame ff = fundus_frame(scan, (m.cols - 1) * m.dx_mm, (m.rows - 1) * m.dy_mm);
     const int W = 800;
     const double px_per_mm = W / ff.width_mm;
-    const int H = std::max(40, static_cast<int>(std::lround(ff.height_mm * px_per_mm)));
+    const cv::Mat values = fundus_thickness_raster(m, scan, W);
+    const int H = values.rows;
     const auto [lo, hi] = thickness_range(r);
     cv::Mat grey(H, W, CV_8UC1);
     cv::Mat valid(H, W, CV_8UC1);
     for (int y = 0; y < H; ++y) {
-        // Image row 0 at the top = the largest fundus y (superior).
-        const double fy = (H - 1 - y) / px_per_mm;
         for (int x = 0; x < W; ++x) {
-            const Eigen::Vector2d g = ff.to_grid({x / px_per_mm, fy});
-            const double v = m.sample(g.x(), g.y());
+            const double v = values.at<double>(y, x);
             valid.at<uchar>(y, x) = std::isnan(v) ? 0 : 255;
             const double u = std::isnan(v) ? 0.0 : std::clamp((v - lo) / (hi - lo), 0.0, 1.0);
             grey.at<uchar>(y, x) = static_cast<uchar>(std::lround(255 * u));
@@ -122,9 +120,9 @@ cv::Mat thickness_map_picture(const retina::CubeResult& r, const io::Scan& scan,
                  cv::Scalar(200, 200, 200), 1, cv::LINE_AA);
     }
     draw_disks(img, r, to_px);
-    // Anatomical labels at the ends of the nasal (0 deg) and superior (90 deg) half-lines.
+    // Anatomical labels at the ends of the nasal, superior, temporal and inferior half-lines.
     for (const auto& h : r.half_lines) {
-        const char* label = h.angle_deg == 0.0 ? "N" : (h.angle_deg == 90.0 ? "S" : nullptr);
+        const char* label = anatomical_label(h.angle_deg);
         if (label == nullptr) continue;
         const Eigen::Vector2d e = r.centre_mm + (h.r_mm.back() + 0.15) * h.direction;
         outlined_text(img, label, to_px(e.x(), e.y()) + cv::Point(-7, 7), 0.7,
@@ -299,6 +297,23 @@ double fitted_thickness_at(const retina::CubeResult& r, const Eigen::Vector2d& u
 // BM up by the fitted thickness (along the nasal and temporal half-lines, which lie on it).
 }  // namespace
 
+cv::Mat fundus_thickness_raster(const retina::ThicknessMap& m, const io::Scan& scan,
+                                int width_px) {
+    const FundusFrame ff = fundus_frame(scan, (m.cols - 1) * m.dx_mm, (m.rows - 1) * m.dy_mm);
+    const double px_per_mm = width_px / ff.width_mm;
+    const int H = std::max(40, static_cast<int>(std::lround(ff.height_mm * px_per_mm)));
+    cv::Mat out(H, width_px, CV_64FC1);
+    for (int y = 0; y < H; ++y) {
+        // Image row 0 at the top = the largest fundus y (superior).
+        const double fy = (H - 1 - y) / px_per_mm;
+        for (int x = 0; x < width_px; ++x) {
+            const Eigen::Vector2d g = ff.to_grid({x / px_per_mm, fy});
+            out.at<double>(y, x) = m.sample(g.x(), g.y());
+        }
+    }
+    return out;
+}
+
 std::pair<double, double> macula_thickness_range(const retina::CubeResult& r) {
     return thickness_range(r);
 }
@@ -355,7 +370,7 @@ cv::Mat macula_radial_thickness_picture(const retina::CubeResult& r, const io::S
     }
     draw_disks(img, r, [&](double x, double y) { return L.px(x, y); });
     for (const auto& h : r.half_lines) {
-        const char* label = h.angle_deg == 0.0 ? "N" : (h.angle_deg == 90.0 ? "S" : nullptr);
+        const char* label = anatomical_label(h.angle_deg);
         if (label == nullptr || h.r_mm.empty()) continue;
         const Eigen::Vector2d o = std::isnan(h.origin_mm.x()) ? r.centre_mm : h.origin_mm;
         const Eigen::Vector2d e = o + 0.5 * h.r_mm.back() * h.direction;

@@ -10,6 +10,7 @@
 #include <numbers>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <utility>
 #include <vector>
 
 #include "octshape/qc/draw.h"
@@ -85,15 +86,17 @@ cv::Mat enface_picture(const io::Scan& scan, const retina::OnhResult& r,
     cv::polylines(img, poly, true, kEllipse, 2, cv::LINE_AA);
     for (const auto& m : r.bmo_measured) cv::circle(img, px(m.mm.x(), m.mm.y()), 3, kBmo, -1);
     cv::drawMarker(img, px(c.x(), c.y()), cv::Scalar(255, 0, 255), cv::MARKER_CROSS, 18, 2);
-    // N and S labels from the grid -> anatomical map (columns: images of +x and +y).
+    // N, S, T, I from the grid -> anatomical map (columns: images of +x and +y).
     const Eigen::Matrix2d inv = r.grid_to_anatomical.inverse();
     const Eigen::Vector2d nasal = inv.col(0).normalized();
     const Eigen::Vector2d sup = inv.col(1).normalized();
     const double lr = p.disc_radius_mm + 0.12;
-    outlined_text(img, "N", px(c.x() + lr * nasal.x(), c.y() + lr * nasal.y()) + cv::Point(-7, 7),
-                  0.7, palette::kWhite);
-    outlined_text(img, "S", px(c.x() + lr * sup.x(), c.y() + lr * sup.y()) + cv::Point(-7, 7), 0.7,
-                  palette::kWhite);
+    for (const auto& [dir, label] : {std::pair{nasal, "N"}, std::pair{sup, "S"},
+                                     std::pair{Eigen::Vector2d(-nasal), "T"},
+                                     std::pair{Eigen::Vector2d(-sup), "I"}}) {
+        outlined_text(img, label, px(c.x() + lr * dir.x(), c.y() + lr * dir.y()) + cv::Point(-7, 7),
+                      0.7, palette::kWhite);
+    }
     scale_bar(img, {14, H - 16}, ppm, palette::kWhite);
     const int bar_w = 140;
     cv::Mat out(34 + H + 40 + 96, W + bar_w, CV_8UC3, palette::kPanel);

@@ -166,12 +166,14 @@ cv::Mat radial_enface_picture(const io::Scan& scan,
     cv::drawMarker(out, L.px(c.x(), c.y()), palette::kMagenta, cv::MARKER_CROSS, 18, 2);
     // Last, unsmoothed: nothing covers a BMO point (the tests find them at their pixels).
     for (const auto& m : r.bmo_measured) cv::circle(out, L.px(m.mm.x(), m.mm.y()), 3, kBmo, -1);
-    // N and S at the edge of the scanned circle, from the grid -> anatomical map.
+    // N, S, T, I at the edge of the scanned circle, from the grid -> anatomical map.
     const Eigen::Matrix2d inv = r.grid_to_anatomical.inverse();
     const Eigen::Vector2d nasal = inv.col(0).normalized();
     const Eigen::Vector2d sup = inv.col(1).normalized();
     const double lr = 0.8 * r.radial_scanned_radius_mm;
-    for (const auto& [dir, label] : {std::pair{nasal, "N"}, std::pair{sup, "S"}}) {
+    for (const auto& [dir, label] : {std::pair{nasal, "N"}, std::pair{sup, "S"},
+                                     std::pair{Eigen::Vector2d(-nasal), "T"},
+                                     std::pair{Eigen::Vector2d(-sup), "I"}}) {
         outlined_text(out, label,
                       L.px(x0.x() + lr * dir.x(), x0.y() + lr * dir.y()) + cv::Point(-7, 7), 0.7,
                       palette::kWhite);

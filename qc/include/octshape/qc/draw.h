@@ -44,6 +44,10 @@ void plain_text(cv::Mat& img, const std::string& s, cv::Point p, double scale, c
 // 512 A-scans, 6.00 x 6.00 mm". No identifier, date or file name.
 [[nodiscard]] std::string scan_title(const io::ScanMeta& meta, int num_bscans);
 
+// The anatomical label of the en-face pictures at anatomical angle `deg` (0 nasal, 90 superior,
+// 180 temporal, 270 inferior, both eyes): "N", "S", "T", "I", else nullptr.
+[[nodiscard]] const char* anatomical_label(double deg);
+
 // "Nice" tick values (1, 2, 5 x 10^k steps) covering [lo, hi], about `count` of them.
 [[nodiscard]] std::vector<double> nice_ticks(double lo, double hi, int count);
 
