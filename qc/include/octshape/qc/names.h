@@ -27,6 +27,39 @@ inline std::vector<std::string> kinds(const std::string& scan_type) {
     return {kind::kThickness, kind::kProfiles, kind::kBscan};
 }
 
+// What a picture of `kind` shows, as the commands' --qc help says it ("" for an unknown kind).
+inline std::string what_it_shows(const std::string& kind) {
+    if (kind == kind::kThickness) {
+        return "thickness map in the fundus frame, superior up, N S T I marked: centre, "
+               "rim/slope/pit-flat disks; a radial scan: along each line; a line scan: along "
+               "the line";
+    }
+    if (kind == kind::kProfiles) return "half-lines with their fitted Beziers";
+    if (kind == kind::kBscan) return "the B-scan through the centre, device lines, fitted profile";
+    if (kind == kind::kEnface) {
+        return "height map in the fundus frame, superior up, N S T I marked: BMO points, "
+               "ellipse, disc";
+    }
+    if (kind == kind::kBscans) {
+        return "B-scans through the disc, ILM used vs device ILM, MRW vectors; a radial scan: "
+               "every B-scan, in-plane MRW";
+    }
+    if (kind == kind::kMrw) return "MRW against the anatomical angle";
+    return "";
+}
+
+// The pictures of `scan_type` for a command's --qc help: "STEM_thickness.png (what it shows),
+// STEM_profiles.png (...) and STEM_bscan.png (...)".
+inline std::string help_list(const std::string& scan_type) {
+    const std::vector<std::string> k = kinds(scan_type);
+    std::string s;
+    for (std::size_t i = 0; i < k.size(); ++i) {
+        if (i > 0) s += i + 1 == k.size() ? " and " : ", ";
+        s += "STEM_" + k[i] + ".png (" + what_it_shows(k[i]) + ")";
+    }
+    return s;
+}
+
 // "STEM_KIND.png".
 inline std::string picture_name(const std::string& stem, const std::string& kind) {
     return stem + "_" + kind + ".png";
