@@ -61,6 +61,13 @@ std::string scan_title(const io::ScanMeta& meta, int num_bscans) {
     return t;
 }
 
+std::filesystem::path qc_directory(const std::string& dir) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec) throw OutputError(dir, "cannot create the QC directory: " + ec.message());
+    return dir;
+}
+
 const char* anatomical_label(double deg) {
     if (deg == 0.0) return "N";
     if (deg == 90.0) return "S";

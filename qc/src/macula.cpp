@@ -529,10 +529,7 @@ cv::Mat macula_bscan_picture(const retina::CubeResult& r, const io::Scan& scan,
 
 void write_macula_qc(const retina::CubeResult& r, const io::Scan& scan, const std::string& dir,
                      const std::string& stem) {
-    std::error_code ec;
-    std::filesystem::create_directories(dir, ec);
-    if (ec) throw OutputError(dir, "cannot create the QC directory: " + ec.message());
-    const std::filesystem::path d(dir);
+    const std::filesystem::path d = qc_directory(dir);
     const std::string title = scan_title(scan.meta, scan.num_bscans());
     const bool one_row = r.line_scan || r.map.rows < 2;
     // A radial scan's map rows are its lines, not a grid: the thickness is drawn along them.

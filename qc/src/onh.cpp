@@ -303,10 +303,7 @@ void write_onh_qc(const io::Scan& scan,
                   const retina::OnhParams& p,
                   const std::string& dir,
                   const std::string& stem) {
-    std::error_code ec;
-    std::filesystem::create_directories(dir, ec);
-    if (ec) throw OutputError(dir, "cannot create the QC directory: " + ec.message());
-    const std::filesystem::path d(dir);
+    const std::filesystem::path d = qc_directory(dir);
     const std::string title = scan_title(scan.meta, scan.num_bscans());
     // A radial scan's pictures under the volume's names (the gallery and the cohort's resume
     // know them): its lines on the scanned circle, and every radial B-scan.

@@ -2,6 +2,7 @@
 // Drawing helpers shared by the QC pictures of the macula and the optic nerve head: titles,
 // axes with ticks, colour bars, scale bars and legends, so that every picture reads alone.
 
+#include <filesystem>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -27,6 +28,10 @@ inline const cv::Scalar kCyan(230, 230, 0);
 inline const cv::Scalar kText(230, 230, 230);
 inline const cv::Scalar kPanel(30, 30, 30);
 }  // namespace palette
+
+// The folder `dir` of a command's QC pictures, created when absent (OutputError when it
+// cannot be).
+[[nodiscard]] std::filesystem::path qc_directory(const std::string& dir);
 
 // Encodes `img` as PNG and writes it atomically to `path` (OutputError on failure).
 void save_png(const cv::Mat& img, const std::string& path);
