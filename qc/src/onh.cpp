@@ -43,10 +43,7 @@ cv::Mat enface_picture(const io::Scan& scan, const retina::OnhResult& r,
     const int fw = ff.keeps_axes() ? cw : ch;
     const int fh = ff.keeps_axes() ? ch : cw;
     auto cell = [&](int a, int b) {
-        const int i[2] = {a, b};
-        const int n[2] = {cw, ch};
-        const int fa = ff.sx > 0.0 ? i[ff.ix] : n[ff.ix] - 1 - i[ff.ix];
-        const int fb = ff.sy > 0.0 ? i[ff.iy] : n[ff.iy] - 1 - i[ff.iy];
+        const auto [fa, fb] = ff.fundus_cell(a, b, cw, ch);
         return cv::Point(fa, fh - 1 - fb);
     };
     cv::Mat grey(fh, fw, CV_8UC1, cv::Scalar(0));

@@ -30,6 +30,28 @@ retina::MaculaPhantomParams eye(bool vertical) {
     return p;
 }
 
+TEST(QcFundusFrame, GridCellsLandWhereTheirCentresAreOnTheFundus) {
+    // The ONH en-face picture moves whole cells (fundus_cell): each cell must land on the
+    // fundus cell that holds its centre, for both directions of B-scans. A grid of 6 x 4 cells
+    // of 0.5 x 1 mm: its fundus cells are 0.5 x 1 mm (horizontal) or 1 x 0.5 mm (vertical).
+    for (const bool vertical : {false, true}) {
+        const io::Scan scan = retina::make_macula_phantom(eye(vertical)).scan;
+        const int cols = 6;
+        const int rows = 4;
+        const qc::FundusFrame f = qc::fundus_frame(scan, cols * 0.5, rows * 1.0);
+        const double fdx = f.keeps_axes() ? 0.5 : 1.0;
+        const double fdy = f.keeps_axes() ? 1.0 : 0.5;
+        for (int b = 0; b < rows; ++b) {
+            for (int a = 0; a < cols; ++a) {
+                const Eigen::Vector2d c = f.to_fundus({(a + 0.5) * 0.5, (b + 0.5) * 1.0});
+                const auto [fa, fb] = f.fundus_cell(a, b, cols, rows);
+                EXPECT_EQ(fa, static_cast<int>(std::floor(c.x() / fdx))) << vertical << a << b;
+                EXPECT_EQ(fb, static_cast<int>(std::floor(c.y() / fdy))) << vertical << a << b;
+            }
+        }
+    }
+}
+
 TEST(QcFundusFrame, VerticalScanOfAnEyeGivesItsHorizontalScansMap) {
     const retina::MaculaPhantomParams ph = eye(false);
     const retina::MaculaPhantomParams pv = eye(true);

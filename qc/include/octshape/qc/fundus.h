@@ -6,6 +6,8 @@
 // its B-scans' positions on the SLO (retina::ScanGeometry), turned to the nearest quarter turn
 // (grids are axis-aligned on the SLO), so that its nodes stay on the pixel grid of the picture.
 
+#include <array>
+
 #include <Eigen/Core>
 
 #include "octshape/io/scan.h"
@@ -36,6 +38,14 @@ struct FundusFrame {
     }
     // True when grid x runs along fundus x (horizontal B-scans).
     [[nodiscard]] bool keeps_axes() const { return ix == 0; }
+    // Cell (a, b) of a grid of cols x rows cells filling the frame (cell (a, b) spans
+    // [a, a + 1) x [b, b + 1) grid steps) as the (column, row from the bottom) of the same cells
+    // seen in this frame, which has cols x rows of them when keeps_axes(), else rows x cols.
+    [[nodiscard]] std::array<int, 2> fundus_cell(int a, int b, int cols, int rows) const {
+        const int i[2] = {a, b};
+        const int n[2] = {cols, rows};
+        return {sx > 0.0 ? i[ix] : n[ix] - 1 - i[ix], sy > 0.0 ? i[iy] : n[iy] - 1 - i[iy]};
+    }
 };
 
 // The frame of `scan`'s grid of grid_width_mm x grid_height_mm (grid x along the B-scans).
