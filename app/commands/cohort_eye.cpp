@@ -16,7 +16,7 @@
 #include <new>
 
 #include "commands/provenance.h"
-#include "commands/qc_names.h"
+#include "octshape/qc/names.h"
 #include "octshape/error.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/io/scan_reader.h"

@@ -20,7 +20,7 @@
 #include <vector>
 
 #include "commands/command.h"
-#include "commands/qc_names.h"
+#include "octshape/qc/names.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/error.h"
 #include "octshape/retina/eye_stats.h"
@@ -340,7 +340,7 @@ std::size_t assign_pictures(const fs::path& outdir, std::vector<EyeRow>& eyes) {
     std::error_code ec;
     std::size_t pictures = 0;
     // QC pictures: each qc/*.png goes to the longest eye key whose picture name it is
-    // (KEY_KIND.png, commands/qc_names.h).
+    // (KEY_KIND.png, octshape/qc/names.h).
     std::vector<std::string> pngs;
     if (fs::is_directory(outdir / "qc", ec)) {
         for (const auto& e : fs::directory_iterator(outdir / "qc")) {

@@ -11,6 +11,7 @@
 #include "commands/eye_record.h"
 #include "commands/macula_eye.h"
 #include "octshape/io/atomic_file.h"
+#include "octshape/qc/names.h"
 
 namespace octshape::app {
 namespace {
@@ -44,7 +45,8 @@ void add_macula_command(CLI::App& app, RunContext& /*ctx*/) {
     CLI::App* cmd = app.add_subcommand(
         "macula",
         "CuBe fovea analysis (cubic Bezier model, thesis 7.1-7.3): CFT, rim, pit, slope, disks, "
-        "volumes. A volume scan gives the 3-D analysis, a line through the fovea the 2-D one");
+        "volumes. A volume scan gives the 3-D analysis, a radial scan (lines through one "
+        "point) the same from its lines, a line through the fovea the 2-D one");
     cmd->add_option("file", opts->file,
                     "A Spectralis .vol, Heidelberg XML export, Topcon .fda/.fds or Iowa "
                     "surfaces XML")
@@ -53,10 +55,8 @@ void add_macula_command(CLI::App& app, RunContext& /*ctx*/) {
                     "Write the per-eye JSON here (default: print it on stdout)");
     cmd->add_option("--csv", opts->csv_out, "Write one CSV row (with header) here");
     cmd->add_option("--qc", opts->eye.qc_dir,
-                    "Write QC pictures here: STEM_thickness.png (map, centre, rim/slope/pit-flat "
-                    "disks), STEM_profiles.png (half-lines with their fitted Beziers) and "
-                    "STEM_bscan.png (the B-scan through the centre, device lines, fitted "
-                    "profile); STEM = the -o file's stem, else --csv's, else 'eye'");
+                    "Write QC pictures here: " + qc::help_list("macula") +
+                        "; STEM = the -o file's stem, else --csv's, else 'eye'");
     cmd->add_flag("--record-paths", opts->eye.record_paths,
                   "Also write the input's path into the JSON and CSV (identifying: export and "
                   "folder names often hold the patient's name; by default the SHA-256 "

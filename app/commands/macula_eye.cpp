@@ -7,7 +7,7 @@
 #include <sstream>
 
 #include "commands/eye_output.h"
-#include "commands/macula_qc.h"
+#include "octshape/qc/macula.h"
 #include "commands/provenance.h"
 #include "octshape/error.h"
 #include "octshape/io/scan_reader.h"
@@ -181,7 +181,7 @@ MaculaEye analyse_macula_eye(const std::string& file,
         const std::string stem = o.qc_stem.empty() ? std::string("eye") : o.qc_stem;
         // The caller read the pixels with the rest (MaculaEyeOptions::qc_dir): the file is
         // read once.
-        write_macula_qc(r, scan, o.qc_dir, stem);
+        qc::write_macula_qc(r, scan, o.qc_dir, stem);
         prov.mark("qc_pictures");
     }
     j["provenance"] = prov.json();

@@ -12,6 +12,7 @@
 #include "commands/eye_record.h"
 #include "commands/onh_eye.h"
 #include "octshape/io/atomic_file.h"
+#include "octshape/qc/names.h"
 
 namespace octshape::app {
 namespace {
@@ -56,11 +57,8 @@ void add_onh_command(CLI::App& app, RunContext& /*ctx*/) {
                     "Write the per-eye JSON here (default: print it on stdout)");
     cmd->add_option("--csv", opts->csv_out, "Write one CSV row (with header) here");
     cmd->add_option("--qc", opts->eye.qc_dir,
-                    "Write QC pictures here: STEM_enface.png (height map, BMO points, ellipse, "
-                    "disc), STEM_bscans.png (B-scans through the disc, ILM used vs device ILM, "
-                    "MRW vectors; a radial scan: every B-scan, in-plane MRW), STEM_mrw.png (MRW "
-                    "against the anatomical angle); STEM = the -o file's stem, else --csv's, "
-                    "else 'eye'");
+                    "Write QC pictures here: " + qc::help_list("onh") +
+                        "; STEM = the -o file's stem, else --csv's, else 'eye'");
     cmd->add_flag("--record-paths", opts->eye.record_paths,
                   "Also write the input's path into the JSON and CSV (identifying: export and "
                   "folder names often hold the patient's name; by default the SHA-256 "

@@ -10,7 +10,7 @@
 
 #include "commands/eye_output.h"
 #include "commands/mesh_common.h"
-#include "commands/onh_qc.h"
+#include "octshape/qc/onh.h"
 #include "commands/provenance.h"
 #include "octshape/error.h"
 #include "octshape/io/mesh_io.h"
@@ -209,7 +209,7 @@ EyeResult analyse_onh_eye(const std::string& file,
 
     const std::string stem = o.qc_stem.empty() ? std::string("eye") : o.qc_stem;
     if (!o.qc_dir.empty()) {
-        write_onh_qc(scan, r, o.params, o.qc_dir, stem);
+        qc::write_onh_qc(scan, r, o.params, o.qc_dir, stem);
         prov.mark("qc_pictures");
     }
     if (!o.mesh_dir.empty()) {

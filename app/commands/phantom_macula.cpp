@@ -26,6 +26,7 @@ struct MaculaOptions {
     std::string family = "bezier";
     std::string eye = "OD";
     std::string pattern = "volume";
+    std::string bscan_direction = "horizontal";
     std::string format = "vol";  // vol | fda
     bool no_pixels = false;
     double tau_um = retina::MaculaTruthOptions{}.tau_mm * 1e3;  // the truth's default, in um
@@ -49,7 +50,12 @@ void run(MaculaOptions& o) {
         throw UsageError("phantom macula --format fda writes volumes only (a Topcon .fda holds "
                          "no radial or single-line pattern octshape reads)");
     }
+    if (o.bscan_direction == "vertical" && (o.pattern != "volume" || o.format != "vol")) {
+        throw UsageError("phantom macula --bscan-direction vertical makes .vol volumes only "
+                         "(--pattern volume --format vol)");
+    }
     retina::MaculaPhantomParams& p = o.params;
+    p.vertical = o.bscan_direction == "vertical";
     p.family = o.family == "scheibe" ? retina::MaculaFamily::kScheibe
                                      : retina::MaculaFamily::kBezier;
     p.eye = o.eye == "OS" ? io::Laterality::kOS : io::Laterality::kOD;
@@ -114,6 +120,12 @@ void add_phantom_macula_command(CLI::App& parent, RunContext& /*ctx*/) {
                     "volume, line (one horizontal B-scan through the fovea) or radial (B-scans "
                     "rotated about one point, ScanPattern 5)")
         ->check(CLI::IsMember({"volume", "line", "radial"}))
+        ->capture_default_str();
+    cmd->add_option("--bscan-direction", opts->bscan_direction,
+                    "volume: horizontal B-scans (the first one inferior) or vertical (the first "
+                    "one leftmost on the SLO, A-scans from superior to inferior): the same eye "
+                    "scanned the other way")
+        ->check(CLI::IsMember({"horizontal", "vertical"}))
         ->capture_default_str();
     cmd->add_option("--lines", p.radial_lines,
                     "radial: number of B-scans (lines), 180 / lines deg apart")

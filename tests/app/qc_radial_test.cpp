@@ -1,4 +1,4 @@
-// The QC pictures of radial scans (commands/onh_qc_radial.h, commands/macula_qc.h): drawn in
+// The QC pictures of radial scans (octshape/qc/onh_radial.h, octshape/qc/macula.h): drawn in
 // memory from a real analysis and checked at the pixels their layouts give for the analysis's
 // data, and `octshape onh --qc` / `octshape macula --qc` end to end on radial phantoms.
 
@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "commands/macula_qc.h"
-#include "commands/onh_qc_radial.h"
+#include "octshape/qc/macula.h"
+#include "octshape/qc/onh_radial.h"
 #include "octshape/io/scan_reader.h"
 #include "octshape/retina/cube.h"
 #include "octshape/retina/onh.h"
@@ -81,8 +81,8 @@ bool blueish(const cv::Vec3b& c) { return c[0] > 150 && c[0] > c[2] + 80 && c[1]
 TEST(OnhRadialQc, EnfaceDrawsEachBmoPointOnItsLine) {
     const RadialOnh& s = analysed_sample();
     ASSERT_TRUE(s.r.radial);
-    app::RadialEnfaceLayout L;
-    const cv::Mat img = app::radial_enface_picture(s.scan, s.r, {}, "t", &L);
+    qc::RadialEnfaceLayout L;
+    const cv::Mat img = qc::radial_enface_picture(s.scan, s.r, {}, "t", &L);
     const cv::Vec3b white(255, 255, 255);
     const cv::Vec3b line(200, 200, 200);
     ASSERT_EQ(s.r.bmo_measured.size(), 24U);  // two per line
@@ -125,8 +125,8 @@ TEST(OnhRadialQc, EnfaceDrawsEachBmoPointOnItsLine) {
 
 TEST(OnhRadialQc, BscanSheetDrawsTheUsedIlmWhereTheIlmIsAndTheInplaneMrw) {
     const RadialOnh& s = analysed_sample();
-    app::RadialSheetLayout L;
-    const cv::Mat img = app::radial_bscans_picture(s.scan, s.r, "t", &L);
+    qc::RadialSheetLayout L;
+    const cv::Mat img = qc::radial_bscans_picture(s.scan, s.r, "t", &L);
     ASSERT_EQ(L.lines, 12);
     ASSERT_EQ(img.cols, L.cols * L.panel_w + (L.cols - 1) * L.gap);
     const int nx = s.scan.meta.size_x;
@@ -298,9 +298,9 @@ TEST(MaculaRadialQc, ThicknessIsDrawnAlongEachLineAndNowhereElse) {
     const retina::CubeResult r = retina::analyse_macula(scan, params);
     ASSERT_TRUE(r.radial_scan);
     const retina::RadialGeometry geo = retina::radial_geometry(scan);
-    app::RadialThicknessLayout L;
-    const cv::Mat img = app::macula_radial_thickness_picture(r, scan, "t", &L);
-    const auto [lo, hi] = app::macula_thickness_range(r);
+    qc::RadialThicknessLayout L;
+    const cv::Mat img = qc::macula_radial_thickness_picture(r, scan, "t", &L);
+    const auto [lo, hi] = qc::macula_thickness_range(r);
     cv::Mat ramp(1, 256, CV_8UC1);
     for (int i = 0; i < 256; ++i) ramp.at<uchar>(0, i) = static_cast<uchar>(i);
     cv::Mat lut;
@@ -342,12 +342,12 @@ TEST(MaculaRadialQc, ThicknessIsDrawnAlongEachLineAndNowhereElse) {
     }
     // The B-scan picture: the line nearest the horizontal, i.e. the phantom's first (0 deg).
     int b = -1;
-    const cv::Mat bscan = app::macula_bscan_picture(r, scan, "t", &b);
+    const cv::Mat bscan = qc::macula_bscan_picture(r, scan, "t", &b);
     ASSERT_FALSE(bscan.empty());
     ASSERT_EQ(b, 0);
     // Its fitted profile (BM raised by the fitted thickness: yellow) on the device ILM along
     // the line, 0.3-1.8 mm either side of the centre's foot (the phantom's fit RMSE is below
-    // 0.1 um). The picture's layout (macula_qc.cpp): 900 px wide, depth rows stretched by half
+    // 0.1 um). The picture's layout (octshape/qc/macula.h): 900 px wide, depth rows stretched by half
     // the width's factor, at (70, 24) under the 34-px title; the 2-px stroke and rounding:
     // within 2 px.
     const double sx = 900.0 / nx;

@@ -90,6 +90,28 @@ TEST(CubeVolume, ExactPolynomialIntegralMatchesSimpson) {
     }
 }
 
+TEST(CubeFit, FittedThicknessFollowsEachSegmentAndIsMissingOutside) {
+    // A half-line whose interior runs to the rim at r = 1.1 mm and whose exterior runs on to
+    // R = 2 mm: at a point of each curve (found by bisection on x(t), sample_by_x) the fitted
+    // thickness is that point's height to the bisection's last bit (1e-12 mm); the rim lies on
+    // both; outside [0, R] and on an invalid half-line there is none.
+    CubeHalfLine h;
+    h.valid = true;
+    h.r_mm = {0.0, 1.0, 2.0};
+    h.interior.control = interior_curve(0.22, 1.1, 0.35, 0.3, 0.4);
+    h.exterior.control = {V2(1.1, 0.35), V2(1.4, 0.35), V2(1.7, 0.31), V2(2.0, 0.30)};
+    for (const Ctrl* c : {&h.interior.control, &h.exterior.control}) {
+        for (const V2& p : sample_by_x(*c, 7)) {
+            EXPECT_NEAR(fitted_thickness_mm(h, p.x()), p.y(), 1e-12) << p.x();
+        }
+    }
+    EXPECT_NEAR(fitted_thickness_mm(h, 1.1), 0.35, 1e-12);
+    EXPECT_TRUE(std::isnan(fitted_thickness_mm(h, -1e-9)));
+    EXPECT_TRUE(std::isnan(fitted_thickness_mm(h, 2.0 + 1e-9)));
+    h.valid = false;
+    EXPECT_TRUE(std::isnan(fitted_thickness_mm(h, 0.5)));
+}
+
 TEST(CubeFit, InteriorAndExteriorRecoverExactCurves) {
     // Samples lie exactly on a CuBe curve: the least-squares minimum is that curve (energy 0),
     // so control points come back to rounding and the RMSE is ~0.

@@ -186,6 +186,40 @@ TEST(OnhRegions, SignedProjectedAreasMeasureAFoldRight) {
     EXPECT_GT(out.faces_outside_rpe, 0);
 }
 
+TEST(OnhEnface, EachCellShowsItsTopmostFaceAndNothingWhereNoFaceIs) {
+    // RPE grid of 3 x 3 nodes (2 x 2 cells of 1 mm), flat at 0, so a face's height is its z.
+    OnhResult r;
+    r.rpe.cols = 3;
+    r.rpe.rows = 3;
+    r.rpe.dx_mm = 1.0;
+    r.rpe.dy_mm = 1.0;
+    r.rpe.z.assign(9, 0.0);
+    // Small flat triangles with their centroids at (cx, cy): two over cell (0, 0), the lower
+    // one last (an overhang: the upper one is seen); one over cell (1, 0) below the RPE; one
+    // beyond the grid's corner (counted in cell (1, 1)); one without a height over cell (0, 1).
+    const std::vector<std::array<double, 4>> faces{{0.4, 0.4, 0.5, 0.5}, {0.5, 0.3, 0.2, 0.2},
+                                                   {1.5, 0.5, -0.1, -0.1}, {2.5, 2.5, 0.3, 0.3},
+                                                   {0.5, 1.5, 0.4, std::nan("")}};
+    r.ilm_V.resize(static_cast<Eigen::Index>(3 * faces.size()), 3);
+    r.ilm_F.resize(static_cast<Eigen::Index>(faces.size()), 3);
+    r.face_height_mm.resize(static_cast<Eigen::Index>(faces.size()));
+    for (int f = 0; f < static_cast<int>(faces.size()); ++f) {
+        const auto& [cx, cy, z, h] = faces[static_cast<std::size_t>(f)];
+        r.ilm_V.row(3 * f) << cx - 0.1, cy - 0.1, z;
+        r.ilm_V.row(3 * f + 1) << cx + 0.2, cy - 0.1, z;
+        r.ilm_V.row(3 * f + 2) << cx - 0.1, cy + 0.2, z;
+        r.ilm_F.row(f) << 3 * f, 3 * f + 1, 3 * f + 2;
+        r.face_height_mm(f) = h;
+    }
+    const OnhEnfaceGrid g = onh_enface_heights(r);
+    ASSERT_EQ(g.cols, 2);
+    ASSERT_EQ(g.rows, 2);
+    EXPECT_DOUBLE_EQ(g.at(0, 0), 0.5);
+    EXPECT_DOUBLE_EQ(g.at(1, 0), -0.1);
+    EXPECT_DOUBLE_EQ(g.at(1, 1), 0.3);
+    EXPECT_TRUE(std::isnan(g.at(0, 1)));
+}
+
 TEST(OnhAnalysis, LeftEyeSectorsAreMirroredAsTheTruthDefinesThem) {
     // A tilted ellipse (30 deg) is far from mirror-symmetric, so a wrong mirroring would move
     // the anatomical angles of the BMO points by up to 2 x 60 deg.

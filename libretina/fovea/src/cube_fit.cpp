@@ -668,6 +668,16 @@ void fit_half_line(CubeHalfLine& h,
 
 double bezier_t_at_x(const std::array<Eigen::Vector2d, 4>& p, double x) { return solve_x(p, x); }
 
+double fitted_thickness_mm(const CubeHalfLine& h, double r_mm) {
+    if (!h.valid || h.r_mm.empty() || r_mm < 0.0 || r_mm > h.r_mm.back()) return kMissing;
+    for (const Ctrl* c : {&h.interior.control, &h.exterior.control}) {
+        // Each segment is a graph in r (P0.x <= P3.x, Eq. 7.5-7.6).
+        if (r_mm < (*c)[0].x() || r_mm > (*c)[3].x()) continue;
+        return bezier_point(*c, solve_x(*c, r_mm)).y();
+    }
+    return kMissing;
+}
+
 V2 bezier_point(const Ctrl& p, double t) {
     const Bernstein b = bernstein(t);
     return b.b0 * p[0] + b.b1 * p[1] + b.b2 * p[2] + b.b3 * p[3];

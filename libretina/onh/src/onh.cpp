@@ -160,6 +160,32 @@ bool ilm_needs_pixels(IlmSource source) {
     return true;
 }
 
+OnhEnfaceGrid onh_enface_heights(const OnhResult& r) {
+    const GridSurface& g = r.rpe;
+    OnhEnfaceGrid out;
+    out.cols = std::max(0, g.cols - 1);
+    out.rows = std::max(0, g.rows - 1);
+    out.dx_mm = g.dx_mm;
+    out.dy_mm = g.dy_mm;
+    out.height_mm.assign(static_cast<std::size_t>(out.cols) * static_cast<std::size_t>(out.rows),
+                         std::numeric_limits<double>::quiet_NaN());
+    if (out.height_mm.empty()) return out;
+    std::vector<double> top(out.height_mm.size(), -std::numeric_limits<double>::infinity());
+    const mesh::FaceGeometry fg = mesh::face_geometry(r.ilm_V, r.ilm_F);
+    for (Eigen::Index f = 0; f < r.ilm_F.rows(); ++f) {
+        if (std::isnan(r.face_height_mm(f))) continue;
+        const int a = std::clamp(static_cast<int>(fg.centroids(f, 0) / g.dx_mm), 0, out.cols - 1);
+        const int b = std::clamp(static_cast<int>(fg.centroids(f, 1) / g.dy_mm), 0, out.rows - 1);
+        const auto i = static_cast<std::size_t>(b) * static_cast<std::size_t>(out.cols) +
+                       static_cast<std::size_t>(a);
+        if (fg.centroids(f, 2) > top[i]) {
+            top[i] = fg.centroids(f, 2);
+            out.height_mm[i] = r.face_height_mm(f);
+        }
+    }
+    return out;
+}
+
 void OnhParams::validate() const {
     if (bmo_points < 8 || bmo_points > 100000) {
         throw UsageError("bmo_points must be in [8, 100000]");

@@ -97,6 +97,8 @@ void VolumeLayout::validate() const {
     require(pattern == io::ScanPattern::kVolume || pattern == io::ScanPattern::kLine ||
                 pattern == io::ScanPattern::kRadial,
             "pattern", "must be volume, line or radial");
+    require(!vertical || pattern != io::ScanPattern::kRadial, "vertical",
+            "applies to volumes and lines only");
     require(laterality == io::Laterality::kOD || laterality == io::Laterality::kOS, "laterality",
             "must be OD or OS");
     require(size_x >= 2 && size_x <= 4096, "size_x", "must be in 2..4096");
@@ -142,6 +144,11 @@ GridFrame grid_frame(const VolumeLayout& layout) {
     // grid +y = SLO -y. The grid is centred on the SLO image.
     f.grid_to_slo << 1.0, 0.0, 0.0, -1.0;
     f.origin_slo_mm = {side / 2 - f.width_mm / 2, side / 2 + f.height_mm / 2};
+    if (layout.vertical) {
+        // A-scans top to bottom (grid +x = SLO +y), the first B-scan leftmost (grid +y = SLO +x).
+        f.grid_to_slo << 0.0, 1.0, 1.0, 0.0;
+        f.origin_slo_mm = {side / 2 - f.height_mm / 2, side / 2 - f.width_mm / 2};
+    }
     // On the SLO (a fundus view), superior is up (-y) and nasal is towards the optic disc:
     // right (+x) for OD, left (-x) for OS.
     const double nasal = layout.laterality == io::Laterality::kOS ? -1.0 : 1.0;

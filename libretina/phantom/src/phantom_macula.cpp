@@ -220,6 +220,7 @@ void MaculaPhantomParams::validate() const {
         require(num_bscans >= 2 && num_bscans <= 1024, "bscans", "must be in 2..1024");
     }
     require(!(line && radial), "radial", "and line exclude each other");
+    require(!vertical || (!line && !radial), "vertical", "applies to volumes only");
     if (radial) {
         require(radial_lines >= 2 && radial_lines <= 360, "radial_lines", "must be in 2..360");
         // Two half-lines of R = 2 mm plus a crossing offset of up to 1 mm must fit, and the
@@ -427,6 +428,7 @@ phantom::VolumeLayout macula_layout(const MaculaPhantomParams& p) {
         return l;
     }
     l.pattern = p.line ? io::ScanPattern::kLine : io::ScanPattern::kVolume;
+    l.vertical = p.vertical;
     l.laterality = p.eye;
     l.size_x = p.size_x;
     l.size_z = p.size_z;

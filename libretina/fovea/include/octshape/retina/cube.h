@@ -227,6 +227,11 @@ struct CubeDisk {
     std::vector<Eigen::Vector3d> points;  // grid mm, in angular order
 };
 
+// The fitted profile of a half-line at distance `r_mm` from its origin: the interior Bezier
+// up to the rim, the exterior beyond (Eq. 7.5-7.6), each solved for r with bezier_t_at_x. NaN
+// for an invalid half-line and outside [0, R] (r_mm.back()).
+[[nodiscard]] double fitted_thickness_mm(const CubeHalfLine& h, double r_mm);
+
 // The disk through points in angular order (rim, slope or pit-flat points, grid mm): covariance
 // eigen-analysis, shoelace area over |cos(normal, z)| and the opposite-point diameter
 // (Eq. 7.16-7.18). What analyse_macula reports; exposed for bench/macula_crb.

@@ -217,6 +217,24 @@ struct OnhResult {
     double seconds = 0.0;  // analysis time (without building the ILM)
 };
 
+// The en-face map of an analysis (the QC pictures draw it): over each cell of the RPE grid
+// (r.rpe's (cols - 1) x (rows - 1) cells, cell (a, b) = [a dx, (a + 1) dx) x [b dy, (b + 1) dy)
+// grid mm) the height above the RPE (face_height_mm) of the topmost ILM face whose centroid lies
+// over it, the ILM seen from the vitreous; a centroid beyond the grid's edge counts in the
+// edge's cell. NaN where no face with a height lies.
+struct OnhEnfaceGrid {
+    int cols = 0;                   // cells along grid x
+    int rows = 0;                   // cells along grid y
+    double dx_mm = 0.0;             // cell size (the RPE grid's step)
+    double dy_mm = 0.0;
+    std::vector<double> height_mm;  // rows * cols, row-major (b * cols + a)
+    [[nodiscard]] double at(int a, int b) const {
+        return height_mm[static_cast<std::size_t>(b) * static_cast<std::size_t>(cols) +
+                         static_cast<std::size_t>(a)];
+    }
+};
+[[nodiscard]] OnhEnfaceGrid onh_enface_heights(const OnhResult& r);
+
 // Correspondence, regions and volumes of an ILM mesh over an RPE grid (Eq. 8.3-8.17): for
 // every face the RPE height under its centroid (bilinear), h = c_z - RPE, the region bits, and
 // the volumes as sums of h_i times the signed projected area A_i. A face whose centroid lies

@@ -9,7 +9,9 @@
 //
 // Placement (SLO mm: origin top-left, x right, y down): the grid is centred on the SLO image;
 // A-scans run left to right (grid +x = SLO +x); the FIRST B-scan is the most inferior (largest
-// SLO y), so grid +y = SLO -y = superior. Nasal is SLO +x for OD and SLO -x for OS.
+// SLO y), so grid +y = SLO -y = superior. Nasal is SLO +x for OD and SLO -x for OS. Vertical
+// B-scans (VolumeLayout::vertical): A-scans top to bottom (grid +x = SLO +y, inferior), the
+// first B-scan leftmost (grid +y = SLO +x).
 
 #include <array>
 #include <cstdint>
@@ -47,6 +49,10 @@ struct VolumeLayout {
     // generator places the lines itself, phantom_macula.h)
     io::ScanPattern pattern = io::ScanPattern::kVolume;
     io::Laterality laterality = io::Laterality::kOD;
+    // Volumes and lines: B-scans run vertically (A-scans from superior to inferior, grid +x =
+    // SLO +y; the first B-scan leftmost, grid +y = SLO +x) instead of the horizontal placement
+    // above. The eye (anatomical frame) is the same; only the scan grid is turned.
+    bool vertical = false;
     int size_x = 768;               // A-scans per B-scan
     int size_z = 496;               // pixels per A-scan
     int num_bscans = 61;            // 1 for a line scan

@@ -44,6 +44,9 @@ struct MaculaPhantomParams {
     bool radial = false;
     int radial_lines = 12;
     double line_length_mm = 6.0;
+    // Volume only: vertical B-scans (phantom_common.h, VolumeLayout::vertical): the same eye
+    // scanned with the grid turned; the field is then size_x A-scans high, num_bscans wide.
+    bool vertical = false;
     int num_bscans = 61;    // volume only
     int size_x = 768;       // A-scans per B-scan
     int size_z = 496;       // pixels per A-scan

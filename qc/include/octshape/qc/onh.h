@@ -8,7 +8,7 @@
 #include "octshape/io/scan.h"
 #include "octshape/retina/onh.h"
 
-namespace octshape::app {
+namespace octshape::qc {
 
 // Writes DIR/STEM_enface.png, DIR/STEM_bscans.png and DIR/STEM_mrw.png (atomically). The
 // B-scans show the pixels when the scan was read with them, else a black background.
@@ -19,4 +19,4 @@ void write_onh_qc(const io::Scan& scan,
                   const std::string& dir,
                   const std::string& stem);
 
-}  // namespace octshape::app
+}  // namespace octshape::qc

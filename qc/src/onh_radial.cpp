@@ -1,4 +1,4 @@
-#include "commands/onh_qc_radial.h"
+#include "octshape/qc/onh_radial.h"
 
 #include <algorithm>
 #include <array>
@@ -9,12 +9,13 @@
 #include <utility>
 #include <vector>
 
-#include "commands/qc_draw.h"
+#include "octshape/mesh/section.h"
+#include "octshape/qc/draw.h"
 
-namespace octshape::app {
+namespace octshape::qc {
 namespace {
 
-// The ONH pictures' colours (onh_qc_radial.h), and those of what only a radial scan has.
+// The ONH pictures' colours (octshape/qc/onh_radial.h), and those of what only a radial scan has.
 using namespace onh_colours;
 const cv::Scalar& kCrossing = palette::kCyan;
 const cv::Scalar kLine(200, 200, 200);
@@ -35,30 +36,14 @@ std::vector<std::array<Eigen::Vector2d, 2>> line_cut(const io::Scan& scan,
     const Eigen::Vector2d n(-u.y(), u.x());
     const double ds = geo.lines[static_cast<std::size_t>(line)].length_mm / (nx - 1);
     const double dz = scan.meta.scale_z_mm;
-    // Signed distance of every vertex from the plane, nudged so that none lies on it (a line
-    // along a grid row or column passes through vertices).
-    const Eigen::Index nv = r.ilm_V.rows();
-    std::vector<double> d(static_cast<std::size_t>(nv));
-    for (Eigen::Index v = 0; v < nv; ++v) {
-        d[static_cast<std::size_t>(v)] =
-            (Eigen::Vector2d(r.ilm_V(v, 0), r.ilm_V(v, 1)) - o).dot(n) + 1e-9;
-    }
+    // The line's vertical plane n . (x, y) = n . o, moved off the vertices (a line along a grid
+    // row or column passes through them).
     std::vector<std::array<Eigen::Vector2d, 2>> segs;
-    for (Eigen::Index f = 0; f < r.ilm_F.rows(); ++f) {
-        std::array<Eigen::Vector2d, 2> hit;
-        int hits = 0;
-        for (int k = 0; k < 3 && hits < 2; ++k) {
-            const int ia = r.ilm_F(f, k);
-            const int ib = r.ilm_F(f, (k + 1) % 3);
-            const double da = d[static_cast<std::size_t>(ia)];
-            const double db = d[static_cast<std::size_t>(ib)];
-            if ((da < 0.0) == (db < 0.0)) continue;
-            const double t = da / (da - db);
-            const Eigen::Vector3d p = r.ilm_V.row(ia) + t * (r.ilm_V.row(ib) - r.ilm_V.row(ia));
-            const double s = (p.head<2>() - o).dot(u);
-            hit[static_cast<std::size_t>(hits++)] = {s / ds, -p.z() / dz};
-        }
-        if (hits == 2) segs.push_back(hit);
+    for (const mesh::SectionSegment& sg : mesh::plane_section(r.ilm_V, r.ilm_F, {n.x(), n.y(), 0.0}, n.dot(o) - 1e-9)) {
+        auto at = [&](const Eigen::Vector3d& p) -> Eigen::Vector2d {
+            return {(p.head<2>() - o).dot(u) / ds, -p.z() / dz};
+        };
+        segs.push_back({at(sg.a), at(sg.b)});
     }
     return segs;
 }
@@ -86,31 +71,13 @@ cv::Point RadialSheetLayout::px(int line, double ascan, double depth_px) const {
 }
 
 CellHeights onh_cell_heights(const retina::OnhResult& r) {
-    const retina::GridSurface& g = r.rpe;
-    const int cw = g.cols - 1;
-    const int ch = g.rows - 1;
-    std::vector<double> h(static_cast<std::size_t>(cw) * static_cast<std::size_t>(ch),
-                          std::numeric_limits<double>::quiet_NaN());
-    std::vector<double> top(h.size(), -std::numeric_limits<double>::infinity());
-    const mesh::FaceGeometry fg = mesh::face_geometry(r.ilm_V, r.ilm_F);
-    for (Eigen::Index f = 0; f < r.ilm_F.rows(); ++f) {
-        if (std::isnan(r.face_height_mm(f))) continue;
-        const int a = std::clamp(static_cast<int>(fg.centroids(f, 0) / g.dx_mm), 0, cw - 1);
-        const int b = std::clamp(static_cast<int>(fg.centroids(f, 1) / g.dy_mm), 0, ch - 1);
-        const auto i = static_cast<std::size_t>(b) * static_cast<std::size_t>(cw) +
-                       static_cast<std::size_t>(a);
-        if (fg.centroids(f, 2) > top[i]) {
-            top[i] = fg.centroids(f, 2);
-            h[i] = r.face_height_mm(f);
-        }
-    }
     CellHeights out;
-    for (const double v : h) {
+    out.h = retina::onh_enface_heights(r).height_mm;
+    for (const double v : out.h) {
         if (std::isnan(v)) continue;
         out.lo = std::min(out.lo, v);
         out.hi = std::max(out.hi, v);
     }
-    out.h = std::move(h);
     return out;
 }
 
@@ -199,12 +166,14 @@ cv::Mat radial_enface_picture(const io::Scan& scan,
     cv::drawMarker(out, L.px(c.x(), c.y()), palette::kMagenta, cv::MARKER_CROSS, 18, 2);
     // Last, unsmoothed: nothing covers a BMO point (the tests find them at their pixels).
     for (const auto& m : r.bmo_measured) cv::circle(out, L.px(m.mm.x(), m.mm.y()), 3, kBmo, -1);
-    // N and S at the edge of the scanned circle, from the grid -> anatomical map.
+    // N, S, T, I at the edge of the scanned circle, from the grid -> anatomical map.
     const Eigen::Matrix2d inv = r.grid_to_anatomical.inverse();
     const Eigen::Vector2d nasal = inv.col(0).normalized();
     const Eigen::Vector2d sup = inv.col(1).normalized();
     const double lr = 0.8 * r.radial_scanned_radius_mm;
-    for (const auto& [dir, label] : {std::pair{nasal, "N"}, std::pair{sup, "S"}}) {
+    for (const auto& [dir, label] : {std::pair{nasal, "N"}, std::pair{sup, "S"},
+                                     std::pair{Eigen::Vector2d(-nasal), "T"},
+                                     std::pair{Eigen::Vector2d(-sup), "I"}}) {
         outlined_text(out, label,
                       L.px(x0.x() + lr * dir.x(), x0.y() + lr * dir.y()) + cv::Point(-7, 7), 0.7,
                       palette::kWhite);
@@ -364,4 +333,4 @@ cv::Mat radial_bscans_picture(const io::Scan& scan,
     return out;
 }
 
-}  // namespace octshape::app
+}  // namespace octshape::qc

@@ -1,4 +1,4 @@
-#include "commands/macula_qc.h"
+#include "octshape/qc/macula.h"
 
 #include <algorithm>
 #include <cmath>
@@ -10,12 +10,13 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
-#include "commands/qc_draw.h"
-#include "commands/qc_names.h"
+#include "octshape/qc/draw.h"
+#include "octshape/qc/fundus.h"
+#include "octshape/qc/names.h"
 #include "octshape/error.h"
 #include "octshape/retina/radial_geometry.h"
 
-namespace octshape::app {
+namespace octshape::qc {
 namespace {
 
 const cv::Scalar& kRim = palette::kRed;
@@ -85,21 +86,21 @@ void draw_disks(cv::Mat& img, const retina::CubeResult& r, const ToPx& to_px) {
     poly(r.pit_flat, kFlat);
 }
 
-cv::Mat thickness_map_picture(const retina::CubeResult& r, const std::string& title) {
+// The map in the fundus frame (fundus.h): superior up, whichever way the B-scans ran.
+cv::Mat thickness_map_picture(const retina::CubeResult& r, const io::Scan& scan,
+                              const std::string& title) {
     const retina::ThicknessMap& m = r.map;
-    const double width_mm = (m.cols - 1) * m.dx_mm;
-    const double height_mm = (m.rows - 1) * m.dy_mm;
+    const FundusFrame ff = fundus_frame(scan, (m.cols - 1) * m.dx_mm, (m.rows - 1) * m.dy_mm);
     const int W = 800;
-    const double px_per_mm = W / width_mm;
-    const int H = std::max(40, static_cast<int>(std::lround(height_mm * px_per_mm)));
+    const double px_per_mm = W / ff.width_mm;
+    const cv::Mat values = fundus_thickness_raster(m, scan, W);
+    const int H = values.rows;
     const auto [lo, hi] = thickness_range(r);
     cv::Mat grey(H, W, CV_8UC1);
     cv::Mat valid(H, W, CV_8UC1);
     for (int y = 0; y < H; ++y) {
-        // Image row 0 at the top = largest grid y (superior for the usual placement).
-        const double gy = (H - 1 - y) / px_per_mm;
         for (int x = 0; x < W; ++x) {
-            const double v = m.sample(x / px_per_mm, gy);
+            const double v = values.at<double>(y, x);
             valid.at<uchar>(y, x) = std::isnan(v) ? 0 : 255;
             const double u = std::isnan(v) ? 0.0 : std::clamp((v - lo) / (hi - lo), 0.0, 1.0);
             grey.at<uchar>(y, x) = static_cast<uchar>(std::lround(255 * u));
@@ -109,8 +110,9 @@ cv::Mat thickness_map_picture(const retina::CubeResult& r, const std::string& ti
     cv::applyColorMap(grey, img, cv::COLORMAP_VIRIDIS);
     img.setTo(cv::Scalar(60, 60, 60), valid == 0);
     auto to_px = [&](double gx, double gy) {
-        return cv::Point(static_cast<int>(std::lround(gx * px_per_mm)),
-                         static_cast<int>(std::lround(H - 1 - gy * px_per_mm)));
+        const Eigen::Vector2d f = ff.to_fundus({gx, gy});
+        return cv::Point(static_cast<int>(std::lround(f.x() * px_per_mm)),
+                         static_cast<int>(std::lround(H - 1 - f.y() * px_per_mm)));
     };
     for (const auto& h : r.half_lines) {
         const Eigen::Vector2d e = r.centre_mm + h.r_mm.back() * h.direction;
@@ -118,9 +120,9 @@ cv::Mat thickness_map_picture(const retina::CubeResult& r, const std::string& ti
                  cv::Scalar(200, 200, 200), 1, cv::LINE_AA);
     }
     draw_disks(img, r, to_px);
-    // Anatomical labels at the ends of the nasal (0 deg) and superior (90 deg) half-lines.
+    // Anatomical labels at the ends of the nasal, superior, temporal and inferior half-lines.
     for (const auto& h : r.half_lines) {
-        const char* label = h.angle_deg == 0.0 ? "N" : (h.angle_deg == 90.0 ? "S" : nullptr);
+        const char* label = anatomical_label(h.angle_deg);
         if (label == nullptr) continue;
         const Eigen::Vector2d e = r.centre_mm + (h.r_mm.back() + 0.15) * h.direction;
         outlined_text(img, label, to_px(e.x(), e.y()) + cv::Point(-7, 7), 0.7,
@@ -277,30 +279,6 @@ cv::Mat profiles_picture(const retina::CubeResult& r, const std::string& title) 
     return stack({title_strip(img.cols, 34, title), legend, img});
 }
 
-// The fitted thickness h(r) of half-line `h` at distance `rr` from its origin, or NaN.
-double fitted_thickness(const retina::CubeHalfLine& h, double rr) {
-    if (!h.valid || rr < 0.0 || rr > h.r_mm.back()) return std::numeric_limits<double>::quiet_NaN();
-    // The Bezier segments are monotone in r: bisect for the parameter giving rr.
-    for (const auto* fit : {&h.interior, &h.exterior}) {
-        const double r0 = retina::bezier_point(fit->control, 0.0).x();
-        const double r1 = retina::bezier_point(fit->control, 1.0).x();
-        if (rr < std::min(r0, r1) || rr > std::max(r0, r1)) continue;
-        double t0 = 0.0;
-        double t1 = 1.0;
-        for (int it = 0; it < 40; ++it) {
-            const double tm = 0.5 * (t0 + t1);
-            const double rm = retina::bezier_point(fit->control, tm).x();
-            if ((rm < rr) == (r0 < r1)) {
-                t0 = tm;
-            } else {
-                t1 = tm;
-            }
-        }
-        return retina::bezier_point(fit->control, 0.5 * (t0 + t1)).y();
-    }
-    return std::numeric_limits<double>::quiet_NaN();
-}
-
 // The fitted thickness at position `p` (grid or radial mm) of a B-scan running along `u`: from
 // the half-line along that B-scan (direction +-u) pointing towards p.
 double fitted_thickness_at(const retina::CubeResult& r, const Eigen::Vector2d& u,
@@ -310,7 +288,7 @@ double fitted_thickness_at(const retina::CubeResult& r, const Eigen::Vector2d& u
         const Eigen::Vector2d o = std::isnan(h.origin_mm.x()) ? r.centre_mm : h.origin_mm;
         const double rr = (p - o).dot(h.direction);
         if (rr < 0.0) continue;
-        return fitted_thickness(h, rr);
+        return retina::fitted_thickness_mm(h, rr);
     }
     return std::numeric_limits<double>::quiet_NaN();
 }
@@ -318,6 +296,23 @@ double fitted_thickness_at(const retina::CubeResult& r, const Eigen::Vector2d& u
 // The B-scan through the centre with the device ILM and BM and the fitted profile drawn from
 // BM up by the fitted thickness (along the nasal and temporal half-lines, which lie on it).
 }  // namespace
+
+cv::Mat fundus_thickness_raster(const retina::ThicknessMap& m, const io::Scan& scan,
+                                int width_px) {
+    const FundusFrame ff = fundus_frame(scan, (m.cols - 1) * m.dx_mm, (m.rows - 1) * m.dy_mm);
+    const double px_per_mm = width_px / ff.width_mm;
+    const int H = std::max(40, static_cast<int>(std::lround(ff.height_mm * px_per_mm)));
+    cv::Mat out(H, width_px, CV_64FC1);
+    for (int y = 0; y < H; ++y) {
+        // Image row 0 at the top = the largest fundus y (superior).
+        const double fy = (H - 1 - y) / px_per_mm;
+        for (int x = 0; x < width_px; ++x) {
+            const Eigen::Vector2d g = ff.to_grid({x / px_per_mm, fy});
+            out.at<double>(y, x) = m.sample(g.x(), g.y());
+        }
+    }
+    return out;
+}
 
 std::pair<double, double> macula_thickness_range(const retina::CubeResult& r) {
     return thickness_range(r);
@@ -375,7 +370,7 @@ cv::Mat macula_radial_thickness_picture(const retina::CubeResult& r, const io::S
     }
     draw_disks(img, r, [&](double x, double y) { return L.px(x, y); });
     for (const auto& h : r.half_lines) {
-        const char* label = h.angle_deg == 0.0 ? "N" : (h.angle_deg == 90.0 ? "S" : nullptr);
+        const char* label = anatomical_label(h.angle_deg);
         if (label == nullptr || h.r_mm.empty()) continue;
         const Eigen::Vector2d o = std::isnan(h.origin_mm.x()) ? r.centre_mm : h.origin_mm;
         const Eigen::Vector2d e = o + 0.5 * h.r_mm.back() * h.direction;
@@ -534,22 +529,19 @@ cv::Mat macula_bscan_picture(const retina::CubeResult& r, const io::Scan& scan,
 
 void write_macula_qc(const retina::CubeResult& r, const io::Scan& scan, const std::string& dir,
                      const std::string& stem) {
-    std::error_code ec;
-    std::filesystem::create_directories(dir, ec);
-    if (ec) throw OutputError(dir, "cannot create the QC directory: " + ec.message());
-    const std::filesystem::path d(dir);
+    const std::filesystem::path d = qc_directory(dir);
     const std::string title = scan_title(scan.meta, scan.num_bscans());
     const bool one_row = r.line_scan || r.map.rows < 2;
     // A radial scan's map rows are its lines, not a grid: the thickness is drawn along them.
     // Every picture is drawn before any is written: a drawing error leaves no picture behind.
     const cv::Mat t = r.radial_scan ? macula_radial_thickness_picture(r, scan, title)
                       : one_row     ? thickness_line_picture(r, title)
-                                    : thickness_map_picture(r, title);
+                                    : thickness_map_picture(r, scan, title);
     const cv::Mat p = profiles_picture(r, title);
     const cv::Mat b = macula_bscan_picture(r, scan, title);
-    save_png(t, (d / qc::picture_name(stem, qc::kThickness)).string());
-    save_png(p, (d / qc::picture_name(stem, qc::kProfiles)).string());
-    save_png(b, (d / qc::picture_name(stem, qc::kBscan)).string());
+    save_png(t, (d / picture_name(stem, kind::kThickness)).string());
+    save_png(p, (d / picture_name(stem, kind::kProfiles)).string());
+    save_png(b, (d / picture_name(stem, kind::kBscan)).string());
 }
 
-}  // namespace octshape::app
+}  // namespace octshape::qc

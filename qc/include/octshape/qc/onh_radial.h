@@ -1,7 +1,7 @@
 #pragma once
 // The QC pictures of a radial ONH scan (ScanPattern 5; docs/outputs.md "QC pictures"): the
 // en-face picture of the scanned circle with the lines where they were scanned, and a contact
-// sheet of every radial B-scan. The MRW picture is the volume's (onh_qc.cpp) with the in-plane
+// sheet of every radial B-scan. The MRW picture is the volume's (onh.cpp) with the in-plane
 // MRW added. Each picture comes with its layout (where a grid mm point, or a B-scan pixel, is
 // drawn) so that the tests can check marks at their pixels.
 
@@ -10,12 +10,12 @@
 #include <string>
 #include <vector>
 
-#include "commands/qc_draw.h"
+#include "octshape/qc/draw.h"
 #include "octshape/io/scan.h"
 #include "octshape/retina/onh.h"
 #include "octshape/retina/radial_geometry.h"
 
-namespace octshape::app {
+namespace octshape::qc {
 
 // The colours of what an ONH picture draws, the same in a volume's and a radial scan's.
 namespace onh_colours {
@@ -71,9 +71,9 @@ struct RadialSheetLayout {
     [[nodiscard]] cv::Point px(int line, double ascan, double depth_px) const;
 };
 
-// Height above the RPE of the topmost ILM face over each cell of r.rpe (NaN: no face),
-// row-major (b * (cols - 1) + a) over its (cols - 1) x (rows - 1) cells: the en-face pictures'
-// values, a volume's and a radial scan's; with their colour range [lo, hi] (lo <= 0, hi >= 0.1
+// The analysis's en-face map (retina::onh_enface_heights: height above the RPE of the topmost
+// ILM face over each RPE grid cell, NaN: no face, row-major b * (cols - 1) + a): the en-face
+// pictures' values, a volume's and a radial scan's; with their colour range [lo, hi] (lo <= 0, hi >= 0.1
 // mm, so that a flat disc is not stretched over the whole scale).
 struct CellHeights {
     std::vector<double> h;
@@ -104,4 +104,4 @@ struct CellHeights {
 // for a radial scan, in-plane (every measured BMO point, numbered by its B-scan).
 [[nodiscard]] cv::Mat onh_mrw_picture(const retina::OnhResult& r, const std::string& title);
 
-}  // namespace octshape::app
+}  // namespace octshape::qc

@@ -2,13 +2,14 @@
 // Drawing helpers shared by the QC pictures of the macula and the optic nerve head: titles,
 // axes with ticks, colour bars, scale bars and legends, so that every picture reads alone.
 
+#include <filesystem>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
 #include "octshape/io/scan.h"
 
-namespace octshape::app {
+namespace octshape::qc {
 
 // The one palette of every QC picture (BGR), so that a layer or a kind of mark has the same
 // colour in the macula's and the optic nerve head's pictures; each picture names its uses.
@@ -28,6 +29,10 @@ inline const cv::Scalar kText(230, 230, 230);
 inline const cv::Scalar kPanel(30, 30, 30);
 }  // namespace palette
 
+// The folder `dir` of a command's QC pictures, created when absent (OutputError when it
+// cannot be).
+[[nodiscard]] std::filesystem::path qc_directory(const std::string& dir);
+
 // Encodes `img` as PNG and writes it atomically to `path` (OutputError on failure).
 void save_png(const cv::Mat& img, const std::string& path);
 
@@ -43,6 +48,10 @@ void plain_text(cv::Mat& img, const std::string& s, cv::Point p, double scale, c
 // The picture title: eye, scan pattern and size, e.g. "OD, volume (pattern 3), 25 B-scans x
 // 512 A-scans, 6.00 x 6.00 mm". No identifier, date or file name.
 [[nodiscard]] std::string scan_title(const io::ScanMeta& meta, int num_bscans);
+
+// The anatomical label of the en-face pictures at anatomical angle `deg` (0 nasal, 90 superior,
+// 180 temporal, 270 inferior, both eyes): "N", "S", "T", "I", else nullptr.
+[[nodiscard]] const char* anatomical_label(double deg);
 
 // "Nice" tick values (1, 2, 5 x 10^k steps) covering [lo, hi], about `count` of them.
 [[nodiscard]] std::vector<double> nice_ticks(double lo, double hi, int count);
@@ -83,4 +92,4 @@ struct LegendItem {
 int draw_legend(cv::Mat& img, cv::Point p, const std::vector<LegendItem>& items, double font,
                 cv::Scalar text, int max_x);
 
-}  // namespace octshape::app
+}  // namespace octshape::qc

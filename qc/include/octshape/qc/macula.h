@@ -11,7 +11,7 @@
 #include "octshape/io/scan.h"
 #include "octshape/retina/cube.h"
 
-namespace octshape::app {
+namespace octshape::qc {
 
 // Writes DIR/STEM_thickness.png, DIR/STEM_profiles.png and DIR/STEM_bscan.png (atomically).
 // `scan` is the analysed scan; its pixels are drawn when loaded. Throws OutputError.
@@ -41,7 +41,15 @@ struct RadialThicknessLayout {
                                            const std::string& title,
                                            int* bscan = nullptr);
 
+// A volume's thickness map as its thickness picture draws it: `width_px` columns over the
+// grid's extent in the fundus frame (fundus.h: superior up, as on the SLO, whichever way the
+// B-scans ran), row 0 superior; each pixel the map's bilinear thickness (mm) at the pixel's
+// fundus position, NaN where missing. CV_64FC1.
+[[nodiscard]] cv::Mat fundus_thickness_raster(const retina::ThicknessMap& m,
+                                              const io::Scan& scan,
+                                              int width_px);
+
 // The thickness colour range of the thickness pictures: [lo, hi] mm (VIRIDIS, lo dark).
 [[nodiscard]] std::pair<double, double> macula_thickness_range(const retina::CubeResult& r);
 
-}  // namespace octshape::app
+}  // namespace octshape::qc

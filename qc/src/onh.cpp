@@ -1,6 +1,6 @@
-#include "commands/onh_qc.h"
+#include "octshape/qc/onh.h"
 
-#include "commands/onh_qc_radial.h"
+#include "octshape/qc/onh_radial.h"
 
 #include <algorithm>
 #include <cmath>
@@ -10,22 +10,26 @@
 #include <numbers>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <utility>
 #include <vector>
 
-#include "commands/qc_draw.h"
-#include "commands/qc_names.h"
+#include "octshape/qc/draw.h"
+#include "octshape/qc/fundus.h"
+#include "octshape/qc/names.h"
 #include "octshape/error.h"
+#include "octshape/mesh/section.h"
 
-namespace octshape::app {
+namespace octshape::qc {
 namespace {
 
-using namespace onh_colours;  // onh_qc_radial.h
+using namespace onh_colours;  // octshape/qc/onh_radial.h
 const cv::Scalar& kFilled = palette::kCyan;
 const cv::Scalar& kInplane = palette::kDeepBlue;  // radial scans: the in-plane MRW
 
-// Height above the RPE of the topmost ILM face over each grid cell.
-cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
-                       const std::string& title) {
+// Height above the RPE of the topmost ILM face over each grid cell (retina::onh_enface_heights),
+// in the fundus frame (fundus.h): superior up, whichever way the B-scans ran.
+cv::Mat enface_picture(const io::Scan& scan, const retina::OnhResult& r,
+                       const retina::OnhParams& p, const std::string& title) {
     const retina::GridSurface& g = r.rpe;
     const int cw = g.cols - 1;
     const int ch = g.rows - 1;
@@ -33,38 +37,39 @@ cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
     const std::vector<double>& h = heights.h;
     const double lo = heights.lo;
     const double hi = heights.hi;
-    cv::Mat grey(ch, cw, CV_8UC1, cv::Scalar(0));
+    const FundusFrame ff = fundus_frame(scan, cw * g.dx_mm, ch * g.dy_mm);
+    // The cells in the fundus frame: fw x fh of them; cell (a, b) of the grid at column fa and
+    // row fh - 1 - fb (row 0 at the top = superior).
+    const int fw = ff.keeps_axes() ? cw : ch;
+    const int fh = ff.keeps_axes() ? ch : cw;
+    auto cell = [&](int a, int b) {
+        const auto [fa, fb] = ff.fundus_cell(a, b, cw, ch);
+        return cv::Point(fa, fh - 1 - fb);
+    };
+    cv::Mat grey(fh, fw, CV_8UC1, cv::Scalar(0));
+    cv::Mat cup(fh, fw, CV_8UC1, cv::Scalar(0));
     for (int b = 0; b < ch; ++b) {
         for (int a = 0; a < cw; ++a) {
             const double v = h[static_cast<std::size_t>(b) * static_cast<std::size_t>(cw) +
                                static_cast<std::size_t>(a)];
             const double u = std::isnan(v) ? 0.0 : (v - lo) / (hi - lo);
-            // Image row 0 at the top = largest grid y.
-            grey.at<uchar>(ch - 1 - b, a) = static_cast<uchar>(std::lround(255 * u));
+            grey.at<uchar>(cell(a, b)) = static_cast<uchar>(std::lround(255 * u));
+            // Cup outline: the boundary of the cells below the RPE, in black.
+            if (v < 0.0) cup.at<uchar>(cell(a, b)) = 255;
         }
     }
-    const double width_mm = cw * g.dx_mm;
-    const double height_mm = ch * g.dy_mm;
     const int W = 800;
-    const double ppm = W / width_mm;
-    const int H = std::max(40, static_cast<int>(std::lround(height_mm * ppm)));
+    const double ppm = W / ff.width_mm;
+    const int H = std::max(40, static_cast<int>(std::lround(ff.height_mm * ppm)));
     cv::Mat big;
     cv::resize(grey, big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
     cv::Mat img;
     cv::applyColorMap(big, img, cv::COLORMAP_VIRIDIS);
     auto px = [&](double x, double y) {
-        return cv::Point(static_cast<int>(std::lround(x * ppm)),
-                         static_cast<int>(std::lround(H - 1 - y * ppm)));
+        const Eigen::Vector2d f = ff.to_fundus({x, y});
+        return cv::Point(static_cast<int>(std::lround(f.x() * ppm)),
+                         static_cast<int>(std::lround(H - 1 - f.y() * ppm)));
     };
-    // Cup outline: the boundary of the cells below the RPE, in black.
-    cv::Mat cup(ch, cw, CV_8UC1, cv::Scalar(0));
-    for (int b = 0; b < ch; ++b) {
-        for (int a = 0; a < cw; ++a) {
-            const double v = h[static_cast<std::size_t>(b) * static_cast<std::size_t>(cw) +
-                               static_cast<std::size_t>(a)];
-            if (v < 0.0) cup.at<uchar>(ch - 1 - b, a) = 255;
-        }
-    }
     cv::Mat cup_big;
     cv::resize(cup, cup_big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
     std::vector<std::vector<cv::Point>> contours;
@@ -78,15 +83,17 @@ cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
     cv::polylines(img, poly, true, kEllipse, 2, cv::LINE_AA);
     for (const auto& m : r.bmo_measured) cv::circle(img, px(m.mm.x(), m.mm.y()), 3, kBmo, -1);
     cv::drawMarker(img, px(c.x(), c.y()), cv::Scalar(255, 0, 255), cv::MARKER_CROSS, 18, 2);
-    // N and S labels from the grid -> anatomical map (columns: images of +x and +y).
+    // N, S, T, I from the grid -> anatomical map (columns: images of +x and +y).
     const Eigen::Matrix2d inv = r.grid_to_anatomical.inverse();
     const Eigen::Vector2d nasal = inv.col(0).normalized();
     const Eigen::Vector2d sup = inv.col(1).normalized();
     const double lr = p.disc_radius_mm + 0.12;
-    outlined_text(img, "N", px(c.x() + lr * nasal.x(), c.y() + lr * nasal.y()) + cv::Point(-7, 7),
-                  0.7, palette::kWhite);
-    outlined_text(img, "S", px(c.x() + lr * sup.x(), c.y() + lr * sup.y()) + cv::Point(-7, 7), 0.7,
-                  palette::kWhite);
+    for (const auto& [dir, label] : {std::pair{nasal, "N"}, std::pair{sup, "S"},
+                                     std::pair{Eigen::Vector2d(-nasal), "T"},
+                                     std::pair{Eigen::Vector2d(-sup), "I"}}) {
+        outlined_text(img, label, px(c.x() + lr * dir.x(), c.y() + lr * dir.y()) + cv::Point(-7, 7),
+                      0.7, palette::kWhite);
+    }
     scale_bar(img, {14, H - 16}, ppm, palette::kWhite);
     const int bar_w = 140;
     cv::Mat out(34 + H + 40 + 96, W + bar_w, CV_8UC3, palette::kPanel);
@@ -111,27 +118,6 @@ cv::Mat enface_picture(const retina::OnhResult& r, const retina::OnhParams& p,
                    printf_number("%.0f um", r.conht_mm * 1e3),
                {8, end + 40}, 0.45, palette::kText);
     return out;
-}
-
-// Segments where the plane y = y0 cuts the mesh, as (x, z) pairs.
-std::vector<std::array<Eigen::Vector2d, 2>> plane_cut(const mesh::Vertices& V,
-                                                      const mesh::Faces& F,
-                                                      double y0) {
-    std::vector<std::array<Eigen::Vector2d, 2>> segs;
-    for (Eigen::Index f = 0; f < F.rows(); ++f) {
-        std::vector<Eigen::Vector2d> hits;
-        for (int k = 0; k < 3; ++k) {
-            const Eigen::Vector3d a = V.row(F(f, k));
-            const Eigen::Vector3d b = V.row(F(f, (k + 1) % 3));
-            const double da = a.y() - y0;
-            const double db = b.y() - y0;
-            if ((da < 0.0) == (db < 0.0)) continue;
-            const double t = da / (da - db);
-            hits.emplace_back(a.x() + t * (b.x() - a.x()), a.z() + t * (b.z() - a.z()));
-        }
-        if (hits.size() == 2) segs.push_back({hits[0], hits[1]});
-    }
-    return segs;
 }
 
 cv::Mat bscan_panel(const io::Scan& scan, const retina::OnhResult& r, int b) {
@@ -166,8 +152,9 @@ cv::Mat bscan_panel(const io::Scan& scan, const retina::OnhResult& r, int b) {
         if (g.filled[i]) cv::circle(img, px(a * g.dx_mm, g.z[i]), 0, kFilled, -1);
     }
     // The ILM used: the mesh cut by the B-scan's plane (nudged off the grid lines).
-    for (const auto& s : plane_cut(r.ilm_V, r.ilm_F, b * g.dy_mm + 1e-7)) {
-        cv::line(img, px(s[0].x(), s[0].y()), px(s[1].x(), s[1].y()), kUsedIlm, 1, cv::LINE_AA);
+    for (const auto& s :
+         mesh::plane_section(r.ilm_V, r.ilm_F, Eigen::Vector3d::UnitY(), b * g.dy_mm + 1e-7)) {
+        cv::line(img, px(s.a.x(), s.a.z()), px(s.b.x(), s.b.z()), kUsedIlm, 1, cv::LINE_AA);
     }
     for (const auto& m : r.bmo_measured) {
         if (m.bscan == b) cv::circle(img, px(m.mm.x(), m.mm.z()), 4, kDisc, 1, cv::LINE_AA);
@@ -313,24 +300,21 @@ void write_onh_qc(const io::Scan& scan,
                   const retina::OnhParams& p,
                   const std::string& dir,
                   const std::string& stem) {
-    std::error_code ec;
-    std::filesystem::create_directories(dir, ec);
-    if (ec) throw OutputError(dir, "cannot create the QC directory: " + ec.message());
-    const std::filesystem::path d(dir);
+    const std::filesystem::path d = qc_directory(dir);
     const std::string title = scan_title(scan.meta, scan.num_bscans());
     // A radial scan's pictures under the volume's names (the gallery and the cohort's resume
     // know them): its lines on the scanned circle, and every radial B-scan.
-    const std::string enface = (d / qc::picture_name(stem, qc::kEnface)).string();
-    const std::string bscans = (d / qc::picture_name(stem, qc::kBscans)).string();
+    const std::string enface = (d / picture_name(stem, kind::kEnface)).string();
+    const std::string bscans = (d / picture_name(stem, kind::kBscans)).string();
     // Every picture is drawn before any is written: a drawing error leaves no picture behind.
     const cv::Mat e =
-        r.radial ? radial_enface_picture(scan, r, p, title) : enface_picture(r, p, title);
+        r.radial ? radial_enface_picture(scan, r, p, title) : enface_picture(scan, r, p, title);
     const cv::Mat b =
         r.radial ? radial_bscans_picture(scan, r, title) : bscans_picture(scan, r, title);
     const cv::Mat m = onh_mrw_picture(r, title);
     save_png(e, enface);
     save_png(b, bscans);
-    save_png(m, (d / qc::picture_name(stem, qc::kMrw)).string());
+    save_png(m, (d / picture_name(stem, kind::kMrw)).string());
 }
 
-}  // namespace octshape::app
+}  // namespace octshape::qc

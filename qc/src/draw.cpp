@@ -1,4 +1,4 @@
-#include "commands/qc_draw.h"
+#include "octshape/qc/draw.h"
 
 #include <algorithm>
 #include <cmath>
@@ -13,7 +13,7 @@
 #include "octshape/error.h"
 #include "octshape/io/image.h"
 
-namespace octshape::app {
+namespace octshape::qc {
 
 void save_png(const cv::Mat& img, const std::string& path) {
     cv::Mat px;
@@ -59,6 +59,21 @@ std::string scan_title(const io::ScanMeta& meta, int num_bscans) {
         t += printf_number("%.2f mm", w);
     }
     return t;
+}
+
+std::filesystem::path qc_directory(const std::string& dir) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec) throw OutputError(dir, "cannot create the QC directory: " + ec.message());
+    return dir;
+}
+
+const char* anatomical_label(double deg) {
+    if (deg == 0.0) return "N";
+    if (deg == 90.0) return "S";
+    if (deg == 180.0) return "T";
+    if (deg == 270.0) return "I";
+    return nullptr;
 }
 
 std::vector<double> nice_ticks(double lo, double hi, int count) {
@@ -203,4 +218,4 @@ int draw_legend(cv::Mat& img, cv::Point p, const std::vector<LegendItem>& items,
     return y + 10;
 }
 
-}  // namespace octshape::app
+}  // namespace octshape::qc
