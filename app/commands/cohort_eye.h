@@ -97,6 +97,13 @@ struct CohortSignatures {
 // its record) when OUTDIR holds a current record of it; `refingerprinted` when its result was
 // made by other code or parameters (a different fingerprint: redone). A file that cannot be stat'ed goes to
 // `skipped` (nullopt).
+// Where an eye's state lives in OUTDIR (its presence with a current record is what resume
+// reads): OUTDIR/eyes/<key>.json, the result; OUTDIR/failures/<key>.json, a recorded failure.
+[[nodiscard]] std::filesystem::path eye_result_file(const std::filesystem::path& out,
+                                                    const std::string& key);
+[[nodiscard]] std::filesystem::path eye_failure_file(const std::filesystem::path& out,
+                                                     const std::string& key);
+
 [[nodiscard]] std::optional<Item> load_item(const std::string& file,
                                             const std::filesystem::path& out,
                                             const CohortOptions& o, const CohortSignatures& sig,
