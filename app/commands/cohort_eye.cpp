@@ -156,7 +156,9 @@ std::optional<Item> load_item(const std::string& f, const fs::path& out, const C
                 j.contains(cohort) && j[cohort].is_object()
                     ? j[cohort].value(record::name(record::Name::kScanType), std::string())
                     : std::string();
-            const auto pictures = qc::picture_names(it.key, type);
+            // A record of no known type is checked for the macula's pictures (as before).
+            const auto pictures = qc::picture_names(
+                it.key, record::parse_scan_type(type).value_or(retina::ScanType::kMacula));
             const bool qc_ok = !o.qc || std::all_of(pictures.begin(), pictures.end(),
                                                     [&](const std::string& name) {
                                                         return fs::exists(out / "qc" / name, ec);
