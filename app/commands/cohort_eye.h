@@ -42,6 +42,9 @@ struct Item {
     bool refingerprinted = false;  // its result was made by other code or parameters
     nlohmann::json slim;     // what eyes.csv needs of the result
     nlohmann::json failure;  // the failure record
+    // Nothing left to do for this input: a current result or a current failure record (set by
+    // load_item on resume, by take_result or record_failure during the run).
+    [[nodiscard]] bool settled() const { return done || failed; }
 };
 
 // A file that could not be taken in: path, eye key, reason, exit code.

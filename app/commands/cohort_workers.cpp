@@ -201,7 +201,7 @@ private:
     }
     (void)::syncfs(lock_fd);
     auto finished = std::count_if(items.begin(), items.end(),
-                                  [](const Item& it) { return it.done || it.failed; });
+                                  [](const Item& it) { return it.settled(); });
     std::error_code ec;
     for (const std::size_t i : busy) {
         finished += fs::exists(eye_result_file(out, items[i].key), ec) ? 1 : 0;
