@@ -6,5 +6,5 @@
 limit=${1:-150}
 cd "$(dirname "$0")/.." || exit 1
 ctags -x --_xformat='%{line} %{end} %{input} %{name}' --kinds-c++=f --fields=+ne -R \
-    --languages=c++ base libmesh io libretina app bench tests 2>/dev/null |
+    --languages=c++ base libmesh io libretina qc app bench tests 2>/dev/null |
     awk -v n="$limit" '{ len = $2 - $1 + 1; if (len > n) print len, $3 ":" $1, $4 }' | sort -rn

@@ -230,7 +230,7 @@ void run(CohortOptions& o, RunContext& ctx) {
     std::vector<Item> items = load_items(o, s, out, skipped);
     std::vector<std::size_t> pending;
     for (std::size_t i = 0; i < items.size(); ++i) {
-        if (!items[i].done && !items[i].failed) pending.push_back(i);
+        if (!items[i].settled()) pending.push_back(i);
     }
     const std::size_t resumed = items.size() - pending.size();
     spdlog::info("{} exports found, {} already done (results or recorded failures), {} to do, "
@@ -313,7 +313,7 @@ void run_eye(CohortOptions& o, const std::string& file, RunContext& ctx) {
     }
     Item& item = items.front();
     make_output_dirs(out, o.qc, item.key);
-    if (!item.done && !item.failed) {
+    if (!item.settled()) {
         run_workers(o, s.subjects, items, {0}, out, s.sig.failure, 1, lock->fd());
         if (::syncfs(lock->fd()) != 0) throw OutputError(out.string(), std::strerror(errno));
     } else {
@@ -334,7 +334,7 @@ void run_tables(CohortOptions& o, RunContext& ctx) {
     std::size_t missing = 0;
     const Item* first = nullptr;
     for (const auto& it : items) {
-        if (it.done || it.failed) continue;
+        if (it.settled()) continue;
         if (missing++ == 0) first = &it;
     }
     if (first != nullptr) {

@@ -126,6 +126,14 @@ nlohmann::json slim(const nlohmann::json& j) {
     return s;
 }
 
+fs::path eye_result_file(const fs::path& out, const std::string& key) {
+    return out / "eyes" / (key + ".json");
+}
+
+fs::path eye_failure_file(const fs::path& out, const std::string& key) {
+    return out / "failures" / (key + ".json");
+}
+
 std::optional<Item> load_item(const std::string& f, const fs::path& out, const CohortOptions& o,
                               const CohortSignatures& sig, std::vector<Skipped>& skipped) {
     Item it;
@@ -137,8 +145,8 @@ std::optional<Item> load_item(const std::string& f, const fs::path& out, const C
         skipped.push_back({f, it.key, e.what(), static_cast<int>(e.exit_code())});
         return std::nullopt;
     }
-    const fs::path eye_json = out / "eyes" / (it.key + ".json");
-    const fs::path fail_json = out / "failures" / (it.key + ".json");
+    const fs::path eye_json = eye_result_file(out, it.key);
+    const fs::path fail_json = eye_failure_file(out, it.key);
     std::error_code ec;
     if (fs::exists(eye_json, ec)) {
         try {
@@ -148,7 +156,9 @@ std::optional<Item> load_item(const std::string& f, const fs::path& out, const C
                 j.contains(cohort) && j[cohort].is_object()
                     ? j[cohort].value(record::name(record::Name::kScanType), std::string())
                     : std::string();
-            const auto pictures = qc::picture_names(it.key, type);
+            // A record of no known type is checked for the macula's pictures (as before).
+            const auto pictures = qc::picture_names(
+                it.key, record::parse_scan_type(type).value_or(retina::ScanType::kMacula));
             const bool qc_ok = !o.qc || std::all_of(pictures.begin(), pictures.end(),
                                                     [&](const std::string& name) {
                                                         return fs::exists(out / "qc" / name, ec);
@@ -229,7 +239,7 @@ int analyse_eye(const CohortOptions& o, const SubjectSource& subjects, const Ite
             prepend_stages(r.json["provenance"], read);
         }
         // Atomic, not fsync'ed: the parent syncs the file system once before the tables.
-        io::write_text_atomically((out / "eyes" / (item.key + ".json")).string(),
+        io::write_text_atomically(eye_result_file(out, item.key).string(),
                                   r.json.dump(2) + "\n", {.durable = false});
         return 0;
     } catch (const Error& e) {
@@ -251,7 +261,7 @@ void record_failure(Item& item, const fs::path& out, const std::string& options_
     // The path is in OUTDIR/private/failures.csv.
     f[record::name(record::Name::kReason)] = scrub(reason, item.path);
     f[record::name(record::Name::kExitCode)] = exit_code;
-    io::write_text_atomically((out / "failures" / (item.key + ".json")).string(),
+    io::write_text_atomically(eye_failure_file(out, item.key).string(),
                               f.dump(2) + "\n", {.durable = false});
     item.failed = true;
     item.failure = f;
@@ -259,10 +269,10 @@ void record_failure(Item& item, const fs::path& out, const std::string& options_
 
 bool take_result(Item& item, const fs::path& out, std::string& reason) {
     try {
-        item.slim = slim(read_json_file((out / "eyes" / (item.key + ".json")).string()));
+        item.slim = slim(read_json_file(eye_result_file(out, item.key).string()));
         item.done = true;
         std::error_code ec;
-        fs::remove(out / "failures" / (item.key + ".json"), ec);
+        fs::remove(eye_failure_file(out, item.key), ec);
         return true;
     } catch (const InputError& e) {
         reason = std::string("result unreadable: ") + e.what();

@@ -42,6 +42,9 @@ struct Item {
     bool refingerprinted = false;  // its result was made by other code or parameters
     nlohmann::json slim;     // what eyes.csv needs of the result
     nlohmann::json failure;  // the failure record
+    // Nothing left to do for this input: a current result or a current failure record (set by
+    // load_item on resume, by take_result or record_failure during the run).
+    [[nodiscard]] bool settled() const { return done || failed; }
 };
 
 // A file that could not be taken in: path, eye key, reason, exit code.
@@ -97,6 +100,13 @@ struct CohortSignatures {
 // its record) when OUTDIR holds a current record of it; `refingerprinted` when its result was
 // made by other code or parameters (a different fingerprint: redone). A file that cannot be stat'ed goes to
 // `skipped` (nullopt).
+// Where an eye's state lives in OUTDIR (its presence with a current record is what resume
+// reads): OUTDIR/eyes/<key>.json, the result; OUTDIR/failures/<key>.json, a recorded failure.
+[[nodiscard]] std::filesystem::path eye_result_file(const std::filesystem::path& out,
+                                                    const std::string& key);
+[[nodiscard]] std::filesystem::path eye_failure_file(const std::filesystem::path& out,
+                                                     const std::string& key);
+
 [[nodiscard]] std::optional<Item> load_item(const std::string& file,
                                             const std::filesystem::path& out,
                                             const CohortOptions& o, const CohortSignatures& sig,

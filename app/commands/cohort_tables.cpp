@@ -104,7 +104,7 @@ CohortTables write_cohort_tables(const fs::path& out, const std::vector<Item>& i
     for (const auto& it : items) {
         if (it.done) {
             eyes.push_back(it.slim);
-            names.push_back((out / "eyes" / (it.key + ".json")).string());
+            names.push_back(eye_result_file(out, it.key).string());
         }
         if (it.failed) ++failed;
     }

@@ -201,10 +201,10 @@ private:
     }
     (void)::syncfs(lock_fd);
     auto finished = std::count_if(items.begin(), items.end(),
-                                  [](const Item& it) { return it.done || it.failed; });
+                                  [](const Item& it) { return it.settled(); });
     std::error_code ec;
     for (const std::size_t i : busy) {
-        finished += fs::exists(out / "eyes" / (items[i].key + ".json"), ec) ? 1 : 0;
+        finished += fs::exists(eye_result_file(out, items[i].key), ec) ? 1 : 0;
     }
     std::fprintf(stderr,
                  "%soctshape: interrupted by %s: %zu of %zu eyes finished (results and recorded "
@@ -218,6 +218,224 @@ private:
     std::_Exit(128 + sig);
 }
 
+// The parent's side of a batch: its workers, the eyes still to send, and what each message or
+// end of a worker means for the eye it had. One object per run_workers call.
+class Batch {
+public:
+    Batch(const CohortOptions& o, const SubjectSource& subjects, std::vector<Item>& items,
+          const std::vector<std::size_t>& pending, const fs::path& out,
+          const std::string& fail_options, int jobs, int lock_fd, Progress& progress)
+        : o_(o),
+          subjects_(subjects),
+          items_(items),
+          pending_(pending),
+          out_(out),
+          fail_options_(fail_options),
+          lock_fd_(lock_fd),
+          progress_(progress),
+          workers_(std::min(pending.size(), static_cast<std::size_t>(jobs))),
+          parent_(::getpid()),
+          worker_level_(spdlog::get_level() <= spdlog::level::debug ? spdlog::get_level()
+                                                                   : spdlog::level::err) {}
+
+    // Until every pending eye is done or failed and every worker has ended.
+    void run() {
+        for (Worker& w : workers_) {
+            start_worker(w);
+            dispatch(w);
+        }
+        std::vector<pollfd> fds;
+        std::vector<Worker*> polled;
+        for (;;) {
+            if (g_stop_signal != 0) {
+                stop_batch(g_stop_signal, workers_, retired_, items_, out_, lock_fd_);
+            }
+            fds.clear();
+            polled.clear();
+            int wait_ms = 1000;  // a bound, should an end go unnoticed by poll
+            const auto now = Clock::now();
+            for (Worker& w : workers_) {
+                if (w.pid < 0) continue;
+                fds.push_back({w.sock, POLLIN, 0});
+                polled.push_back(&w);
+                if (w.busy && o_.eye_timeout_s > 0.0) {
+                    const double left = o_.eye_timeout_s - seconds_since(w.start, now);
+                    wait_ms = std::clamp(static_cast<int>(std::ceil(left * 1000.0)), 0, wait_ms);
+                }
+            }
+            if (fds.empty()) break;
+            if (::poll(fds.data(), fds.size(), wait_ms) < 0 && errno != EINTR) {
+                throw std::runtime_error(std::string("poll: ") + std::strerror(errno));
+            }
+            for (std::size_t k = 0; k < fds.size(); ++k) {
+                if (fds[k].revents != 0) read_worker(*polled[k]);
+            }
+            stop_overdue();
+        }
+        for (const pid_t pid : retired_) {
+            while (::waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {
+            }
+        }
+    }
+
+private:
+    static double seconds_since(Clock::time_point start, Clock::time_point now) {
+        return std::chrono::duration<double>(now - start).count();
+    }
+
+    // Forks a worker into the slot `w` (the child never returns from here).
+    void start_worker(Worker& w) {
+        int sv[2];
+        if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, sv) != 0) {
+            throw OutputError("socketpair", std::strerror(errno));
+        }
+        std::fflush(stderr);
+        spdlog::default_logger()->flush();
+        const pid_t pid = ::fork();
+        if (pid < 0) throw OutputError("fork", std::strerror(errno));
+        if (pid == 0) {
+            // The worker dies with the parent (SIGKILL of the batch kills its eyes too).
+            ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+            if (::getppid() != parent_) ::_exit(static_cast<int>(ExitCode::kInternal));
+            ::close(sv[0]);
+            // The other workers' sockets: each must see end-of-file when the parent closes it.
+            for (const Worker& other : workers_) {
+                if (other.sock >= 0) ::close(other.sock);
+            }
+            // The lock is the batch's: an eye outliving a killed batch must not block the
+            // re-run (its atomic write of the same result is harmless).
+            ::close(lock_fd_);
+            spdlog::set_level(worker_level_);
+            worker_main(o_, subjects_, items_, out_, sv[1]);
+        }
+        ::close(sv[1]);
+        w = Worker{};
+        w.pid = pid;
+        w.sock = sv[0];
+    }
+
+    // Gives an idle worker the next eye, or tells it to stop (closes its socket) if none is left.
+    void dispatch(Worker& w) {
+        if (next_ >= pending_.size()) {
+            ::close(w.sock);
+            retired_.push_back(w.pid);
+            w = Worker{};
+            return;
+        }
+        const std::uint64_t index = pending_[next_++];
+        if (::send(w.sock, &index, sizeof index, MSG_NOSIGNAL) !=
+            static_cast<ssize_t>(sizeof index)) {
+            --next_;  // the worker died while idle: the eye stays pending, poll sees the end
+            return;
+        }
+        w.busy = true;
+        w.index = index;
+        w.start = Clock::now();
+    }
+
+    // A worker that ended or was killed: a new one in its slot if eyes are left.
+    void replace(Worker& w) {
+        w = Worker{};
+        if (next_ < pending_.size()) {
+            start_worker(w);
+            dispatch(w);
+        }
+    }
+
+    void eye_failed(std::size_t index, const std::string& reason, int code, double secs) {
+        record_failure(items_[index], out_, fail_options_, reason, code);
+        progress_.finished(items_[index], false, reason, secs);
+    }
+
+    void eye_done(std::size_t index, double secs) {
+        std::string reason;
+        if (take_result(items_[index], out_, reason)) {
+            progress_.finished(items_[index], true, "", secs);
+        } else {
+            eye_failed(index, reason, static_cast<int>(ExitCode::kInternal), secs);
+        }
+    }
+
+    // The worker's socket is readable: an EyeDone record, or the end of the worker.
+    void read_worker(Worker& w) {
+        std::array<char, sizeof(EyeDone) + kMaxMessage> buf{};
+        const auto got = ::recv(w.sock, buf.data(), buf.size(), MSG_DONTWAIT);
+        if (got < 0 && (errno == EINTR || errno == EAGAIN)) return;
+        const double secs = w.busy ? seconds_since(w.start, Clock::now()) : 0.0;
+        if (got >= static_cast<ssize_t>(sizeof(EyeDone))) {
+            EyeDone d;
+            std::memcpy(&d, buf.data(), sizeof d);
+            if (w.busy && d.index == w.index) {
+                w.busy = false;
+                const auto length =
+                    std::min<std::size_t>(d.length, static_cast<std::size_t>(got) - sizeof d);
+                std::string message(buf.data() + sizeof d, length);
+                if (d.code == 0) {
+                    eye_done(d.index, secs);
+                } else {
+                    eye_failed(d.index, message.empty() ? "failed without a message" : message,
+                               d.code, secs);
+                }
+            }
+            dispatch(w);
+            return;
+        }
+        // End of file: the worker has ended (a short record cannot come from a worker; one
+        // that sent it is stopped).
+        if (got != 0) ::kill(w.pid, SIGKILL);
+        ::close(w.sock);
+        int status = 0;
+        while (::waitpid(w.pid, &status, 0) < 0 && errno == EINTR) {
+        }
+        if (w.busy) {
+            if (WIFSIGNALED(status)) {
+                eye_failed(w.index, "the analysis crashed: " + signal_name(WTERMSIG(status)),
+                           static_cast<int>(ExitCode::kInternal), secs);
+            } else {
+                const int code = WIFEXITED(status) ? WEXITSTATUS(status) : 0;
+                eye_failed(w.index,
+                           fmt::format("failed without a message (the worker exited with "
+                                       "status {} during the analysis)",
+                                       code),
+                           code != 0 ? code : static_cast<int>(ExitCode::kInternal), secs);
+            }
+        }
+        replace(w);
+    }
+
+    // Eyes over the limit: the worker is killed (reaped before the tables) and replaced.
+    void stop_overdue() {
+        for (Worker& w : workers_) {
+            if (w.pid < 0 || !w.busy || o_.eye_timeout_s <= 0.0) continue;
+            const double secs = seconds_since(w.start, Clock::now());
+            if (secs < o_.eye_timeout_s) continue;
+            ::kill(w.pid, SIGKILL);
+            ::close(w.sock);
+            retired_.push_back(w.pid);
+            eye_failed(w.index,
+                       fmt::format("the analysis did not finish within --eye-timeout-s {:g} s "
+                                   "and was stopped",
+                                   o_.eye_timeout_s),
+                       static_cast<int>(ExitCode::kAnalysisFailed), secs);
+            replace(w);
+        }
+    }
+
+    const CohortOptions& o_;
+    const SubjectSource& subjects_;
+    std::vector<Item>& items_;
+    const std::vector<std::size_t>& pending_;
+    const fs::path& out_;
+    const std::string& fail_options_;
+    int lock_fd_;
+    Progress& progress_;
+    std::vector<Worker> workers_;
+    std::vector<pid_t> retired_;  // workers told to stop, or killed; reaped before the tables
+    std::size_t next_ = 0;        // the next of `pending_` to send
+    pid_t parent_;
+    spdlog::level::level_enum worker_level_;
+};
+
 }  // namespace
 
 void run_workers(const CohortOptions& o, const SubjectSource& subjects, std::vector<Item>& items,
@@ -230,174 +448,7 @@ void run_workers(const CohortOptions& o, const SubjectSource& subjects, std::vec
     // The eyes run in `jobs` worker processes, each forked once and given eye after eye; a
     // worker that dies mid-eye (crash) or is killed (--eye-timeout-s) has its eye recorded as a
     // failure and is replaced. Supervision: docs/cohort.md.
-    std::vector<Worker> workers(std::min(pending.size(), static_cast<std::size_t>(jobs)));
-    std::vector<pid_t> retired;  // workers told to stop, or killed; reaped before the tables
-    std::size_t next = 0;
-    const pid_t parent = ::getpid();
-    const auto worker_level =
-        spdlog::get_level() <= spdlog::level::debug ? spdlog::get_level() : spdlog::level::err;
-    const auto start_worker = [&](Worker& w) {
-        int sv[2];
-        if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, sv) != 0) {
-            throw OutputError("socketpair", std::strerror(errno));
-        }
-        std::fflush(stderr);
-        spdlog::default_logger()->flush();
-        const pid_t pid = ::fork();
-        if (pid < 0) throw OutputError("fork", std::strerror(errno));
-        if (pid == 0) {
-            // The worker dies with the parent (SIGKILL of the batch kills its eyes too).
-            ::prctl(PR_SET_PDEATHSIG, SIGKILL);
-            if (::getppid() != parent) ::_exit(static_cast<int>(ExitCode::kInternal));
-            ::close(sv[0]);
-            // The other workers' sockets: each must see end-of-file when the parent closes it.
-            for (const Worker& other : workers) {
-                if (other.sock >= 0) ::close(other.sock);
-            }
-            // The lock is the batch's: an eye outliving a killed batch must not block the
-            // re-run (its atomic write of the same result is harmless).
-            ::close(lock_fd);
-            spdlog::set_level(worker_level);
-            worker_main(o, subjects, items, out, sv[1]);
-        }
-        ::close(sv[1]);
-        w = Worker{};
-        w.pid = pid;
-        w.sock = sv[0];
-    };
-    // Gives an idle worker the next eye, or tells it to stop (closes its socket) if none is left.
-    const auto dispatch = [&](Worker& w) {
-        if (next >= pending.size()) {
-            ::close(w.sock);
-            retired.push_back(w.pid);
-            w = Worker{};
-            return;
-        }
-        const std::uint64_t index = pending[next++];
-        if (::send(w.sock, &index, sizeof index, MSG_NOSIGNAL) !=
-            static_cast<ssize_t>(sizeof index)) {
-            --next;  // the worker died while idle: the eye stays pending, poll sees the end
-            return;
-        }
-        w.busy = true;
-        w.index = index;
-        w.start = Clock::now();
-    };
-    const auto replace = [&](Worker& w) {
-        w = Worker{};
-        if (next < pending.size()) {
-            start_worker(w);
-            dispatch(w);
-        }
-    };
-    const auto eye_failed = [&](std::size_t index, const std::string& reason, int code,
-                                double secs) {
-        record_failure(items[index], out, fail_options, reason, code);
-        progress.finished(items[index], false, reason, secs);
-    };
-    const auto eye_done = [&](std::size_t index, double secs) {
-        std::string reason;
-        if (take_result(items[index], out, reason)) {
-            progress.finished(items[index], true, "", secs);
-        } else {
-            eye_failed(index, reason, static_cast<int>(ExitCode::kInternal), secs);
-        }
-    };
-    for (Worker& w : workers) {
-        start_worker(w);
-        dispatch(w);
-    }
-    std::vector<pollfd> fds;
-    std::vector<Worker*> polled;
-    for (;;) {
-        if (g_stop_signal != 0) stop_batch(g_stop_signal, workers, retired, items, out, lock_fd);
-        fds.clear();
-        polled.clear();
-        int wait_ms = 1000;  // a bound, should an end go unnoticed by poll
-        const auto now = Clock::now();
-        for (Worker& w : workers) {
-            if (w.pid < 0) continue;
-            fds.push_back({w.sock, POLLIN, 0});
-            polled.push_back(&w);
-            if (w.busy && o.eye_timeout_s > 0.0) {
-                const double left =
-                    o.eye_timeout_s - std::chrono::duration<double>(now - w.start).count();
-                wait_ms = std::clamp(static_cast<int>(std::ceil(left * 1000.0)), 0, wait_ms);
-            }
-        }
-        if (fds.empty()) break;
-        if (::poll(fds.data(), fds.size(), wait_ms) < 0 && errno != EINTR) {
-            throw std::runtime_error(std::string("poll: ") + std::strerror(errno));
-        }
-        for (std::size_t k = 0; k < fds.size(); ++k) {
-            if (fds[k].revents == 0) continue;
-            Worker& w = *polled[k];
-            std::array<char, sizeof(EyeDone) + kMaxMessage> buf{};
-            const auto got = ::recv(w.sock, buf.data(), buf.size(), MSG_DONTWAIT);
-            if (got < 0 && (errno == EINTR || errno == EAGAIN)) continue;
-            const double secs =
-                w.busy ? std::chrono::duration<double>(Clock::now() - w.start).count() : 0.0;
-            if (got >= static_cast<ssize_t>(sizeof(EyeDone))) {
-                EyeDone d;
-                std::memcpy(&d, buf.data(), sizeof d);
-                if (w.busy && d.index == w.index) {
-                    w.busy = false;
-                    const auto length = std::min<std::size_t>(
-                        d.length, static_cast<std::size_t>(got) - sizeof d);
-                    std::string message(buf.data() + sizeof d, length);
-                    if (d.code == 0) {
-                        eye_done(d.index, secs);
-                    } else {
-                        eye_failed(d.index,
-                                   message.empty() ? "failed without a message" : message,
-                                   d.code, secs);
-                    }
-                }
-                dispatch(w);
-                continue;
-            }
-            // End of file: the worker has ended (a short record cannot come from a worker; one
-            // that sent it is stopped).
-            if (got != 0) ::kill(w.pid, SIGKILL);
-            ::close(w.sock);
-            int status = 0;
-            while (::waitpid(w.pid, &status, 0) < 0 && errno == EINTR) {
-            }
-            if (w.busy) {
-                if (WIFSIGNALED(status)) {
-                    eye_failed(w.index, "the analysis crashed: " + signal_name(WTERMSIG(status)),
-                               static_cast<int>(ExitCode::kInternal), secs);
-                } else {
-                    const int code = WIFEXITED(status) ? WEXITSTATUS(status) : 0;
-                    eye_failed(w.index,
-                               fmt::format("failed without a message (the worker exited with "
-                                           "status {} during the analysis)",
-                                           code),
-                               code != 0 ? code : static_cast<int>(ExitCode::kInternal), secs);
-                }
-            }
-            replace(w);
-        }
-        // Eyes over the limit: the worker is killed (reaped before the tables) and replaced.
-        for (Worker& w : workers) {
-            if (w.pid < 0 || !w.busy || o.eye_timeout_s <= 0.0) continue;
-            const double secs = std::chrono::duration<double>(Clock::now() - w.start).count();
-            if (secs < o.eye_timeout_s) continue;
-            ::kill(w.pid, SIGKILL);
-            ::close(w.sock);
-            retired.push_back(w.pid);
-            eye_failed(w.index,
-                       fmt::format("the analysis did not finish within --eye-timeout-s {:g} s "
-                                   "and was stopped",
-                                   o.eye_timeout_s),
-                       static_cast<int>(ExitCode::kAnalysisFailed), secs);
-            replace(w);
-        }
-    }
-    for (const pid_t pid : retired) {
-        while (::waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {
-        }
-    }
+    Batch(o, subjects, items, pending, out, fail_options, jobs, lock_fd, progress).run();
     progress.end();
 }
 

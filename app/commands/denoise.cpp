@@ -107,6 +107,58 @@ void run_pointset_denoise(const DenoiseOptions& o) {
     std::cout << j.dump(2) << '\n';
 }
 
+// RoFi's (or bilateral filtering's) parameters: the automatic ones from the noise when
+// `use_auto`, then each explicit option.
+mesh::RofiParams rofi_params(const DenoiseOptions& o, const mesh::NoiseEstimate& noise,
+                             bool use_auto) {
+    mesh::RofiParams p;
+    if (o.method == "bilateral") {
+        // Classic bilateral normal filtering: Gaussian similarity, no fidelity term.
+        p.similarity = mesh::Similarity::kGaussian;
+        p.sigma_s = 0.35;
+        p.lambda_i = 0.0;
+    }
+    if (use_auto) {
+        // Bilateral filtering, the classic method for comparison, keeps the paper's disk.
+        const mesh::RofiParams a = o.method == "bilateral"
+                                       ? mesh::paper_disk_rofi_params(noise)
+                                       : mesh::auto_rofi_params(noise);
+        // A Gaussian of width σ weighs like a Tukey window of about 2.2 σ.
+        p.sigma_s = o.method == "bilateral" ? a.sigma_s / 2.2 : a.sigma_s;
+        if (o.method == "rofi") p.lambda_i = a.lambda_i;
+        p.iterations = a.iterations;
+        // RoFi's stop (docs/algorithms/rofi.md, "Stopping"): `iterations` is then the
+        // maximum; an explicit --iterations runs exactly that many.
+        if (o.method == "rofi") p.stop = a.stop;
+        p.radius_factor = a.radius_factor;
+        p.sigma_c_factor = a.sigma_c_factor;
+    }
+    if (o.similarity == "gaussian") p.similarity = mesh::Similarity::kGaussian;
+    if (o.similarity == "tukey") p.similarity = mesh::Similarity::kTukey;
+    if (o.sigma_s) p.sigma_s = *o.sigma_s;
+    if (o.lambda_i) p.lambda_i = *o.lambda_i;
+    if (o.iterations) {
+        p.iterations = *o.iterations;
+        p.stop = mesh::RofiStop::kNone;
+    }
+    if (o.radius_factor) p.radius_factor = *o.radius_factor;
+    if (o.sigma_c_factor) p.sigma_c_factor = *o.sigma_c_factor;
+    p.threads = o.threads;
+    p.repair_folds = !o.no_fold_repair;
+    // Progress on stderr for long runs (a 5 M-face mesh takes minutes): a line every
+    // 5 s once 5 s have passed, none for a run that ends sooner.
+    const auto started = std::chrono::steady_clock::now();
+    auto reported = started;
+    p.progress = [&o, started, reported](int k, int total) mutable {
+        const auto now = std::chrono::steady_clock::now();
+        if (now - reported < std::chrono::seconds(5)) return;
+        reported = now;
+        spdlog::info("{}: iteration {} of at most {} ({:.0f} s)", log_name(o.input, "mesh"),
+                     k, total, std::chrono::duration<double>(now - started).count());
+    };
+    return p;
+}
+
 void run_denoise(const DenoiseOptions& o) {
     Provenance prov("denoise");
     const bool rofi_option = o.sigma_s || o.lambda_i || !o.similarity.empty() ||
@@ -142,51 +194,7 @@ void run_denoise(const DenoiseOptions& o) {
     nlohmann::json params;
     mesh::DenoiseResult result;
     if (rofi_like) {
-        mesh::RofiParams p;
-        if (o.method == "bilateral") {
-            // Classic bilateral normal filtering: Gaussian similarity, no fidelity term.
-            p.similarity = mesh::Similarity::kGaussian;
-            p.sigma_s = 0.35;
-            p.lambda_i = 0.0;
-        }
-        if (use_auto) {
-            // Bilateral filtering, the classic method for comparison, keeps the paper's disk.
-            const mesh::RofiParams a = o.method == "bilateral"
-                                           ? mesh::paper_disk_rofi_params(noise)
-                                           : mesh::auto_rofi_params(noise);
-            // A Gaussian of width σ weighs like a Tukey window of about 2.2 σ.
-            p.sigma_s = o.method == "bilateral" ? a.sigma_s / 2.2 : a.sigma_s;
-            if (o.method == "rofi") p.lambda_i = a.lambda_i;
-            p.iterations = a.iterations;
-            // RoFi's stop (docs/algorithms/rofi.md, "Stopping"): `iterations` is then the
-            // maximum; an explicit --iterations runs exactly that many.
-            if (o.method == "rofi") p.stop = a.stop;
-            p.radius_factor = a.radius_factor;
-            p.sigma_c_factor = a.sigma_c_factor;
-        }
-        if (o.similarity == "gaussian") p.similarity = mesh::Similarity::kGaussian;
-        if (o.similarity == "tukey") p.similarity = mesh::Similarity::kTukey;
-        if (o.sigma_s) p.sigma_s = *o.sigma_s;
-        if (o.lambda_i) p.lambda_i = *o.lambda_i;
-        if (o.iterations) {
-            p.iterations = *o.iterations;
-            p.stop = mesh::RofiStop::kNone;
-        }
-        if (o.radius_factor) p.radius_factor = *o.radius_factor;
-        if (o.sigma_c_factor) p.sigma_c_factor = *o.sigma_c_factor;
-        p.threads = o.threads;
-        p.repair_folds = !o.no_fold_repair;
-        // Progress on stderr for long runs (a 5 M-face mesh takes minutes): a line every
-        // 5 s once 5 s have passed, none for a run that ends sooner.
-        const auto started = std::chrono::steady_clock::now();
-        auto reported = started;
-        p.progress = [&, started, reported](int k, int total) mutable {
-            const auto now = std::chrono::steady_clock::now();
-            if (now - reported < std::chrono::seconds(5)) return;
-            reported = now;
-            spdlog::info("{}: iteration {} of at most {} ({:.0f} s)", log_name(o.input, "mesh"),
-                         k, total, std::chrono::duration<double>(now - started).count());
-        };
+        mesh::RofiParams p = rofi_params(o, noise, use_auto);
         p.validate();
         params = {{"sigma_s", p.sigma_s},
                   {"lambda_i", p.lambda_i},

@@ -14,6 +14,7 @@
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <string>
@@ -23,7 +24,9 @@
 #include "octshape/qc/names.h"
 #include "octshape/io/atomic_file.h"
 #include "octshape/error.h"
+#include "octshape/retina/cube_report.h"
 #include "octshape/retina/eye_stats.h"
+#include "octshape/retina/onh_report.h"
 #include "octshape/version.h"
 #include "octshape/retina/record.h"
 
@@ -35,18 +38,14 @@ using json = nlohmann::json;
 namespace record = retina::record;
 using record::Name;
 
-// Parameters shown per scan type (the rest stay in the JSON); other types show their first
-// kMaxGenericParams scalar parameters.
-const std::map<std::string, std::vector<std::string>>& key_parameters() {
-    static const std::map<std::string, std::vector<std::string>> k{
-        {"macula",
-         {"cft_mm", "rim_height_mm", "pit_depth_mm", "max_pit_slope_deg", "rim_diameter_mm",
-          "pit_volume_mm3", "rmse_um"}},
-        {"onh",
-         {"cup_volume_mm3", "conht_mm", "bmo_volume_mm3", "bmo_area_mm2", "mrw_mm",
-          "bending_energy"}},
-    };
-    return k;
+// Parameters shown for an eye of the command `type` (the rest stay in the JSON): the
+// analysis's key columns (cube_report.h, onh_report.h); nullptr for another command, whose
+// first kMaxGenericParams scalar parameters are shown.
+const std::vector<std::string>* key_parameters(const std::string& type) {
+    const std::optional<retina::ScanType> t = retina::record::parse_scan_type(type);
+    if (t == retina::ScanType::kMacula) return &retina::macula_key_columns();
+    if (t == retina::ScanType::kOnh) return &retina::onh_key_columns();
+    return nullptr;
 }
 constexpr std::size_t kMaxGenericParams = 6;
 
@@ -308,9 +307,8 @@ Eyes read_eyes(const fs::path& outdir) {
         if (row.fields["scan_type"].empty()) row.fields["scan_type"] = type;
         if (j.contains("parameters") && j["parameters"].is_object()) {
             const json& p = j["parameters"];
-            const auto kt = key_parameters().find(type);
-            if (kt != key_parameters().end()) {
-                for (const auto& name : kt->second) {
+            if (const std::vector<std::string>* key = key_parameters(type)) {
+                for (const auto& name : *key) {
                     if (!p.contains(name)) continue;
                     add_param_column(name);
                     row.params[name] = p[name].is_number() ? text_of(p[name]) : "NA";

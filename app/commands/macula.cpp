@@ -55,7 +55,7 @@ void add_macula_command(CLI::App& app, RunContext& /*ctx*/) {
                     "Write the per-eye JSON here (default: print it on stdout)");
     cmd->add_option("--csv", opts->csv_out, "Write one CSV row (with header) here");
     cmd->add_option("--qc", opts->eye.qc_dir,
-                    "Write QC pictures here: " + qc::help_list("macula") +
+                    "Write QC pictures here: " + qc::help_list(retina::ScanType::kMacula) +
                         "; STEM = the -o file's stem, else --csv's, else 'eye'");
     cmd->add_flag("--record-paths", opts->eye.record_paths,
                   "Also write the input's path into the JSON and CSV (identifying: export and "

@@ -664,6 +664,8 @@ void simd_exp_nonpositive(const double* x, double* out, std::size_t n, SimdPath 
     }
 }
 
+// Long (161 lines, over the 150 of the style): one iteration loop whose phases share the run's
+// arrays, kernel and stop state; its pieces would pass a dozen of them (issue 35's measured code).
 DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& params) {
     params.validate();
     validate_mesh(V, F);

@@ -60,6 +60,8 @@ std::string error_line(const std::string& err) {
     return err.substr(at, end == std::string::npos ? std::string::npos : end - at);
 }
 
+// Long (221 lines, over the 150 of the style): the fixtures, then one table of cases (command,
+// the file its message names, exit code, outputs that must not exist), read as a list.
 SLOW_TEST(Messages, EveryErrorPathNamesTheFileAndTheCause) {
     SKIP_UNLESS_SHARED("realdata/onh_circle_valid.vol", "realdata/fovea_line_716_0.vol", "realdata/not_spectralis_eyepy_written.vol", "realdata/T566581_Surfaces_Iowa.xml");
     TempDir tmp;

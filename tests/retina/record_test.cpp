@@ -123,6 +123,23 @@ TEST(Record, ScanTypesByTheirNames) {
     EXPECT_EQ(record::eyes_table_file(ScanType::kOnh), "eyes_onh.csv");
 }
 
+// The QC gallery shows each eye's key parameters by their names: every one must be a column the
+// tables write (and so a key of the JSON's "parameters"), or a renamed column would silently
+// vanish from the page (as "mrw_mm", never a column, did before the names came from here).
+TEST(Record, TheGallerysKeyParametersAreColumnsTheTablesWrite) {
+    const auto check = [](const std::vector<std::string>& keys,
+                          const std::vector<std::string>& header, const char* what) {
+        EXPECT_FALSE(keys.empty()) << what;
+        EXPECT_EQ(std::set<std::string>(keys.begin(), keys.end()).size(), keys.size()) << what;
+        for (const auto& k : keys) {
+            EXPECT_NE(std::find(header.begin(), header.end(), k), header.end())
+                << what << ": key parameter " << k << " is not a column";
+        }
+    };
+    check(macula_key_columns(), macula_csv_header(), "macula");
+    check(onh_key_columns(), onh_csv_header(), "onh");
+}
+
 // ---- The documentation lists exactly what the code writes -----------------------------------
 
 std::string read_text(const std::filesystem::path& p) {

@@ -237,6 +237,14 @@ std::vector<std::string> macula_csv_header() {
     return h;
 }
 
+const std::vector<std::string>& macula_key_columns() {
+    static const std::vector<std::string> k{"cft_mm",          "rim_height_mm",
+                                            "pit_depth_mm",    "max_pit_slope_deg",
+                                            "rim_diameter_mm", "pit_volume_mm3",
+                                            "rmse_um"};
+    return k;
+}
+
 std::vector<std::string> cube_csv_values(const CubeResult& r) {
     std::vector<std::string> v{r.line_scan ? "line" : r.radial_scan ? "radial" : "volume",
                                r.centre_source};

@@ -247,6 +247,12 @@ std::vector<std::string> onh_csv_header() {
     return h;
 }
 
+const std::vector<std::string>& onh_key_columns() {
+    static const std::vector<std::string> k{"cup_volume_mm3", "conht_mm",    "bmo_volume_mm3",
+                                            "bmo_area_mm2",   "mrw_mean_mm", "bending_energy"};
+    return k;
+}
+
 std::vector<std::string> onh_csv_values(const OnhResult& r) {
     std::vector<std::string> v{r.ilm_source, r.bmo_source};
     for (const auto& c : columns()) v.push_back(csv_number(c.get(r)));

@@ -482,124 +482,115 @@ std::vector<Eigen::Vector2d> macula_sample_points(const MaculaPhantomParams& p) 
     return pts;
 }
 
-MaculaTruth macula_truth(const MaculaPhantomParams& p, const MaculaTruthOptions& o) {
-    p.validate();
-    o.validate();
-    const phantom::GridFrame frame = phantom::grid_frame(macula_layout(p));
-    const V2 centre = macula_centre_mm(p);
-    MaculaTruth t;
-    t.line_scan = p.line;
-    t.centre_x_mm = centre.x();
-    t.centre_y_mm = centre.y();
-    const bool bez_family = p.family == MaculaFamily::kBezier;
-    // A line scan has the two half-lines left and right of the centre (SPEC §4.8); a radial
-    // scan two per line.
-    const int n = p.line ? 2 : p.radial ? 2 * p.radial_lines : o.num_half_lines;
+namespace {
+
+// One half-line of a Bezier-family eye, in closed form; returns the central foveal thickness.
+double bezier_half_line(const MaculaPhantomParams& p, const MaculaTruthOptions& o,
+                        HalfLineTruth& h) {
     const double tau = o.tau_mm;
-    double quad_vr_err = 0.0;
-    double quad_vir_err = 0.0;
-    std::vector<Eigen::Vector3d> rim_pts;
-    std::vector<Eigen::Vector3d> slope_pts;
-    std::vector<Eigen::Vector3d> flat_pts;
-    for (int i = 0; i < n; ++i) {
-        HalfLineTruth h;
-        h.angle_deg = 360.0 * i / n;
-        double cft = 0.0;
-        if (bez_family) {
-            const BezierProfile b = bezier_profile(h.angle_deg, p);
-            const Cubic in = b.interior();
-            const Cubic ex = b.exterior();
-            cft = b.cft_mm;
-            h.rim_radius_mm = b.rim_radius_mm;
-            h.rim_height_mm = b.rim_height_mm;
-            h.alpha_mm = b.alpha_mm;
-            h.beta_mm = b.beta_mm;
-            // Maximum slope (SPEC §4.6): dy/dx = 2 dy t(1-t) / (a(1-t)^2 + 2(w-a-b)t(1-t) + b t^2)
-            // is largest at t_m = sqrt(a)/(sqrt(a)+sqrt(b)) with value dy/(sqrt(ab) + w - a - b).
-            const double dy = b.rim_height_mm - b.cft_mm;
-            const double sa = std::sqrt(b.alpha_mm);
-            const double sb = std::sqrt(b.beta_mm);
-            const double tm = sa / (sa + sb);
-            const double s =
-                dy / (sa * sb + b.rim_radius_mm - b.alpha_mm - b.beta_mm);  // Eq. 7.20 corrected
-            h.max_slope_deg = std::atan(s) * kDeg;
-            const V2 q = bez(in, tm);
-            h.slope_point = {q.x(), q.y()};
-            // Pit flat: y(t) = CFT + dy (3t^2 - 2t^3) = CFT + tau (Eq. 7.24-7.25 on Q_I).
-            const double tf =
-                bisect([&](double x) { return dy * (3 * x * x - 2 * x * x * x) - tau; }, 0.0, 1.0);
-            h.pit_flat_radius_mm = bez(in, tf).x();
-            h.rim_volume_mm3 = volume_integral(in, 0.0, 1.0);  // Eq. 7.27
-            if (o.inner_radius_mm <= b.rim_radius_mm) {
-                h.inner_rim_volume_mm3 = volume_integral(in, 0.0, solve_x(in, o.inner_radius_mm));
-            } else {  // r_u passes the rim: the exterior counts too (Eq. 7.28)
-                h.inner_rim_volume_mm3 = volume_integral(in, 0.0, 1.0) +
-                                         volume_integral(ex, 0.0, solve_x(ex, o.inner_radius_mm));
-            }
-            for (const V2& c : in) h.interior_control_points.push_back({c.x(), c.y()});
-            for (const V2& c : ex) h.exterior_control_points.push_back({c.x(), c.y()});
-            for (const V2& c : split_left(ex, solve_x(ex, o.radius_mm))) {
-                h.exterior_to_r_control_points.push_back({c.x(), c.y()});
-            }
-        } else {
-            const ScheibeProfile sp = scheibe_profile(h.angle_deg, p);
-            cft = sp.cft_mm;
-            h.rim_radius_mm = sp.rim_radius_mm();
-            h.rim_height_mm = sp.thickness_mm(h.rim_radius_mm);
-            // The steepest point is the inflection (T'' = 0) inside the pit: bracket it on a
-            // dense grid (exactly one sign change expected), then bisect to the last bit.
-            constexpr int kDense = 4000;
-            int changes = 0;
-            double lo = 0.0;
-            double hi = 0.0;
-            double prev_r = h.rim_radius_mm / kDense;
-            double prev = sp.curvature(prev_r);
-            for (int k = 2; k < kDense; ++k) {
-                const double r = h.rim_radius_mm * k / kDense;
-                const double c = sp.curvature(r);
-                if ((prev > 0.0) != (c > 0.0)) {
-                    ++changes;
-                    lo = prev_r;
-                    hi = r;
-                }
-                prev = c;
-                prev_r = r;
-            }
-            if (changes != 1) {
-                // Unreachable from input: the built-in profiles have one, and validate() keeps the
-                // variation affine (T'' scaled by pit_depth_scale > 0, r by radial_scale).
-                throw InternalError("Scheibe profile without a single inflection in the pit");
-            }
-            const double rs = bisect([&](double r) { return -sp.curvature(r); }, lo, hi);
-            h.max_slope_deg = std::atan(sp.slope(rs)) * kDeg;
-            h.slope_point = {rs, sp.thickness_mm(rs)};
-            h.pit_flat_radius_mm = bisect(
-                [&](double r) { return sp.thickness_mm(r) - cft - tau; }, 0.0, h.rim_radius_mm);
-            auto integrand = [&](double r) { return sp.thickness_mm(r) * r; };
-            auto quad = [&](double r1, double& err) {
-                const double coarse = gauss_legendre(integrand, 0.0, r1, o.quadrature_panels);
-                const double fine = gauss_legendre(integrand, 0.0, r1, 2 * o.quadrature_panels);
-                err = std::max(err, std::fabs(fine - coarse));
-                return fine;
-            };
-            double e1 = 0.0;
-            double e2 = 0.0;
-            h.rim_volume_mm3 = quad(h.rim_radius_mm, e1);
-            h.inner_rim_volume_mm3 = quad(o.inner_radius_mm, e2);
-            quad_vr_err += e1;
-            quad_vir_err += e2;
-        }
-        t.cft_mm = cft;
-        const V2 g = frame.grid_direction(h.angle_deg);
-        auto point = [&](double r, double z) {
-            return Eigen::Vector3d(centre.x() + r * g.x(), centre.y() + r * g.y(), z);
-        };
-        rim_pts.push_back(point(h.rim_radius_mm, h.rim_height_mm));
-        slope_pts.push_back(point(h.slope_point[0], h.slope_point[1]));
-        flat_pts.push_back(point(h.pit_flat_radius_mm, cft + tau));
-        t.half_lines.push_back(std::move(h));
+    const BezierProfile b = bezier_profile(h.angle_deg, p);
+    const Cubic in = b.interior();
+    const Cubic ex = b.exterior();
+    h.rim_radius_mm = b.rim_radius_mm;
+    h.rim_height_mm = b.rim_height_mm;
+    h.alpha_mm = b.alpha_mm;
+    h.beta_mm = b.beta_mm;
+    // Maximum slope (SPEC §4.6): dy/dx = 2 dy t(1-t) / (a(1-t)^2 + 2(w-a-b)t(1-t) + b t^2)
+    // is largest at t_m = sqrt(a)/(sqrt(a)+sqrt(b)) with value dy/(sqrt(ab) + w - a - b).
+    const double dy = b.rim_height_mm - b.cft_mm;
+    const double sa = std::sqrt(b.alpha_mm);
+    const double sb = std::sqrt(b.beta_mm);
+    const double tm = sa / (sa + sb);
+    const double s =
+        dy / (sa * sb + b.rim_radius_mm - b.alpha_mm - b.beta_mm);  // Eq. 7.20 corrected
+    h.max_slope_deg = std::atan(s) * kDeg;
+    const V2 q = bez(in, tm);
+    h.slope_point = {q.x(), q.y()};
+    // Pit flat: y(t) = CFT + dy (3t^2 - 2t^3) = CFT + tau (Eq. 7.24-7.25 on Q_I).
+    const double tf =
+        bisect([&](double x) { return dy * (3 * x * x - 2 * x * x * x) - tau; }, 0.0, 1.0);
+    h.pit_flat_radius_mm = bez(in, tf).x();
+    h.rim_volume_mm3 = volume_integral(in, 0.0, 1.0);  // Eq. 7.27
+    if (o.inner_radius_mm <= b.rim_radius_mm) {
+        h.inner_rim_volume_mm3 = volume_integral(in, 0.0, solve_x(in, o.inner_radius_mm));
+    } else {  // r_u passes the rim: the exterior counts too (Eq. 7.28)
+        h.inner_rim_volume_mm3 = volume_integral(in, 0.0, 1.0) +
+                                 volume_integral(ex, 0.0, solve_x(ex, o.inner_radius_mm));
     }
-    const double inv_n = 1.0 / n;
+    for (const V2& c : in) h.interior_control_points.push_back({c.x(), c.y()});
+    for (const V2& c : ex) h.exterior_control_points.push_back({c.x(), c.y()});
+    for (const V2& c : split_left(ex, solve_x(ex, o.radius_mm))) {
+        h.exterior_to_r_control_points.push_back({c.x(), c.y()});
+    }
+    return b.cft_mm;
+}
+
+// The quadrature errors of the Scheibe family's volumes, summed over the half-lines.
+struct QuadratureErrors {
+    double rim_volume = 0.0;
+    double inner_rim_volume = 0.0;
+};
+
+// One half-line of a Scheibe-family eye, numerically to the last bit (the volumes by
+// quadrature, whose errors are added to `errors`); returns the central foveal thickness.
+double scheibe_half_line(const MaculaPhantomParams& p, const MaculaTruthOptions& o,
+                         HalfLineTruth& h, QuadratureErrors& errors) {
+    const double tau = o.tau_mm;
+    const ScheibeProfile sp = scheibe_profile(h.angle_deg, p);
+    const double cft = sp.cft_mm;
+    h.rim_radius_mm = sp.rim_radius_mm();
+    h.rim_height_mm = sp.thickness_mm(h.rim_radius_mm);
+    // The steepest point is the inflection (T'' = 0) inside the pit: bracket it on a
+    // dense grid (exactly one sign change expected), then bisect to the last bit.
+    constexpr int kDense = 4000;
+    int changes = 0;
+    double lo = 0.0;
+    double hi = 0.0;
+    double prev_r = h.rim_radius_mm / kDense;
+    double prev = sp.curvature(prev_r);
+    for (int k = 2; k < kDense; ++k) {
+        const double r = h.rim_radius_mm * k / kDense;
+        const double c = sp.curvature(r);
+        if ((prev > 0.0) != (c > 0.0)) {
+            ++changes;
+            lo = prev_r;
+            hi = r;
+        }
+        prev = c;
+        prev_r = r;
+    }
+    if (changes != 1) {
+        // Unreachable from input: the built-in profiles have one, and validate() keeps the
+        // variation affine (T'' scaled by pit_depth_scale > 0, r by radial_scale).
+        throw InternalError("Scheibe profile without a single inflection in the pit");
+    }
+    const double rs = bisect([&](double r) { return -sp.curvature(r); }, lo, hi);
+    h.max_slope_deg = std::atan(sp.slope(rs)) * kDeg;
+    h.slope_point = {rs, sp.thickness_mm(rs)};
+    h.pit_flat_radius_mm = bisect(
+        [&](double r) { return sp.thickness_mm(r) - cft - tau; }, 0.0, h.rim_radius_mm);
+    auto integrand = [&](double r) { return sp.thickness_mm(r) * r; };
+    auto quad = [&](double r1, double& err) {
+        const double coarse = gauss_legendre(integrand, 0.0, r1, o.quadrature_panels);
+        const double fine = gauss_legendre(integrand, 0.0, r1, 2 * o.quadrature_panels);
+        err = std::max(err, std::fabs(fine - coarse));
+        return fine;
+    };
+    double e1 = 0.0;
+    double e2 = 0.0;
+    h.rim_volume_mm3 = quad(h.rim_radius_mm, e1);
+    h.inner_rim_volume_mm3 = quad(o.inner_radius_mm, e2);
+    errors.rim_volume += e1;
+    errors.inner_rim_volume += e2;
+    return cft;
+}
+
+// The eye's values from its half-lines (Eq. 7.15-7.29) and the disks through their points.
+void combine_half_lines(const MaculaPhantomParams& p, bool bez_family,
+                        const std::vector<Eigen::Vector3d>& rim_pts,
+                        const std::vector<Eigen::Vector3d>& slope_pts,
+                        const std::vector<Eigen::Vector3d>& flat_pts, MaculaTruth& t) {
+    const double inv_n = 1.0 / static_cast<double>(t.half_lines.size());
     double slope_sum = 0.0;
     double flat_sum = 0.0;
     double vr = 0.0;
@@ -632,8 +623,14 @@ MaculaTruth macula_truth(const MaculaPhantomParams& p, const MaculaTruthOptions&
         t.inner_rim_volume_mm3 = 2.0 * kPi * inv_n * vir;  // Eq. 7.28
         t.pit_volume_mm3 = t.rim.area_mm2 * t.rim_height_mm - t.rim_volume_mm3;  // Eq. 7.29
     }
+}
 
-    // Method and accuracy of each value. Rounding of a closed form in double: ~1e-15 mm.
+// Method and accuracy of each value. Rounding of a closed form in double: ~1e-15 mm.
+void add_truth_accuracy(const MaculaPhantomParams& p, const MaculaTruthOptions& o,
+                        bool bez_family, const QuadratureErrors& quad_err, MaculaTruth& t) {
+    const double inv_n = 1.0 / static_cast<double>(t.half_lines.size());
+    const double quad_vr_err = quad_err.rim_volume;
+    const double quad_vir_err = quad_err.inner_rim_volume;
     auto add = [&](const std::string& name, const std::string& method, double err) {
         t.accuracy.emplace_back(name, TruthAccuracy{method, err});
     };
@@ -678,6 +675,45 @@ MaculaTruth macula_truth(const MaculaPhantomParams& p, const MaculaTruthOptions&
             t.rim.area_mm2 * 1e-12 +
                 (bez_family ? 1e-14 : 2.0 * kPi * inv_n * quad_vr_err));
     }
+}
+
+}  // namespace
+
+MaculaTruth macula_truth(const MaculaPhantomParams& p, const MaculaTruthOptions& o) {
+    p.validate();
+    o.validate();
+    const phantom::GridFrame frame = phantom::grid_frame(macula_layout(p));
+    const V2 centre = macula_centre_mm(p);
+    MaculaTruth t;
+    t.line_scan = p.line;
+    t.centre_x_mm = centre.x();
+    t.centre_y_mm = centre.y();
+    const bool bez_family = p.family == MaculaFamily::kBezier;
+    // A line scan has the two half-lines left and right of the centre (SPEC §4.8); a radial
+    // scan two per line.
+    const int n = p.line ? 2 : p.radial ? 2 * p.radial_lines : o.num_half_lines;
+    const double tau = o.tau_mm;
+    QuadratureErrors quad_err;
+    std::vector<Eigen::Vector3d> rim_pts;
+    std::vector<Eigen::Vector3d> slope_pts;
+    std::vector<Eigen::Vector3d> flat_pts;
+    for (int i = 0; i < n; ++i) {
+        HalfLineTruth h;
+        h.angle_deg = 360.0 * i / n;
+        const double cft =
+            bez_family ? bezier_half_line(p, o, h) : scheibe_half_line(p, o, h, quad_err);
+        t.cft_mm = cft;
+        const V2 g = frame.grid_direction(h.angle_deg);
+        auto point = [&](double r, double z) {
+            return Eigen::Vector3d(centre.x() + r * g.x(), centre.y() + r * g.y(), z);
+        };
+        rim_pts.push_back(point(h.rim_radius_mm, h.rim_height_mm));
+        slope_pts.push_back(point(h.slope_point[0], h.slope_point[1]));
+        flat_pts.push_back(point(h.pit_flat_radius_mm, cft + tau));
+        t.half_lines.push_back(std::move(h));
+    }
+    combine_half_lines(p, bez_family, rim_pts, slope_pts, flat_pts, t);
+    add_truth_accuracy(p, o, bez_family, quad_err, t);
     return t;
 }
 
@@ -740,28 +776,26 @@ io::ThicknessGrid etdrs_grid(const MaculaPhantomParams& p,
 
 }  // namespace
 
-MaculaPhantom make_macula_phantom(const MaculaPhantomParams& p, const MaculaTruthOptions& o) {
-    p.validate();
-    o.validate();
-    const phantom::VolumeLayout layout = macula_layout(p);
-    MaculaPhantom out;
-    out.frame = phantom::grid_frame(layout);
-    out.centre_mm = macula_centre_mm(p);
-    out.scan = phantom::make_scan_frame(layout);
-    io::Scan& scan = out.scan;
-    const auto nx = static_cast<std::size_t>(layout.size_x);
-    const auto nb = static_cast<std::size_t>(layout.num_bscans);
-    const V2 scan_centre = out.frame.centre_mm();
-    const std::vector<Vessel> vessels = make_vessels(p, out.centre_mm);
+namespace {
 
-    // True heights (mm) of ILM (with vessels) and BM at every A-scan, and the vessel weight.
-    std::vector<double> z_ilm(nb * nx);
-    std::vector<double> z_bm(nb * nx);
-    std::vector<double> shadow(nb * nx, 0.0);
+// True heights (mm) of ILM (with vessels) and BM at every A-scan, the vessel weight (for the
+// shadow), and the highest ILM and lowest BM.
+struct TrueSurfaces {
+    std::vector<double> z_ilm;
+    std::vector<double> z_bm;
+    std::vector<double> shadow;
     double top = -1e9;
     double bottom = 1e9;
-    // Every A-scan's grid position: the same continuous eye for volumes, lines and radial scans.
-    const std::vector<V2> points = macula_sample_points(p);
+};
+
+TrueSurfaces true_surfaces(const MaculaPhantomParams& p, const MaculaPhantom& out,
+                           const std::vector<V2>& points, const std::vector<Vessel>& vessels,
+                           std::size_t nb, std::size_t nx) {
+    TrueSurfaces s;
+    s.z_ilm.resize(nb * nx);
+    s.z_bm.resize(nb * nx);
+    s.shadow.assign(nb * nx, 0.0);
+    const V2 scan_centre = out.frame.centre_mm();
     for (std::size_t b = 0; b < nb; ++b) {
         for (std::size_t a = 0; a < nx; ++a) {
             const V2& g = points[b * nx + a];
@@ -776,16 +810,68 @@ MaculaPhantom make_macula_phantom(const MaculaPhantomParams& p, const MaculaTrut
                 w_max = std::max(w_max, w);
             }
             const std::size_t i = b * nx + a;
-            z_bm[i] = wall_height_mm(p, scan_centre, g);
-            z_ilm[i] = z_bm[i] + th + raise;
-            shadow[i] = w_max;
-            top = std::max(top, z_ilm[i]);
-            bottom = std::min(bottom, z_bm[i]);
+            s.z_bm[i] = wall_height_mm(p, scan_centre, g);
+            s.z_ilm[i] = s.z_bm[i] + th + raise;
+            s.shadow[i] = w_max;
+            s.top = std::max(s.top, s.z_ilm[i]);
+            s.bottom = std::min(s.bottom, s.z_bm[i]);
         }
     }
-    // Depth offset: the band from the highest ILM to the lowest BM takes the middle of the image
-    // (a little above centre, leaving room for the choroid).
-    const double span_px = (top - bottom) / layout.scale_z_mm;
+    return s;
+}
+
+// Missing A-scans: half the requested fraction as blocks at the B-scan edges (as devices
+// lose the segmentation there), the rest at random positions; exactly round(f * N) in all.
+std::vector<char> missing_ascans(const MaculaPhantomParams& p, std::size_t nb, std::size_t nx) {
+    std::vector<char> missing(nb * nx, 0);
+    if (p.missing_fraction <= 0.0) return missing;
+    phantom::Rng rng(p.seed, 0x3155ULL);
+    const double all = static_cast<double>(nb * nx);
+    const auto target = static_cast<std::size_t>(std::llround(p.missing_fraction * all));
+    std::size_t count = 0;
+    const double edge_mean = 0.25 * p.missing_fraction * static_cast<double>(nx);
+    for (std::size_t b = 0; b < nb && count < target; ++b) {
+        const auto left = static_cast<std::size_t>(2.0 * edge_mean * rng.uniform());
+        const auto right = static_cast<std::size_t>(2.0 * edge_mean * rng.uniform());
+        for (std::size_t a = 0; a < left && count < target; ++a) {
+            if (!missing[b * nx + a]) {
+                missing[b * nx + a] = 1;
+                ++count;
+            }
+        }
+        for (std::size_t a = 0; a < right && count < target; ++a) {
+            const std::size_t i = b * nx + (nx - 1 - a);
+            if (!missing[i]) {
+                missing[i] = 1;
+                ++count;
+            }
+        }
+    }
+    std::vector<std::size_t> free;
+    for (std::size_t i = 0; i < missing.size(); ++i) {
+        if (!missing[i]) free.push_back(i);
+    }
+    // Partial Fisher-Yates: the first (target - count) of a random permutation of `free`.
+    for (std::size_t k = 0; count < target && k < free.size(); ++k, ++count) {
+        const std::size_t j =
+            k + static_cast<std::size_t>(rng.uniform() * static_cast<double>(free.size() - k));
+        std::swap(free[k], free[std::min(j, free.size() - 1)]);
+        missing[free[k]] = 1;
+    }
+    return missing;
+}
+
+// Image depth (pixels) of a height z (mm): the band from the highest ILM to the lowest BM takes
+// the middle of the image (a little above centre, leaving room for the choroid).
+struct DepthMap {
+    double z0 = 0.0;
+    double scale_z_mm = 1.0;
+    double operator()(double z) const { return (z0 - z) / scale_z_mm; }
+};
+
+DepthMap depth_map(const MaculaPhantomParams& p, const phantom::VolumeLayout& layout,
+                   const TrueSurfaces& s) {
+    const double span_px = (s.top - s.bottom) / layout.scale_z_mm;
     const double noise_px = p.noise_um * 1e-3 / layout.scale_z_mm;
     if (span_px + 12.0 * noise_px > 0.8 * layout.size_z) {
         throw UsageError("macula phantom: retina and eye wall span " +
@@ -793,50 +879,17 @@ MaculaPhantom make_macula_phantom(const MaculaPhantomParams& p, const MaculaTrut
                          " pixels, more than 80 % of depth " + std::to_string(layout.size_z) +
                          ": use a larger --depth or --scale-z, --wall-radius-mm 0 or less tilt");
     }
-    const double z0 = top + 0.4 * (layout.size_z - span_px) * layout.scale_z_mm;
-    auto depth = [&](double z) { return (z0 - z) / layout.scale_z_mm; };
+    return {s.top + 0.4 * (layout.size_z - span_px) * layout.scale_z_mm, layout.scale_z_mm};
+}
 
-    // Missing A-scans: half the requested fraction as blocks at the B-scan edges (as devices
-    // lose the segmentation there), the rest at random positions; exactly round(f * N) in all.
-    std::vector<char> missing(nb * nx, 0);
-    if (p.missing_fraction > 0.0) {
-        phantom::Rng rng(p.seed, 0x3155ULL);
-        const double all = static_cast<double>(nb * nx);
-        const auto target = static_cast<std::size_t>(std::llround(p.missing_fraction * all));
-        std::size_t count = 0;
-        const double edge_mean = 0.25 * p.missing_fraction * static_cast<double>(nx);
-        for (std::size_t b = 0; b < nb && count < target; ++b) {
-            const auto left = static_cast<std::size_t>(2.0 * edge_mean * rng.uniform());
-            const auto right = static_cast<std::size_t>(2.0 * edge_mean * rng.uniform());
-            for (std::size_t a = 0; a < left && count < target; ++a) {
-                if (!missing[b * nx + a]) {
-                    missing[b * nx + a] = 1;
-                    ++count;
-                }
-            }
-            for (std::size_t a = 0; a < right && count < target; ++a) {
-                const std::size_t i = b * nx + (nx - 1 - a);
-                if (!missing[i]) {
-                    missing[i] = 1;
-                    ++count;
-                }
-            }
-        }
-        std::vector<std::size_t> free;
-        for (std::size_t i = 0; i < missing.size(); ++i) {
-            if (!missing[i]) free.push_back(i);
-        }
-        // Partial Fisher-Yates: the first (target - count) of a random permutation of `free`.
-        for (std::size_t k = 0; count < target && k < free.size(); ++k, ++count) {
-            const std::size_t j =
-                k + static_cast<std::size_t>(rng.uniform() * static_cast<double>(free.size() - k));
-            std::swap(free[k], free[std::min(j, free.size() - 1)]);
-            missing[free[k]] = 1;
-        }
-    }
-
-    // Segmentation lines. Inner boundaries follow the layer model of the pixels; the noise is on
-    // ILM and BM only (what the CuBe analysis uses).
+// Segmentation lines. Inner boundaries follow the layer model of the pixels; the noise is on
+// ILM and BM only (what the CuBe analysis uses).
+void write_segmentation(const MaculaPhantomParams& p, const phantom::VolumeLayout& layout,
+                        const TrueSurfaces& s, const std::vector<char>& missing,
+                        const DepthMap& depth, io::Scan& scan) {
+    const auto nx = static_cast<std::size_t>(layout.size_x);
+    const auto nb = static_cast<std::size_t>(layout.num_bscans);
+    const double noise_px = p.noise_um * 1e-3 / layout.scale_z_mm;
     const phantom::RetinaLayers layers;
     constexpr std::array<std::pair<int, int>, 8> kInner{{{2, 1}, {3, 2}, {4, 3}, {5, 4}, {6, 5},
                                                          {8, 6}, {14, 7}, {16, 9}}};
@@ -854,8 +907,8 @@ MaculaPhantom make_macula_phantom(const MaculaPhantomParams& p, const MaculaTrut
                 for (auto& line : bs.seg) line[a] = nan;
                 continue;
             }
-            const double d_ilm = depth(z_ilm[i]);
-            const double d_bm = depth(z_bm[i]);
+            const double d_ilm = depth(s.z_ilm[i]);
+            const double d_bm = depth(s.z_bm[i]);
             bs.seg[0][a] = static_cast<float>(d_ilm + n_ilm);
             bs.seg[1][a] = static_cast<float>(d_bm + n_bm);
             const phantom::ColumnBoundaries cb =
@@ -868,85 +921,116 @@ MaculaPhantom make_macula_phantom(const MaculaPhantomParams& p, const MaculaTrut
             }
         }
     }
+}
 
-    // Pixels: the true boundaries (with vessels), layered reflectance, a shadow under vessels,
-    // speckle.
-    if (p.pixels) {
-        for (std::size_t b = 0; b < nb; ++b) {
-            auto column = [&](int a, std::span<float> col) {
-                const std::size_t i = b * nx + static_cast<std::size_t>(a);
-                const phantom::ColumnBoundaries cb = phantom::retina_boundaries(
-                    depth(z_ilm[i]), depth(z_bm[i]), layout.scale_z_mm, layers);
-                phantom::layered_retina_column(cb, layout.scale_z_mm, layers, col);
-                if (shadow[i] > 0.0) {
-                    const double start = cb.depth_px[2];  // below the vessel in the GCL
-                    for (std::size_t z = 0; z < col.size(); ++z) {
-                        if (static_cast<double>(z) > start) {
-                            col[z] = static_cast<float>(col[z] * (1.0 - 0.6 * shadow[i]));
-                        }
+// Pixels: the true boundaries (with vessels), layered reflectance, a shadow under vessels,
+// speckle; and the SLO.
+void render_macula_pixels(const MaculaPhantomParams& p, const phantom::VolumeLayout& layout,
+                          const TrueSurfaces& s, const DepthMap& depth,
+                          const std::vector<Vessel>& vessels, MaculaPhantom& out) {
+    io::Scan& scan = out.scan;
+    const auto nx = static_cast<std::size_t>(layout.size_x);
+    const auto nb = static_cast<std::size_t>(layout.num_bscans);
+    const phantom::RetinaLayers layers;
+    for (std::size_t b = 0; b < nb; ++b) {
+        auto column = [&](int a, std::span<float> col) {
+            const std::size_t i = b * nx + static_cast<std::size_t>(a);
+            const phantom::ColumnBoundaries cb = phantom::retina_boundaries(
+                depth(s.z_ilm[i]), depth(s.z_bm[i]), layout.scale_z_mm, layers);
+            phantom::layered_retina_column(cb, layout.scale_z_mm, layers, col);
+            if (s.shadow[i] > 0.0) {
+                const double start = cb.depth_px[2];  // below the vessel in the GCL
+                for (std::size_t z = 0; z < col.size(); ++z) {
+                    if (static_cast<double>(z) > start) {
+                        col[z] = static_cast<float>(col[z] * (1.0 - 0.6 * s.shadow[i]));
                     }
                 }
-            };
-            phantom::render_bscan(scan.bscans[b], layout.size_x, layout.size_z, column,
-                                  p.speckle, p.seed, b);
-        }
-        // SLO: fundus grey with vignetting, a darker fovea, the optic disc 4.3 mm nasal, and
-        // the vessels as dark bands.
-        const V2 disc = out.centre_mm + 4.3 * out.frame.grid_direction(0.0) +
-                        0.3 * out.frame.grid_direction(90.0);
-        const double slo_side = scan.meta.size_x_slo * scan.meta.scale_x_slo_mm;
-        const phantom::GridFrame& f = out.frame;
-        auto brightness = [&](double xs, double ys) {
-            // SLO mm -> grid mm (grid_to_slo is its own inverse here, but use the general form).
-            const V2 g = f.grid_to_slo.inverse() * (V2(xs, ys) - f.origin_slo_mm);
-            const double rho = (V2(xs, ys) - V2(slo_side / 2, slo_side / 2)).norm() / slo_side;
-            double v = 0.45 * (1.0 - 0.6 * rho * rho);
-            v *= 1.0 - 0.35 * std::exp(-(g - out.centre_mm).squaredNorm() / (2 * 0.5 * 0.5));
-            const double dd = (g - disc).norm();
-            v += 0.45 / (1.0 + std::exp((dd - 0.85) / 0.05));
-            for (const Vessel& ves : vessels) v *= 1.0 - 0.45 * vessel_weight(ves, g);
-            return v;
+            }
         };
-        phantom::render_slo(scan, brightness, p.seed);
-        scan.pixels_loaded = true;
+        phantom::render_bscan(scan.bscans[b], layout.size_x, layout.size_z, column, p.speckle,
+                              p.seed, b);
     }
+    // SLO: fundus grey with vignetting, a darker fovea, the optic disc 4.3 mm nasal, and
+    // the vessels as dark bands.
+    const V2 disc = out.centre_mm + 4.3 * out.frame.grid_direction(0.0) +
+                    0.3 * out.frame.grid_direction(90.0);
+    const double slo_side = scan.meta.size_x_slo * scan.meta.scale_x_slo_mm;
+    const phantom::GridFrame& f = out.frame;
+    auto brightness = [&](double xs, double ys) {
+        // SLO mm -> grid mm (grid_to_slo is its own inverse here, but use the general form).
+        const V2 g = f.grid_to_slo.inverse() * (V2(xs, ys) - f.origin_slo_mm);
+        const double rho = (V2(xs, ys) - V2(slo_side / 2, slo_side / 2)).norm() / slo_side;
+        double v = 0.45 * (1.0 - 0.6 * rho * rho);
+        v *= 1.0 - 0.35 * std::exp(-(g - out.centre_mm).squaredNorm() / (2 * 0.5 * 0.5));
+        const double dd = (g - disc).norm();
+        v += 0.45 / (1.0 + std::exp((dd - 0.85) / 0.05));
+        for (const Vessel& ves : vessels) v *= 1.0 - 0.45 * vessel_weight(ves, g);
+        return v;
+    };
+    phantom::render_slo(scan, brightness, p.seed);
+    scan.pixels_loaded = true;
+}
 
-    if (p.artefacts.any()) {
-        // Three acquisition vessels (straight, 1-3 mm from the fovea, 60-150 um wide) and
-        // faults farther than 2.5 mm from the fovea (outside the CuBe fit's 2 mm).
-        std::vector<phantom::VesselPath> paths;
-        phantom::Rng rng(p.seed, 0x5AD0ULL);
-        for (int k = 0; k < 3; ++k) {
-            const double phi = kPi * rng.uniform();
-            const V2 normal(std::cos(phi), std::sin(phi));
-            const V2 along(-normal.y(), normal.x());
-            const double dist = (k % 2 == 0 ? -1.0 : 1.0) * (1.0 + 2.0 * rng.uniform());
-            const V2 base = out.centre_mm + dist * normal;
-            paths.push_back({{base - 12.0 * along, base + 12.0 * along},
-                             0.06 + 0.09 * rng.uniform()});
-        }
-        const phantom::AcquisitionShifts shifts = macula_acquisition_shifts(p);
-        phantom::apply_acquisition_artefacts(scan, points, paths, p.artefacts, shifts, 0, 1,
-                                             out.centre_mm, 2.5);
+// Three acquisition vessels (straight, 1-3 mm from the fovea, 60-150 um wide) and faults
+// farther than 2.5 mm from the fovea (outside the CuBe fit's 2 mm).
+void apply_macula_artefacts(const MaculaPhantomParams& p, const std::vector<V2>& points,
+                            MaculaPhantom& out) {
+    std::vector<phantom::VesselPath> paths;
+    phantom::Rng rng(p.seed, 0x5AD0ULL);
+    for (int k = 0; k < 3; ++k) {
+        const double phi = kPi * rng.uniform();
+        const V2 normal(std::cos(phi), std::sin(phi));
+        const V2 along(-normal.y(), normal.x());
+        const double dist = (k % 2 == 0 ? -1.0 : 1.0) * (1.0 + 2.0 * rng.uniform());
+        const V2 base = out.centre_mm + dist * normal;
+        paths.push_back({{base - 12.0 * along, base + 12.0 * along}, 0.06 + 0.09 * rng.uniform()});
     }
-    if (p.radial) {
-        // The lines on the SLO through the crossing; a radial scan has no B-scan Distance.
-        const V2 crossing = out.frame.centre_mm();
-        for (std::size_t b = 0; b < nb; ++b) {
-            const V2 u = radial_line_direction(p, static_cast<int>(b));
-            const V2 start = out.frame.to_slo(crossing - 0.5 * p.line_length_mm * u);
-            const V2 end = out.frame.to_slo(crossing + 0.5 * p.line_length_mm * u);
-            scan.bscans[b].start_x_mm = start.x();
-            scan.bscans[b].start_y_mm = start.y();
-            scan.bscans[b].end_x_mm = end.x();
-            scan.bscans[b].end_y_mm = end.y();
-        }
-        scan.meta.distance_mm = 0.0;
+    const phantom::AcquisitionShifts shifts = macula_acquisition_shifts(p);
+    phantom::apply_acquisition_artefacts(out.scan, points, paths, p.artefacts, shifts, 0, 1,
+                                         out.centre_mm, 2.5);
+}
+
+// The radial lines on the SLO through the crossing; a radial scan has no B-scan Distance.
+void place_radial_lines(const MaculaPhantomParams& p, MaculaPhantom& out) {
+    io::Scan& scan = out.scan;
+    const V2 crossing = out.frame.centre_mm();
+    for (std::size_t b = 0; b < scan.bscans.size(); ++b) {
+        const V2 u = radial_line_direction(p, static_cast<int>(b));
+        const V2 start = out.frame.to_slo(crossing - 0.5 * p.line_length_mm * u);
+        const V2 end = out.frame.to_slo(crossing + 0.5 * p.line_length_mm * u);
+        scan.bscans[b].start_x_mm = start.x();
+        scan.bscans[b].start_y_mm = start.y();
+        scan.bscans[b].end_x_mm = end.x();
+        scan.bscans[b].end_y_mm = end.y();
     }
+    scan.meta.distance_mm = 0.0;
+}
+
+}  // namespace
+
+MaculaPhantom make_macula_phantom(const MaculaPhantomParams& p, const MaculaTruthOptions& o) {
+    p.validate();
+    o.validate();
+    const phantom::VolumeLayout layout = macula_layout(p);
+    MaculaPhantom out;
+    out.frame = phantom::grid_frame(layout);
+    out.centre_mm = macula_centre_mm(p);
+    out.scan = phantom::make_scan_frame(layout);
+    const auto nx = static_cast<std::size_t>(layout.size_x);
+    const auto nb = static_cast<std::size_t>(layout.num_bscans);
+    const std::vector<Vessel> vessels = make_vessels(p, out.centre_mm);
+    // Every A-scan's grid position: the same continuous eye for volumes, lines and radial scans.
+    const std::vector<V2> points = macula_sample_points(p);
+    const TrueSurfaces surfaces = true_surfaces(p, out, points, vessels, nb, nx);
+    const DepthMap depth = depth_map(p, layout, surfaces);
+    write_segmentation(p, layout, surfaces, missing_ascans(p, nb, nx), depth, out.scan);
+    if (p.pixels) render_macula_pixels(p, layout, surfaces, depth, vessels, out);
+    if (p.artefacts.any()) apply_macula_artefacts(p, points, out);
+    if (p.radial) place_radial_lines(p, out);
     if (!p.line && !p.radial) {  // line and radial scans carry no thickness grid
         const V2 hint = out.centre_mm + V2(p.grid_hint_dx_mm, p.grid_hint_dy_mm);
-        scan.grids.push_back(etdrs_grid(p, out.frame, out.centre_mm, hint));
-        scan.meta.grid_type = 3;
+        out.scan.grids.push_back(etdrs_grid(p, out.frame, out.centre_mm, hint));
+        out.scan.meta.grid_type = 3;
     }
     out.truth = macula_truth(p, o);
     return out;

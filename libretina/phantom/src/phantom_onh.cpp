@@ -1404,17 +1404,12 @@ OnhPhantom make_onh_phantom(const OnhPhantomParams& params, const OnhTruthOption
     return p;
 }
 
-nlohmann::json onh_truth_to_json(const OnhPhantomParams& params,
-                                 const OnhTruthOptions& options,
-                                 const OnhTruth& truth) {
+namespace {
+
+// The frame, angles and definitions the truth values follow.
+nlohmann::json onh_truth_conventions() {
     using nlohmann::json;
-    const OnhProfileParams& pr = params.profile;
-    const OnhPhantomGeometry g(params);
     json j;
-    j["generator"] = "octshape phantom onh";
-    // The version only (docs/outputs.md, "Provenance"): the documented command reproduces the
-    // file bit for bit from any revision of it.
-    j["provenance"] = {{"version", kVersion}};
     j["conventions"] = {
         {"frame",
          "grid mm: x = A-scan index * ScaleX, y = B-scan index * Distance "
@@ -1440,6 +1435,15 @@ nlohmann::json onh_truth_to_json(const OnhPhantomParams& params,
         {"bending_energy",
          "lambda2 + lambda3 (= 1 - lambda1) of the area-weighted normal "
          "tensor of the whole ILM region inside the BMO (cup included)"}};
+    return j["conventions"];
+}
+
+// The phantom's parameters as written in the truth file (the radial pattern's only when radial,
+// so that a volume's truth file stays bit for bit as before).
+nlohmann::json onh_options_json(const OnhPhantomParams& params, const OnhPhantomGeometry& g) {
+    using nlohmann::json;
+    const OnhProfileParams& pr = params.profile;
+    json j;
     j["options"] = {{"shape", to_string(params.shape)},
                     {"eye", std::string(io::to_string(params.eye))},
                     {"seed", params.seed},
@@ -1484,33 +1488,41 @@ nlohmann::json onh_truth_to_json(const OnhPhantomParams& params,
         j["options"]["crossing_mm"] = {c.x(), c.y()};
         j["options"]["line_ascan_spacing_mm"] = params.line_length_mm / (params.num_ascans - 1);
     }
-    if (params.artefacts.any()) {  // only then (a still phantom's truth file is unchanged)
-        const phantom::AcquisitionArtefacts& a = params.artefacts;
-        const phantom::AcquisitionShifts sh = onh_acquisition_shifts(params);
-        json axial_um = json::array();
-        json lateral_um = json::array();
-        for (std::size_t b = 0; b < sh.axial_px.size(); ++b) {
-            axial_um.push_back(sh.axial_px[b] * g.scale_z_mm() * 1000.0);
-            lateral_um.push_back(sh.lateral_px[b] * (params.radial ? 0.0 : g.scale_x_mm()) *
-                                 1000.0);
-        }
-        j["acquisition"] = {
-            {"motion_sd_um", a.motion_sd_um},
-            {"lateral_jitter_um", a.lateral_jitter_um},
-            {"vessel_shadows", a.vessel_shadows},
-            {"cleft", a.cleft},
-            {"segmentation_faults", a.segmentation_faults},
-            {"axial_shift_um", axial_um},
-            {"lateral_shift_um", lateral_um},
-            {"note",
-             "the acquisition's artefacts, not the eye's: B-scan b's pixels and device lines lie "
-             "axial_shift_um[b] deeper (and lateral_shift_um[b] towards higher A-scans) than the "
-             "eye; the truth is that of the still eye"}};
+    return j["options"];
+}
+
+// The acquisition artefacts and the true per-B-scan shifts (written only for a phantom with
+// artefacts, so that a still phantom's truth file is unchanged).
+nlohmann::json onh_acquisition_json(const OnhPhantomParams& params, const OnhPhantomGeometry& g) {
+    using nlohmann::json;
+    json j;
+    const phantom::AcquisitionArtefacts& a = params.artefacts;
+    const phantom::AcquisitionShifts sh = onh_acquisition_shifts(params);
+    json axial_um = json::array();
+    json lateral_um = json::array();
+    for (std::size_t b = 0; b < sh.axial_px.size(); ++b) {
+        axial_um.push_back(sh.axial_px[b] * g.scale_z_mm() * 1000.0);
+        lateral_um.push_back(sh.lateral_px[b] * (params.radial ? 0.0 : g.scale_x_mm()) *
+                             1000.0);
     }
-    j["truth_options"] = {{"s_step", options.s_step},
-                          {"phi_steps", options.phi_steps},
-                          {"mrw_points", options.mrw_points},
-                          {"mrw_search_step", options.mrw_search_step}};
+    j["acquisition"] = {
+        {"motion_sd_um", a.motion_sd_um},
+        {"lateral_jitter_um", a.lateral_jitter_um},
+        {"vessel_shadows", a.vessel_shadows},
+        {"cleft", a.cleft},
+        {"segmentation_faults", a.segmentation_faults},
+        {"axial_shift_um", axial_um},
+        {"lateral_shift_um", lateral_um},
+        {"note",
+         "the acquisition's artefacts, not the eye's: B-scan b's pixels and device lines lie "
+         "axial_shift_um[b] deeper (and lateral_shift_um[b] towards higher A-scans) than the "
+         "eye; the truth is that of the still eye"}};
+    return j["acquisition"];
+}
+
+// The truth values, their accuracy and the BMO points.
+void add_onh_truth_values(const OnhTruth& truth, nlohmann::json& j) {
+    using nlohmann::json;
     json sectors = json::object();
     for (std::size_t k = 0; k < 12; ++k) {
         sectors[std::to_string(30 * k)] =
@@ -1553,34 +1565,59 @@ nlohmann::json onh_truth_to_json(const OnhPhantomParams& params,
                           {"anatomical_deg", truth.bmo_anatomical_deg[i]}});
     }
     j["bmo_points"] = points;
-    if (truth.has_inplane) {
-        const OnhInplaneTruth& in = truth.inplane;
-        json isec = json::object();
-        json ipts = json::array();
-        for (std::size_t k = 0; k < 12; ++k) {
-            isec[std::to_string(30 * k)] =
-                in.sector_points[k] > 0 ? json(in.sector_mm[k]) : json(nullptr);
-        }
-        for (std::size_t i = 0; i < in.mrw_mm.size(); ++i) {
-            const auto& p = in.bmo_points_mm[i];
-            const auto& q = in.mrw_points_mm[i];
-            ipts.push_back({{"bscan", in.line[i]},
-                            {"bmo_mm", {p.x(), p.y(), p.z()}},
-                            {"mrw_point_mm", {q.x(), q.y(), q.z()}},
-                            {"mrw_mm", in.mrw_mm[i]},
-                            {"anatomical_deg", in.anatomical_deg[i]}});
-        }
-        j["truth"]["mrw_inplane_mean_mm"] = in.mean_mm;
-        j["truth"]["mrw_inplane_min_mm"] = in.min_mm;
-        j["truth"]["mrw_inplane_max_mm"] = in.max_mm;
-        j["truth"]["mrw_inplane_sector_mm"] = isec;
-        j["conventions"]["mrw_inplane"] =
-            "radial scans: in each B-scan's vertical plane, from the two points where its line "
-            "crosses the BMO ellipse (z = BM height) to the closest point of the true ILM curve "
-            "in that plane; sectors as mrw_sectors, by the BMO point's angle about the BMO centre";
-        j["inplane_bmo_points"] = ipts;
-        j["accuracy"]["mrw_inplane_mean_mm"]["largest_per_point_change"] = in.abs_change_mm;
+}
+
+// Radial scans: the in-plane minimum rim width (per B-scan plane).
+void add_onh_inplane_truth(const OnhInplaneTruth& in, nlohmann::json& j) {
+    using nlohmann::json;
+    json isec = json::object();
+    json ipts = json::array();
+    for (std::size_t k = 0; k < 12; ++k) {
+        isec[std::to_string(30 * k)] =
+            in.sector_points[k] > 0 ? json(in.sector_mm[k]) : json(nullptr);
     }
+    for (std::size_t i = 0; i < in.mrw_mm.size(); ++i) {
+        const auto& p = in.bmo_points_mm[i];
+        const auto& q = in.mrw_points_mm[i];
+        ipts.push_back({{"bscan", in.line[i]},
+                        {"bmo_mm", {p.x(), p.y(), p.z()}},
+                        {"mrw_point_mm", {q.x(), q.y(), q.z()}},
+                        {"mrw_mm", in.mrw_mm[i]},
+                        {"anatomical_deg", in.anatomical_deg[i]}});
+    }
+    j["truth"]["mrw_inplane_mean_mm"] = in.mean_mm;
+    j["truth"]["mrw_inplane_min_mm"] = in.min_mm;
+    j["truth"]["mrw_inplane_max_mm"] = in.max_mm;
+    j["truth"]["mrw_inplane_sector_mm"] = isec;
+    j["conventions"]["mrw_inplane"] =
+        "radial scans: in each B-scan's vertical plane, from the two points where its line "
+        "crosses the BMO ellipse (z = BM height) to the closest point of the true ILM curve "
+        "in that plane; sectors as mrw_sectors, by the BMO point's angle about the BMO centre";
+    j["inplane_bmo_points"] = ipts;
+    j["accuracy"]["mrw_inplane_mean_mm"]["largest_per_point_change"] = in.abs_change_mm;
+}
+
+}  // namespace
+
+nlohmann::json onh_truth_to_json(const OnhPhantomParams& params,
+                                 const OnhTruthOptions& options,
+                                 const OnhTruth& truth) {
+    using nlohmann::json;
+    const OnhPhantomGeometry g(params);
+    json j;
+    j["generator"] = "octshape phantom onh";
+    // The version only (docs/outputs.md, "Provenance"): the documented command reproduces the
+    // file bit for bit from any revision of it.
+    j["provenance"] = {{"version", kVersion}};
+    j["conventions"] = onh_truth_conventions();
+    j["options"] = onh_options_json(params, g);
+    if (params.artefacts.any()) j["acquisition"] = onh_acquisition_json(params, g);
+    j["truth_options"] = {{"s_step", options.s_step},
+                          {"phi_steps", options.phi_steps},
+                          {"mrw_points", options.mrw_points},
+                          {"mrw_search_step", options.mrw_search_step}};
+    add_onh_truth_values(truth, j);
+    if (truth.has_inplane) add_onh_inplane_truth(truth.inplane, j);
     return j;  // no timings: the same options give the same file
 }
 

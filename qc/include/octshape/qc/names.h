@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "octshape/retina/scan_type.h"
+
 namespace octshape::qc {
 
 namespace kind {
@@ -21,10 +23,17 @@ inline constexpr const char* kBscans = "bscans";
 inline constexpr const char* kMrw = "mrw";
 }  // namespace kind
 
-// The kinds a scan type ("macula", "onh") gets, in the order they are drawn.
-inline std::vector<std::string> kinds(const std::string& scan_type) {
-    if (scan_type == "onh") return {kind::kEnface, kind::kBscans, kind::kMrw};
-    return {kind::kThickness, kind::kProfiles, kind::kBscan};
+// The kinds a scan type gets, in the order they are drawn (kUnsupported: none).
+inline std::vector<std::string> kinds(retina::ScanType scan_type) {
+    switch (scan_type) {
+        case retina::ScanType::kMacula:
+            return {kind::kThickness, kind::kProfiles, kind::kBscan};
+        case retina::ScanType::kOnh:
+            return {kind::kEnface, kind::kBscans, kind::kMrw};
+        case retina::ScanType::kUnsupported:
+            break;
+    }
+    return {};
 }
 
 // What a picture of `kind` shows, as the commands' --qc help says it ("" for an unknown kind).
@@ -50,7 +59,7 @@ inline std::string what_it_shows(const std::string& kind) {
 
 // The pictures of `scan_type` for a command's --qc help: "STEM_thickness.png (what it shows),
 // STEM_profiles.png (...) and STEM_bscan.png (...)".
-inline std::string help_list(const std::string& scan_type) {
+inline std::string help_list(retina::ScanType scan_type) {
     const std::vector<std::string> k = kinds(scan_type);
     std::string s;
     for (std::size_t i = 0; i < k.size(); ++i) {
@@ -67,7 +76,7 @@ inline std::string picture_name(const std::string& stem, const std::string& kind
 
 // Every picture name of one eye of `scan_type`.
 inline std::vector<std::string> picture_names(const std::string& stem,
-                                              const std::string& scan_type) {
+                                              retina::ScanType scan_type) {
     std::vector<std::string> names;
     for (const auto& k : kinds(scan_type)) names.push_back(picture_name(stem, k));
     return names;

@@ -32,4 +32,9 @@ namespace octshape::retina {
 // tables, `merge`, `stats` and the documentation test (tests/retina/record_test.cpp) follow.
 [[nodiscard]] std::vector<std::string> macula_csv_header();
 
+// The macula's key parameters, the few the QC gallery shows per eye (the rest stay in the
+// JSON): columns of macula_csv_header() and keys of the JSON's "parameters", in the page's
+// order (tests/retina/record_test.cpp checks that each is a column).
+[[nodiscard]] const std::vector<std::string>& macula_key_columns();
+
 }  // namespace octshape::retina

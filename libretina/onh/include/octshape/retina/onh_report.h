@@ -23,4 +23,9 @@ namespace octshape::retina {
 [[nodiscard]] std::vector<std::string> onh_csv_header();
 [[nodiscard]] std::vector<std::string> onh_csv_values(const OnhResult& r);
 
+// The ONH's key parameters, the few the QC gallery shows per eye (the rest stay in the JSON):
+// columns of onh_csv_header() and keys of the JSON's "parameters", in the page's order
+// (tests/retina/record_test.cpp checks that each is a column).
+[[nodiscard]] const std::vector<std::string>& onh_key_columns();
+
 }  // namespace octshape::retina
