@@ -4,9 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cctype>
 #include <filesystem>
 #include <iomanip>
-#include <regex>
 #include <set>
 #include <sstream>
 #include <string>
@@ -32,10 +32,15 @@ std::set<std::string> pictures_named(const std::string& help) {
     const std::size_t end = help.find('\n', at);
     const std::string line = help.substr(at, end - at);
     std::set<std::string> kinds;
-    const std::regex png("STEM_([a-z]+)\\.png");
-    for (auto it = std::sregex_iterator(line.begin(), line.end(), png);
-         it != std::sregex_iterator(); ++it) {
-        kinds.insert((*it)[1]);
+    // By hand, not std::regex: GCC 12 warns (-Wmaybe-uninitialized) inside <regex> at -O1
+    // under the sanitizers, which -Werror turns into a failed build.
+    const std::string stem = "STEM_";
+    for (std::size_t p = line.find(stem); p != std::string::npos; p = line.find(stem, p + 1)) {
+        std::size_t e = p + stem.size();
+        while (e < line.size() && line[e] >= 'a' && line[e] <= 'z') ++e;
+        if (e > p + stem.size() && line.compare(e, 4, ".png") == 0) {
+            kinds.insert(line.substr(p + stem.size(), e - p - stem.size()));
+        }
     }
     return kinds;
 }
@@ -52,9 +57,24 @@ std::set<std::string> pictures_written(const fs::path& dir) {
 
 // The default the help prints for `option` ("--half-lines INT=24" -> "24"), "" if none.
 std::string default_of(const std::string& help, const std::string& option) {
-    const std::regex re(option + " [A-Z]+(:\\{[^}]*\\})?=(\\S+)");
-    std::smatch m;
-    return std::regex_search(help, m, re) ? m[2].str() : "";
+    // "OPTION TYPE=VALUE" or "OPTION TYPE:{choices}=VALUE", TYPE in capitals; by hand (above).
+    const std::string key = option + " ";
+    for (std::size_t p = help.find(key); p != std::string::npos; p = help.find(key, p + 1)) {
+        std::size_t e = p + key.size();
+        const std::size_t type_start = e;
+        while (e < help.size() && help[e] >= 'A' && help[e] <= 'Z') ++e;
+        if (e == type_start) continue;
+        if (help.compare(e, 2, ":{") == 0) {
+            const std::size_t close = help.find('}', e);
+            if (close == std::string::npos) continue;
+            e = close + 1;
+        }
+        if (e >= help.size() || help[e] != '=') continue;
+        const std::size_t v = ++e;
+        while (e < help.size() && !std::isspace(static_cast<unsigned char>(help[e]))) ++e;
+        if (e > v) return help.substr(v, e - v);
+    }
+    return "";
 }
 
 // A number as CLI11 prints a default (std::to_string, trailing zeros dropped).
