@@ -1,4 +1,5 @@
 #include "octshape/retina/phantom_common.h"
+#include "octshape/retina/phantom_speckle.h"
 
 #include <algorithm>
 #include <cmath>
@@ -319,6 +320,110 @@ void render_slo(io::Scan& scan,
                 static_cast<std::uint8_t>(std::lround(std::clamp(value, 0.0, 1.0) * 255.0));
         }
     }
+}
+
+}  // namespace octshape::retina::phantom
+
+namespace octshape::retina::phantom {
+namespace {
+
+// Linear interpolation of the lag where an autocorrelation falls to 0.5 (NaN: not within 3).
+double half_width(const std::array<double, 4>& acf) {
+    for (std::size_t j = 1; j < acf.size(); ++j) {
+        if (acf[j] < 0.5) {
+            return static_cast<double>(j - 1) + (acf[j - 1] - 0.5) / (acf[j - 1] - acf[j]);
+        }
+    }
+    return std::numeric_limits<double>::quiet_NaN();
+}
+
+}  // namespace
+
+SpeckleStats speckle_statistics(const io::BScan& bscan,
+                                int size_x,
+                                int size_z,
+                                std::span<const int> top_row,
+                                int rows,
+                                int box_half) {
+    if (size_x < 1 || size_z < 1 || rows < 1 || box_half < 1 ||
+        top_row.size() != static_cast<std::size_t>(size_x) ||
+        bscan.pixels.size() !=
+            static_cast<std::size_t>(size_x) * static_cast<std::size_t>(size_z)) {
+        throw UsageError("speckle statistics: bad band or image size");
+    }
+    const int h = box_half;
+    const int nk = rows + 2 * h;  // band rows with the box margin above and below
+    // The band in its own coordinates, NaN where a pixel is outside the image or the band.
+    std::vector<double> band(static_cast<std::size_t>(size_x) * nk,
+                             std::numeric_limits<double>::quiet_NaN());
+    auto at = [&](int a, int k) -> double& { return band[static_cast<std::size_t>(a) * nk + k]; };
+    for (int a = 0; a < size_x; ++a) {
+        if (top_row[a] < 0) continue;
+        for (int k = 0; k < nk; ++k) {
+            const int z = top_row[a] - h + k;
+            if (z >= 0 && z < size_z) {
+                at(a, k) = bscan.pixels[static_cast<std::size_t>(z) * size_x + a];
+            }
+        }
+    }
+    // Normalised values (NaN = unused) and their raw values.
+    std::vector<double> norm(band.size(), std::numeric_limits<double>::quiet_NaN());
+    double sum = 0.0, sum2 = 0.0, raw = 0.0, zeros = 0.0;
+    std::size_t n = 0;
+    for (int a = h; a + h < size_x; ++a) {
+        for (int k = h; k < h + rows; ++k) {
+            double box = 0.0;
+            bool whole = true;
+            for (int i = -h; i <= h && whole; ++i) {
+                for (int j = -h; j <= h; ++j) {
+                    const double v = at(a + i, k + j);
+                    if (std::isnan(v)) {
+                        whole = false;
+                        break;
+                    }
+                    box += v;
+                }
+            }
+            if (!whole || !(box > 0.0)) continue;
+            const double v = at(a, k) / (box / ((2 * h + 1) * (2 * h + 1)));
+            norm[static_cast<std::size_t>(a) * nk + k] = v;
+            sum += v;
+            sum2 += v * v;
+            raw += at(a, k);
+            zeros += at(a, k) == 0.0 ? 1.0 : 0.0;
+            ++n;
+        }
+    }
+    if (n < 2) throw AnalysisError("speckle statistics: no usable pixel in the band");
+    SpeckleStats s;
+    s.count = n;
+    const double mean = sum / static_cast<double>(n);
+    const double var = sum2 / static_cast<double>(n) - mean * mean;
+    s.mean_raw = raw / static_cast<double>(n);
+    s.zero_fraction = zeros / static_cast<double>(n);
+    s.contrast = std::sqrt(var) / mean;
+    s.shape = mean * mean / var;
+    auto acf = [&](int da, int dk) {
+        double c = 0.0;
+        std::size_t m = 0;
+        for (int a = 0; a + da < size_x; ++a) {
+            for (int k = 0; k + dk < nk; ++k) {
+                const double u = norm[static_cast<std::size_t>(a) * nk + k];
+                const double w = norm[static_cast<std::size_t>(a + da) * nk + k + dk];
+                if (std::isnan(u) || std::isnan(w)) continue;
+                c += (u - mean) * (w - mean);
+                ++m;
+            }
+        }
+        return m > 0 ? c / static_cast<double>(m) / var : std::numeric_limits<double>::quiet_NaN();
+    };
+    for (int j = 0; j < 4; ++j) {
+        s.acf_axial[j] = acf(0, j);
+        s.acf_lateral[j] = acf(j, 0);
+    }
+    s.half_width_axial_px = half_width(s.acf_axial);
+    s.half_width_lateral_px = half_width(s.acf_lateral);
+    return s;
 }
 
 }  // namespace octshape::retina::phantom
