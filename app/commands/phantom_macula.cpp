@@ -183,6 +183,8 @@ void add_phantom_macula_command(CLI::App& parent, RunContext& /*ctx*/) {
     cmd->add_option("--speckle-looks", p.speckle.looks,
                     "Speckle Gamma shape (1 = fully developed; ART averaging raises it)")
         ->capture_default_str();
+    add_speckle_grain_options(cmd, p.speckle.axial_half_width_px,
+                              p.speckle.lateral_half_width_px);
     cmd->add_option("--half-lines", opts->truth.num_half_lines, "Truth: radial half-lines n")
         ->capture_default_str();
     cmd->add_option("--radius-mm", opts->truth.radius_mm, "Truth: radius R")->capture_default_str();

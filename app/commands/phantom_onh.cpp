@@ -56,6 +56,8 @@ void run(PhantomOnhState& st, const CLI::App& cmd) {
     p.bmo_rotation_deg = given.bmo_rotation_deg;
     p.eye_radius_mm = given.eye_radius_mm;
     p.speckle_looks = given.speckle_looks;
+    p.speckle_axial_half_width_px = given.speckle_axial_half_width_px;
+    p.speckle_lateral_half_width_px = given.speckle_lateral_half_width_px;
     p.radial = st.pattern == "radial";
     p.radial_lines = given.radial_lines;
     p.line_length_mm = given.line_length_mm;
@@ -164,6 +166,8 @@ void add_phantom_onh_command(CLI::App& phantom, RunContext& /*ctx*/) {
     cmd->add_option("--speckle-looks", st->params.speckle_looks,
                     "Speckle Gamma shape (more looks = less speckle)")
         ->capture_default_str();
+    add_speckle_grain_options(cmd, st->params.speckle_axial_half_width_px,
+                              st->params.speckle_lateral_half_width_px);
     cmd->add_option("--retina-thickness-mm", st->profile.retina_thickness_mm,
                     "ILM height above BM far from the disc (preset: 0.30)");
     cmd->add_option("--rim-height-mm", st->profile.rim_height_mm,

@@ -24,4 +24,17 @@ inline void add_acquisition_options(CLI::App* cmd, retina::phantom::AcquisitionA
                   "Device-line faults: an ILM spike and a BM gap, away from the disc / fovea");
 }
 
+// The speckle grain (docs/phantoms.md, "Speckle"): autocorrelation half-widths in pixels.
+inline void add_speckle_grain_options(CLI::App* cmd, double& axial_px, double& lateral_px) {
+    cmd->add_option("--speckle-axial-px", axial_px,
+                    "Speckle grain along the A-scan: half-width of its autocorrelation (px; 0 = "
+                    "independent pixels; real Spectralis 1.9 with 7 looks, docs/phantoms.md "
+                    "\"Speckle\")")
+        ->capture_default_str();
+    cmd->add_option("--speckle-lateral-px", lateral_px,
+                    "Speckle grain across A-scans: half-width of its autocorrelation (A-scans; "
+                    "0 = independent pixels; real Spectralis 1.6 with 7 looks)")
+        ->capture_default_str();
+}
+
 }  // namespace octshape::app

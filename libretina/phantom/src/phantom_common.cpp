@@ -1,4 +1,5 @@
 #include "octshape/retina/phantom_common.h"
+#include "octshape/retina/phantom_speckle.h"
 
 #include <algorithm>
 #include <cmath>
@@ -279,6 +280,66 @@ void layered_retina_column(const ColumnBoundaries& b,
     }
 }
 
+namespace {
+
+// Normalised 1-D Gaussian kernel (sum of squares 1) for a field whose intensity correlation has
+// half-width `half_width_px`; {1} for 0.
+std::vector<double> speckle_kernel(double half_width_px) {
+    if (!(half_width_px > 0.0)) return {1.0};
+    const double sd = half_width_px / std::sqrt(2.0 * std::numbers::ln2);
+    const int r = static_cast<int>(std::ceil(3.0 * sd));
+    std::vector<double> k(static_cast<std::size_t>(2 * r + 1));
+    double sum2 = 0.0;
+    for (int i = -r; i <= r; ++i) {
+        const double v = std::exp(-0.5 * i * i / (sd * sd));
+        k[static_cast<std::size_t>(i + r)] = v;
+        sum2 += v * v;
+    }
+    for (double& v : k) v /= std::sqrt(sum2);
+    return k;
+}
+
+// Correlated speckle (SpeckleParams): mean-1 multipliers, size_z x size_x row-major.
+std::vector<double> correlated_speckle(int size_x,
+                                       int size_z,
+                                       const SpeckleParams& sp,
+                                       Rng& rng) {
+    const std::vector<double> kz = speckle_kernel(sp.axial_half_width_px);
+    const std::vector<double> kx = speckle_kernel(sp.lateral_half_width_px);
+    const int rz = static_cast<int>(kz.size() / 2);
+    const int rx = static_cast<int>(kx.size() / 2);
+    const int wz = size_z + 2 * rz, wx = size_x + 2 * rx;  // the white field with its margins
+    const int looks = static_cast<int>(std::lround(sp.looks));
+    std::vector<double> out(static_cast<std::size_t>(size_x) * size_z, 0.0);
+    std::vector<double> white(static_cast<std::size_t>(wz) * wx);
+    std::vector<double> rows(static_cast<std::size_t>(size_z) * wx);  // smoothed along depth
+    for (int l = 0; l < looks; ++l) {
+        for (int part = 0; part < 2; ++part) {  // real and imaginary parts
+            for (double& v : white) v = rng.normal();
+            std::fill(rows.begin(), rows.end(), 0.0);
+            for (int z = 0; z < size_z; ++z) {
+                for (int j = 0; j <= 2 * rz; ++j) {
+                    const double* src = &white[static_cast<std::size_t>(z + j) * wx];
+                    double* dst = &rows[static_cast<std::size_t>(z) * wx];
+                    for (int x = 0; x < wx; ++x) dst[x] += kz[j] * src[x];
+                }
+            }
+            for (int z = 0; z < size_z; ++z) {
+                const double* src = &rows[static_cast<std::size_t>(z) * wx];
+                for (int x = 0; x < size_x; ++x) {
+                    double f = 0.0;
+                    for (int j = 0; j <= 2 * rx; ++j) f += kx[j] * src[x + j];
+                    // |F|^2 / 2 over both parts: exponential of mean 1 per look.
+                    out[static_cast<std::size_t>(z) * size_x + x] += 0.5 * f * f / looks;
+                }
+            }
+        }
+    }
+    return out;
+}
+
+}  // namespace
+
 void render_bscan(io::BScan& bscan,
                   int size_x,
                   int size_z,
@@ -287,17 +348,30 @@ void render_bscan(io::BScan& bscan,
                   std::uint64_t seed,
                   std::uint64_t stream) {
     if (!(speckle.looks > 0.0)) throw UsageError("speckle: looks must be > 0");
+    const bool grain = speckle.axial_half_width_px > 0.0 || speckle.lateral_half_width_px > 0.0;
+    if (!(speckle.axial_half_width_px >= 0.0 && speckle.axial_half_width_px <= 20.0 &&
+          speckle.lateral_half_width_px >= 0.0 && speckle.lateral_half_width_px <= 20.0)) {
+        throw UsageError("speckle: the grain half-widths must be in 0..20 px");
+    }
+    if (grain && (speckle.looks > 64.0 || std::abs(speckle.looks - std::round(speckle.looks)) >
+                                              1e-9)) {
+        throw UsageError("speckle: with a grain, looks must be a whole number in 1..64");
+    }
     const auto nx = static_cast<std::size_t>(size_x);
     const auto nz = static_cast<std::size_t>(size_z);
     bscan.pixels.assign(nx * nz, 0.0F);
     std::vector<float> column(nz);
     Rng rng(seed, stream);
+    const std::vector<double> field =
+        grain ? correlated_speckle(size_x, size_z, speckle, rng) : std::vector<double>{};
     const double inv_looks = 1.0 / speckle.looks;
     for (std::size_t a = 0; a < nx; ++a) {
         std::fill(column.begin(), column.end(), 0.0F);
         reflectance(static_cast<int>(a), column);
         for (std::size_t z = 0; z < nz; ++z) {
-            const double value = column[z] * rng.gamma(speckle.looks) * inv_looks;
+            // (without a grain: the same expression, so the same bits, as before grains)
+            const double value = grain ? column[z] * field[z * nx + a]
+                                       : column[z] * rng.gamma(speckle.looks) * inv_looks;
             bscan.pixels[z * nx + a] = static_cast<float>(std::clamp(value, 0.0, 1.0));
         }
     }
@@ -319,6 +393,110 @@ void render_slo(io::Scan& scan,
                 static_cast<std::uint8_t>(std::lround(std::clamp(value, 0.0, 1.0) * 255.0));
         }
     }
+}
+
+}  // namespace octshape::retina::phantom
+
+namespace octshape::retina::phantom {
+namespace {
+
+// Linear interpolation of the lag where an autocorrelation falls to 0.5 (NaN: not within 3).
+double half_width(const std::array<double, 4>& acf) {
+    for (std::size_t j = 1; j < acf.size(); ++j) {
+        if (acf[j] < 0.5) {
+            return static_cast<double>(j - 1) + (acf[j - 1] - 0.5) / (acf[j - 1] - acf[j]);
+        }
+    }
+    return std::numeric_limits<double>::quiet_NaN();
+}
+
+}  // namespace
+
+SpeckleStats speckle_statistics(const io::BScan& bscan,
+                                int size_x,
+                                int size_z,
+                                std::span<const int> top_row,
+                                int rows,
+                                int box_half) {
+    if (size_x < 1 || size_z < 1 || rows < 1 || box_half < 1 ||
+        top_row.size() != static_cast<std::size_t>(size_x) ||
+        bscan.pixels.size() !=
+            static_cast<std::size_t>(size_x) * static_cast<std::size_t>(size_z)) {
+        throw UsageError("speckle statistics: bad band or image size");
+    }
+    const int h = box_half;
+    const int nk = rows + 2 * h;  // band rows with the box margin above and below
+    // The band in its own coordinates, NaN where a pixel is outside the image or the band.
+    std::vector<double> band(static_cast<std::size_t>(size_x) * nk,
+                             std::numeric_limits<double>::quiet_NaN());
+    auto at = [&](int a, int k) -> double& { return band[static_cast<std::size_t>(a) * nk + k]; };
+    for (int a = 0; a < size_x; ++a) {
+        if (top_row[a] < 0) continue;
+        for (int k = 0; k < nk; ++k) {
+            const int z = top_row[a] - h + k;
+            if (z >= 0 && z < size_z) {
+                at(a, k) = bscan.pixels[static_cast<std::size_t>(z) * size_x + a];
+            }
+        }
+    }
+    // Normalised values (NaN = unused) and their raw values.
+    std::vector<double> norm(band.size(), std::numeric_limits<double>::quiet_NaN());
+    double sum = 0.0, sum2 = 0.0, raw = 0.0, zeros = 0.0;
+    std::size_t n = 0;
+    for (int a = h; a + h < size_x; ++a) {
+        for (int k = h; k < h + rows; ++k) {
+            double box = 0.0;
+            bool whole = true;
+            for (int i = -h; i <= h && whole; ++i) {
+                for (int j = -h; j <= h; ++j) {
+                    const double v = at(a + i, k + j);
+                    if (std::isnan(v)) {
+                        whole = false;
+                        break;
+                    }
+                    box += v;
+                }
+            }
+            if (!whole || !(box > 0.0)) continue;
+            const double v = at(a, k) / (box / ((2 * h + 1) * (2 * h + 1)));
+            norm[static_cast<std::size_t>(a) * nk + k] = v;
+            sum += v;
+            sum2 += v * v;
+            raw += at(a, k);
+            zeros += at(a, k) == 0.0 ? 1.0 : 0.0;
+            ++n;
+        }
+    }
+    if (n < 2) throw AnalysisError("speckle statistics: no usable pixel in the band");
+    SpeckleStats s;
+    s.count = n;
+    const double mean = sum / static_cast<double>(n);
+    const double var = sum2 / static_cast<double>(n) - mean * mean;
+    s.mean_raw = raw / static_cast<double>(n);
+    s.zero_fraction = zeros / static_cast<double>(n);
+    s.contrast = std::sqrt(var) / mean;
+    s.shape = mean * mean / var;
+    auto acf = [&](int da, int dk) {
+        double c = 0.0;
+        std::size_t m = 0;
+        for (int a = 0; a + da < size_x; ++a) {
+            for (int k = 0; k + dk < nk; ++k) {
+                const double u = norm[static_cast<std::size_t>(a) * nk + k];
+                const double w = norm[static_cast<std::size_t>(a + da) * nk + k + dk];
+                if (std::isnan(u) || std::isnan(w)) continue;
+                c += (u - mean) * (w - mean);
+                ++m;
+            }
+        }
+        return m > 0 ? c / static_cast<double>(m) / var : std::numeric_limits<double>::quiet_NaN();
+    };
+    for (int j = 0; j < 4; ++j) {
+        s.acf_axial[j] = acf(0, j);
+        s.acf_lateral[j] = acf(j, 0);
+    }
+    s.half_width_axial_px = half_width(s.acf_axial);
+    s.half_width_lateral_px = half_width(s.acf_lateral);
+    return s;
 }
 
 }  // namespace octshape::retina::phantom

@@ -260,6 +260,13 @@ void MaculaPhantomParams::validate() const {
     require(std::isfinite(radial_scale) && radial_scale >= 0.7 && radial_scale <= 1.3,
             "radial_scale", "must be in [0.7, 1.3]");
     require(speckle.looks > 0.0 && std::isfinite(speckle.looks), "speckle.looks", "must be > 0");
+    for (const double w : {speckle.axial_half_width_px, speckle.lateral_half_width_px}) {
+        require(w >= 0.0 && w <= 20.0, "speckle grain", "half-widths must be in 0..20 px");
+    }
+    if (speckle.axial_half_width_px > 0.0 || speckle.lateral_half_width_px > 0.0) {
+        require(speckle.looks <= 64.0 && speckle.looks == std::round(speckle.looks),
+                "speckle.looks", "must be a whole number in 1..64 with a speckle grain");
+    }
 }
 
 void MaculaTruthOptions::validate() const {
@@ -1119,6 +1126,11 @@ nlohmann::ordered_json macula_truth_json(const MaculaTruth& t,
     }
     g["pixels"] = p.pixels;
     g["speckle_looks"] = p.speckle.looks;
+    if (p.speckle.axial_half_width_px > 0.0 || p.speckle.lateral_half_width_px > 0.0) {
+        // only then (a phantom without a grain keeps its truth file)
+        g["speckle_axial_half_width_px"] = p.speckle.axial_half_width_px;
+        g["speckle_lateral_half_width_px"] = p.speckle.lateral_half_width_px;
+    }
     g["seed"] = p.seed;
     j["generator"] = g;
     J a;

@@ -211,6 +211,9 @@ void OnhPhantomParams::validate() const {
     require(std::isfinite(tilt_x) && std::fabs(tilt_x) <= 0.5, "tilt_x", "must be in [-0.5, 0.5]");
     require(std::isfinite(tilt_y) && std::fabs(tilt_y) <= 0.5, "tilt_y", "must be in [-0.5, 0.5]");
     require(speckle_looks >= 1 && speckle_looks <= 64, "speckle_looks", "must be in 1..64");
+    for (const double w : {speckle_axial_half_width_px, speckle_lateral_half_width_px}) {
+        require(w >= 0.0 && w <= 20.0, "speckle grain", "half-widths must be in 0..20 px");
+    }
     profile.validate();
     if (radial) {
         // At least 3 lines (6 BMO points) for the ellipse; the 1.5 mm disc around the BMO centre
@@ -1344,6 +1347,8 @@ io::Scan render_onh_scan(const OnhPhantomParams& params) {
     const auto nan = std::numeric_limits<float>::quiet_NaN();
     phantom::SpeckleParams speckle;
     speckle.looks = params.speckle_looks;
+    speckle.axial_half_width_px = params.speckle_axial_half_width_px;
+    speckle.lateral_half_width_px = params.speckle_lateral_half_width_px;
     for (int b = 0; b < nb; ++b) {
         const auto& row = columns[static_cast<std::size_t>(b)];
         io::BScan& bs = scan.bscans[static_cast<std::size_t>(b)];
@@ -1474,6 +1479,11 @@ nlohmann::json onh_options_json(const OnhPhantomParams& params, const OnhPhantom
                       {"undercut", pr.undercut},
                       {"undercut_height_mm", pr.undercut_height_mm},
                       {"undercut_halfwidth_mm", pr.undercut_halfwidth_mm}}}};
+    if (params.speckle_axial_half_width_px > 0.0 || params.speckle_lateral_half_width_px > 0.0) {
+        // only then (a phantom without a grain keeps its truth file)
+        j["options"]["speckle_axial_half_width_px"] = params.speckle_axial_half_width_px;
+        j["options"]["speckle_lateral_half_width_px"] = params.speckle_lateral_half_width_px;
+    }
     if (params.radial) {  // only then (a volume's truth file stays bit for bit as before)
         j["options"]["pattern"] = "radial";
         const Eigen::Vector2d c = onh_radial_crossing(params);

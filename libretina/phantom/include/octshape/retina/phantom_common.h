@@ -142,6 +142,13 @@ struct SpeckleParams {
     // Multiplicative speckle Gamma(looks, 1/looks) (mean 1; looks = 1 is fully developed
     // exponential speckle, Spectralis ART averaging of 9-15 frames reduces it).
     double looks = 3.0;
+    // Speckle grain: the half-widths (pixels) at which the intensity's autocorrelation falls to
+    // 0.5 along the A-scan and across A-scans. Both 0 (the default): one independent value per
+    // pixel. Otherwise each of round(looks) looks is |F|^2 of a complex Gaussian field smoothed
+    // by a Gaussian of SD half_width / sqrt(2 ln 2) (the intensity correlation is the field's
+    // squared), so the marginal stays Gamma(looks, 1/looks); looks must then be a whole number.
+    double axial_half_width_px = 0.0;
+    double lateral_half_width_px = 0.0;
 };
 
 // Renders `bscan.pixels` (size_z x size_x, row-major): reflectance times speckle, clamped to

@@ -83,6 +83,10 @@ struct OnhPhantomParams {
     OnhProfileParams profile;     // ILM meridian profile (see onh_profile_preset)
     // Pixels.
     int speckle_looks = 4;  // multiplicative speckle ~ Gamma(L, 1/L) (mean 1)
+    // Speckle grain (phantom::SpeckleParams): autocorrelation half-widths in pixels along the
+    // A-scan and across A-scans; 0 0 = independent pixels (docs/phantoms.md, "Speckle").
+    double speckle_axial_half_width_px = 0.0;
+    double speckle_lateral_half_width_px = 0.0;
     // Radial scan (ScanPattern 5) of the SAME eye: radial_lines B-scans of line_length_mm and
     // num_ascans A-scans each, line k at k * 180 / radial_lines deg from grid +x towards +y
     // (superior), all through the crossing = BMO centre + (crossing_offset_um,
