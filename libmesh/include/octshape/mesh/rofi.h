@@ -1,5 +1,5 @@
 #pragma once
-// RoFi: robust and high-fidelity mesh denoising (thesis §5.1; SPEC §6).
+// RoFi: robust and high-fidelity mesh denoising (thesis §5.1; docs/algorithms/rofi.md).
 //
 // Each iteration: (1) every face normal is replaced by the bilateral average of the normals
 // in its geometric disk Ω_i (Eq. 5.1): weight a_j f(|c_i − c_j|; σ_c) g(|n_i − n_j|; σ_s),

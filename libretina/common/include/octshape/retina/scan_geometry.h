@@ -1,6 +1,6 @@
 #pragma once
-// Where every sample of a scan is, in mm, and which way is nasal and superior (SPEC §3,
-// docs/coordinates.md).
+// Where every sample of a scan is, in mm, and which way is nasal and superior
+// (docs/coordinates.md).
 //
 // Grid frame (volume and line scans): x along a B-scan (A-scan index * ScaleX), y across B-scans
 // (B-scan index * Distance), height z = -depth (up = towards the vitreous).

@@ -1,5 +1,5 @@
 #pragma once
-// CuBe: the cubic-Bezier model of the fovea (thesis §7.1-7.3, SPEC §4, docs/algorithms/cube.md).
+// CuBe: the cubic-Bezier model of the fovea (thesis §7.1-7.3, docs/algorithms/cube.md).
 //
 // Pipeline: thickness map ILM - BM (Eq. 7.13 step 1) -> centre (minimum near the device centre,
 // Eq. 7.13) -> n radial half-lines by bilinear interpolation (§7.2.1 step 2) -> split at the rim
@@ -27,7 +27,7 @@ namespace octshape::retina {
 inline constexpr double kMissing = std::numeric_limits<double>::quiet_NaN();
 
 // Retinal thickness M(x, y) = ILM height - BM height in mm on the scan grid (row b = B-scan,
-// column a = A-scan); NaN where either boundary is missing (SPEC §4.1).
+// column a = A-scan); NaN where either boundary is missing.
 struct ThicknessMap {
     int rows = 0;            // B-scans
     int cols = 0;            // A-scans
@@ -44,7 +44,7 @@ struct ThicknessMap {
         return mm[static_cast<std::size_t>(b) * static_cast<std::size_t>(cols) +
                   static_cast<std::size_t>(a)];
     }
-    // Bilinear interpolation at grid mm (x, y) (SPEC §4.3): NaN outside the grid or when one of
+    // Bilinear interpolation at grid mm (x, y): NaN outside the grid or when one of
     // the four surrounding nodes is missing. One row: linear along x (y must be 0).
     [[nodiscard]] double sample(double x_mm, double y_mm) const;
 };
@@ -61,7 +61,7 @@ struct ThicknessMap {
 [[nodiscard]] double thickness_noise_sd(const ThicknessMap& m);
 
 // Where the interior and exterior segments of a half-line meet (docs/algorithms/cube.md "Rim
-// point"). kMaximum: at the maximum sample (SPEC §4.4; the thesis's split), only the rim height
+// point"). kMaximum: at the maximum sample (the thesis's split), only the rim height
 // fitted. kCrest: the rim is still the profile's maximum, but among the samples that could be
 // it: the rim radius is an unknown of the joint fit, bounded to the crest, i.e. the span of the
 // samples within 3 noise SDs (thickness_noise_sd) of the maximum sample, widened by half a
@@ -81,16 +81,16 @@ struct CubeParams {
     double tau_mm = 0.005;             // pit-flat threshold above CFT (Eq. 7.24; 5 um)
     double inner_radius_mm = 0.5;      // r_u of the inner rim volume (Eq. 7.28; ETDRS centre)
     double search_radius_mm = 1.0;     // centre search around the device centre (§7.2.1, 1 mm)
-    double tie_tolerance_mm = 0.0005;  // minima within 0.5 um are ties -> median (SPEC §4.2)
+    double tie_tolerance_mm = 0.0005;  // minima within 0.5 um are ties -> median
     // Gaussian SD of the smoothing applied to the thickness map for locating the centre only
     // (docs/algorithms/cube.md "Centre"): the minimum of noisy nodes wanders over a flat pit
-    // floor and is biased low. 0 = the raw minimum of SPEC §4.2.
+    // floor and is biased low. 0 = the raw minimum.
     double centre_smoothing_mm = 0.05;
     // Half-width of the window around the minimum node in which a quadratic surface is fitted
     // to M; its vertex, when it lies in the window, is the centre (between nodes: B-scans are
-    // 39-125 um apart). 0 = the node (SPEC §4.2).
+    // 39-125 um apart). 0 = the node.
     double centre_fit_radius_mm = 0.06;
-    int max_rounds = 100;              // alternating LS / foot-point rounds (SPEC §4.5)
+    int max_rounds = 100;              // alternating LS / foot-point rounds
     double energy_tolerance = 1e-10;   // stop on relative energy change below this
     double rmse_warning_um = 10.0;     // QC "fit RMSE high" above this (thesis: 1.0-7.1 um)
     RimPoint rim_point = RimPoint::kCrest;
@@ -100,8 +100,8 @@ struct CubeParams {
     // the half-line's angular sector within a radial window) and its final fit fits sector bins
     // (the sector's nodes in runs of equal count, each at its RMS radius), instead of the
     // bilinear mixes of 4 nodes; the reported RMSE stays that of the bilinear samples. Below it
-    // (noise-free maps, the device's smooth lines) and for line scans the samples are SPEC
-    // §4.3's bilinear ones. +inf = always bilinear.
+    // (noise-free maps, the device's smooth lines) and for line scans the samples are the
+    // bilinear ones. +inf = always bilinear.
     double local_fit_min_noise_um = 0.5;
     // Forces the centre (grid mm) instead of searching: validation from a known centre.
     std::optional<Eigen::Vector2d> centre_mm;
@@ -150,7 +150,7 @@ struct RimProfileFit {
 };
 
 // Fits a half-line profile (samples ordered by r; the first is the centre (0, CFT), the last
-// the exterior's end point) split at the rim sample `rim_index` (the maximum, SPEC §4.4) with
+// the exterior's end point) split at the rim sample `rim_index` (the maximum) with
 // the rim *height* a model estimate (docs/algorithms/cube.md "Rim point"): r_rim is the rim
 // sample's radius; h_rim, the interior's (alpha, beta) and the exterior's (alpha, P2) minimise
 // the joint Eq. 7.8 energy of both segments (started from fit_interior / fit_exterior through
@@ -169,7 +169,7 @@ struct RimProfileFit {
 // the last bit).
 [[nodiscard]] double bezier_t_at_x(const std::array<Eigen::Vector2d, 4>& p, double x);
 
-// Maximum slope of an interior CuBe curve (SPEC §4.6, replacing the misprinted Eq. 7.20):
+// Maximum slope of an interior CuBe curve (replacing the misprinted Eq. 7.20):
 // s = dy / (sqrt(alpha beta) + w - alpha - beta) at t_m = sqrt(alpha) / (sqrt(alpha) +
 // sqrt(beta)); w = P3.x - P0.x, dy = P3.y - P0.y. Infinite slope -> +inf.
 struct MaxSlope {
@@ -254,7 +254,7 @@ struct CubeRadial {
 };
 
 struct CubeResult {
-    bool line_scan = false;     // 2-D parameters only (SPEC §4.8)
+    bool line_scan = false;     // 2-D parameters only
     // A radial scan (ScanPattern 5): positions are in the radial frame (mm from the lines'
     // crossing, x = SLO +x, y = superior), half-lines run along the B-scans.
     bool radial_scan = false;

@@ -1,5 +1,5 @@
 #pragma once
-// Bruch's membrane opening (SPEC §5.3, thesis §8.1.3, docs/algorithms/onh.md): measured BMO
+// Bruch's membrane opening (thesis §8.1.3, docs/algorithms/onh.md): measured BMO
 // points (detected from the gap of the device BM line, or read from a user file), the
 // Fitzgibbon direct least-squares ellipse through them (cv::fitEllipseDirect) and its uniform
 // resampling.

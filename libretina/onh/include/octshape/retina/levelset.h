@@ -1,5 +1,6 @@
 #pragma once
-// The true 3-D ILM of an optic-nerve-head volume (thesis §8.1.1, SPEC §5.2): a Chan–Vese type
+// The true 3-D ILM of an optic-nerve-head volume (thesis §8.1.1, docs/algorithms/levelset.md):
+// a Chan–Vese type
 // region-based level set on the B-scan intensities, evolved on a narrow band inside a depth
 // window around the device ILM, then marching cubes (VTK vtkFlyingEdges3D), the largest
 // connected component, clipping to the valid scan area and RoFi smoothing (§5.1).
@@ -36,7 +37,7 @@ struct LevelSetParams {
     double margin_mm = 0.06;  // > 0; ~15 px at ScaleZ 3.87 µm
 
     // --- Pre-processing ---
-    // Display transform v^0.25 (SPEC §5.2), then per B-scan a binomial blur [1 4 6 4 1]/16
+    // Display transform v^0.25, then per B-scan a binomial blur [1 4 6 4 1]/16
     // applied `despeckle_passes` times in x and in depth (σ = 1 px per pass). ≥ 0.
     int despeckle_passes = 1;
 

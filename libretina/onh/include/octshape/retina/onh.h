@@ -1,5 +1,5 @@
 #pragma once
-// Optic nerve head shape analysis (thesis §8.1, SPEC §5, docs/algorithms/onh.md).
+// Optic nerve head shape analysis (thesis §8.1, docs/algorithms/onh.md).
 //
 // The analysis measures an ILM given as a triangle mesh in the grid mm frame (x = A-scan index
 // * ScaleX, y = B-scan index * Distance, z = -depth * ScaleZ), never as a height field, so an
@@ -152,7 +152,7 @@ struct OnhResult {
     BmoEllipse ellipse;
     double bmo_orientation_anatomical_deg = kMissing;  // major axis from nasal towards superior
 
-    // Parameters (SPEC §5.6). NaN (kMissing) where a parameter cannot be measured: CONHT when
+    // Parameters. NaN (kMissing) where a parameter cannot be measured: CONHT when
     // the vertical line through the BMO centre misses the ILM, the BMO tensor and bending energy
     // when no ILM face lies inside the BMO, an MRW sector without a BMO point.
     bool has_cup = false;

@@ -1,5 +1,5 @@
 #pragma once
-// Graph surfaces of the ONH analysis (SPEC §5.1-5.2, docs/algorithms/onh.md): a segmentation
+// Graph surfaces of the ONH analysis (docs/algorithms/onh.md): a segmentation
 // line as a height field on the regular scan grid, its missing values filled by a discrete
 // thin-plate (biharmonic) fill, and the field as a triangle mesh in the grid mm frame
 // (x = A-scan index * ScaleX, y = B-scan index * Distance, z = -depth * ScaleZ).
@@ -47,7 +47,7 @@ struct ThinPlateFillResult {
 // discrete biharmonic equation Delta^2 z = 0 on the missing nodes. A quadratic
 // z = A x^2 + B xy + C y^2 + D x + E y + F is reproduced exactly on every missing node at least
 // two nodes from the grid border (its second differences are constant and every stencil's
-// coefficients sum to zero); a harmonic fill cannot do that (SPEC §5.1). Throws AnalysisError
+// coefficients sum to zero); a harmonic fill cannot do that. Throws AnalysisError
 // when fewer than three non-collinear values are present.
 ThinPlateFillResult thin_plate_fill(GridSurface& s);
 

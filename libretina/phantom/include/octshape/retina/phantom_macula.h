@@ -1,5 +1,6 @@
 #pragma once
-// Synthetic Spectralis macula scans whose true CuBe parameters (SPEC §4, thesis §7.3) are known
+// Synthetic Spectralis macula scans whose true CuBe parameters (docs/algorithms/cube.md,
+// thesis §7.3) are known
 // independently of the analysis code (docs/phantoms.md, "Macula phantoms").
 //
 // The retinal thickness is a surface T(r, theta) in polar coordinates about the true fovea
@@ -34,7 +35,7 @@ struct MaculaPhantomParams {
     MaculaFamily family = MaculaFamily::kBezier;
     bool flat = false;      // flat-bottomed pits (Bezier: large alpha; Scheibe: large gamma)
     io::Laterality eye = io::Laterality::kOD;
-    bool line = false;      // one horizontal B-scan through the fovea (ScanPattern 1, SPEC §4.8)
+    bool line = false;      // one horizontal B-scan through the fovea (ScanPattern 1)
     // Radial scan (ScanPattern 5): radial_lines B-scans of line_length_mm through one point
     // (the crossing), 180 / radial_lines deg apart, line k at k * 180 / radial_lines deg from
     // SLO +x towards superior; size_x A-scans per line. The crossing is the centre of the
@@ -59,7 +60,7 @@ struct MaculaPhantomParams {
     // so fovea_dy_mm must be 0 there).
     double fovea_dx_mm = 0.0;
     double fovea_dy_mm = 0.0;
-    // Device thickness-grid centre minus the true fovea centre, grid mm (a hint, SPEC §4.2).
+    // Device thickness-grid centre minus the true fovea centre, grid mm (a hint).
     double grid_hint_dx_mm = 0.04;
     double grid_hint_dy_mm = -0.03;
     // Eye wall as it appears in OCT images (paraboloid z = -rho^2 / (2 R) about the scan
@@ -98,7 +99,7 @@ struct MaculaPhantomParams {
     void validate() const;
 };
 
-// The analysis settings the truth is computed for (SPEC §4.3-4.6 defaults).
+// The analysis settings the truth is computed for (the defaults of docs/algorithms/cube.md).
 struct MaculaTruthOptions {
     int num_half_lines = 24;       // n, even
     double radius_mm = 2.0;        // R
@@ -193,7 +194,7 @@ struct TruthAccuracy {
 };
 
 struct MaculaTruth {
-    bool line_scan = false;  // true: 2-D parameters only (SPEC §4.8)
+    bool line_scan = false;  // true: 2-D parameters only
     double centre_x_mm = 0.0;
     double centre_y_mm = 0.0;
     double cft_mm = 0.0;

@@ -1,5 +1,5 @@
 #pragma once
-// Optic-nerve-head phantom: a synthetic Spectralis-style ONH volume whose true SPEC §5
+// Optic-nerve-head phantom: a synthetic Spectralis-style ONH volume whose true ONH parameters
 // parameters are known independently of the analysis code (docs/phantoms.md, "ONH phantoms").
 //
 // Geometry (all mm, grid frame: x = A-scan index * ScaleX, y = B-scan index * Distance,

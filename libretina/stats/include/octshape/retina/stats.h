@@ -1,5 +1,5 @@
 #pragma once
-// Cohort statistics (SPEC §7 `stats`, docs/stats.md): descriptive summaries (mean, SD, min, max)
+// Cohort statistics (docs/stats.md): descriptive summaries (mean, SD, min, max)
 // and the test-retest intraclass correlation ICC(2,1) with its 95 % confidence interval, plus
 // the special functions they need (regularised incomplete beta, F distribution).
 //
