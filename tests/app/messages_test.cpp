@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -398,6 +399,40 @@ TEST(Sources, CiteNoInternalSpec) {
     for (const std::string& b : bad) ADD_FAILURE() << b << ": cites the internal spec";
     std::cout << files.size() << " files read, " << bad.size() << " cite the internal spec\n";
     EXPECT_GT(files.size(), 250U);  // the walk found the repository (about 300 text files)
+}
+
+// No C or C++ source includes <regex> or uses std::regex: GCC 12 warns (-Wmaybe-uninitialized)
+// inside <regex> at -O1, which fails the sanitizer build under -Werror (docs/development.md).
+// Read per line: an #include of it, or one of its names in code (comments may say "not
+// std::regex"). The needles are spelled in pieces so that this file does not match itself.
+TEST(Sources, UseNoRegex) {
+    const std::string header = std::string("<re") + "gex>";
+    const std::vector<std::string> names{
+        std::string("std::re") + "gex", "std::sm" + std::string("atch"),
+        "std::cm" + std::string("atch"), "std::sre" + std::string("gex")};
+    int sources = 0;
+    std::vector<std::string> bad;
+    for (const fs::path& f : repository_text_files()) {
+        const std::string ext = f.extension().string();
+        if (ext != ".cpp" && ext != ".h" && ext != ".hpp" && ext != ".cc" && ext != ".c") continue;
+        ++sources;
+        std::istringstream in(slurp(f));
+        std::string line;
+        for (int n = 1; std::getline(in, line); ++n) {
+            const std::string code = line.substr(0, line.find("//"));
+            const auto first = code.find_first_not_of(" \t");
+            bool uses = first != std::string::npos && code[first] == '#' &&
+                        code.find("include") != std::string::npos &&
+                        code.find(header) != std::string::npos;
+            for (const std::string& name : names)
+                uses = uses || code.find(name) != std::string::npos;
+            if (uses)
+                bad.push_back(fs::relative(f, source_dir()).string() + ":" + std::to_string(n));
+        }
+    }
+    for (const std::string& b : bad) ADD_FAILURE() << b << ": uses <regex>";
+    std::cout << sources << " C/C++ sources read, " << bad.size() << " use <regex>\n";
+    EXPECT_GT(sources, 250);  // the walk found the sources (about 280)
 }
 
 }  // namespace
