@@ -65,8 +65,8 @@ nlohmann::ordered_json options_from_text(const std::string& text) {
         // Numbers and the switches (true/false) as JSON numbers and booleans, the rest as text.
         const auto parsed = nlohmann::ordered_json::parse(value, nullptr, false);
         nlohmann::ordered_json& into = group.empty() ? o : o[group];
-        into[key] = parsed.is_number() || parsed.is_boolean() ? parsed
-                                                              : nlohmann::ordered_json(value);
+        into[key] =
+            parsed.is_number() || parsed.is_boolean() ? parsed : nlohmann::ordered_json(value);
         if (closes) group.clear();
     }
     return o;

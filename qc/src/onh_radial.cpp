@@ -70,7 +70,8 @@ cv::Point RadialSheetLayout::px(int line, double ascan, double depth_px) const {
     return round_pt(o.x + (ascan + 0.5) * sx() - 0.5, o.y + (depth_px - z0 + 0.5) * sz() - 0.5);
 }
 
-CellLayers onh_cell_layers(const retina::OnhResult& r, cv::Size size,
+CellLayers onh_cell_layers(const retina::OnhResult& r,
+                           cv::Size size,
                            const std::function<cv::Point(int, int)>& place) {
     const retina::OnhEnfaceGrid grid = retina::onh_enface_heights(r);
     CellLayers out;

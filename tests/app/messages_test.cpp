@@ -353,9 +353,9 @@ TEST(Messages, PointOnlyToDocumentsTheUserHas) {
 // The repository's own text files, as a reader of the sources meets them: sources, headers,
 // scripts, build files and docs; not the build trees, git's files or the binary sample scans.
 std::vector<fs::path> repository_text_files() {
-    static const std::vector<std::string> kExt{".cpp", ".h",   ".hpp", ".cc",  ".c",    ".py",
-                                               ".sh",  ".R",   ".txt", ".cmake", ".in", ".md",
-                                               ".yaml", ".json", ".cff"};
+    static const std::vector<std::string> kExt{".cpp", ".h",  ".hpp",  ".cc",   ".c",
+                                               ".py",  ".sh", ".R",    ".txt",  ".cmake",
+                                               ".in",  ".md", ".yaml", ".json", ".cff"};
     std::vector<fs::path> files;
     for (auto it = fs::recursive_directory_iterator(source_dir());
          it != fs::recursive_directory_iterator(); ++it) {
@@ -387,12 +387,12 @@ TEST(Sources, CiteNoInternalSpec) {
         const std::string text = slurp(f);
         for (auto at = text.find(word); at != std::string::npos; at = text.find(word, at + 1)) {
             const std::size_t e = at + word.size();
-            if (e < text.size() && (std::isalpha(static_cast<unsigned char>(text[e])) != 0 ||
-                                    text[e] == '_')) {
+            if (e < text.size() &&
+                (std::isalpha(static_cast<unsigned char>(text[e])) != 0 || text[e] == '_')) {
                 continue;  // a longer word (SPECTRALIS)
             }
-            const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<long>(at),
-                                             '\n');
+            const auto line =
+                1 + std::count(text.begin(), text.begin() + static_cast<long>(at), '\n');
             bad.push_back(fs::relative(f, source_dir()).string() + ":" + std::to_string(line));
         }
     }

@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "octshape/qc/draw.h"
 #include "octshape/io/scan.h"
+#include "octshape/qc/draw.h"
 #include "octshape/retina/onh.h"
 #include "octshape/retina/radial_geometry.h"
 
@@ -90,7 +90,8 @@ struct CellLayers {
 };
 // `size` is the picture's cells (width x height); `place` maps grid cell (a, b) into it. With an
 // empty `size`, the grid's own (cols x rows) and place(a, b) = (a, rows - 1 - b): superior up.
-[[nodiscard]] CellLayers onh_cell_layers(const retina::OnhResult& r, cv::Size size = {},
+[[nodiscard]] CellLayers onh_cell_layers(const retina::OnhResult& r,
+                                         cv::Size size = {},
                                          const std::function<cv::Point(int, int)>& place = {});
 
 // Fractional A-scan index along line `line` of grid mm point `xy` (its projection on the line).
