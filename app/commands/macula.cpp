@@ -1,5 +1,5 @@
 // `octshape macula FILE [-o eye.json] [--csv eye.csv] [options]`: the CuBe fovea analysis
-// (SPEC §4, docs/algorithms/cube.md); outputs documented in docs/outputs.md. The per-eye work is
+// (docs/algorithms/cube.md); outputs documented in docs/outputs.md. The per-eye work is
 // analyse_macula_eye (commands/macula_eye.h), shared with `octshape cohort`.
 
 #include <CLI/CLI.hpp>

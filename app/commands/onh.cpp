@@ -1,5 +1,5 @@
 // `octshape onh FILE [-o eye.json] [--csv eye.csv] [--qc DIR] [--ilm SOURCE] [--bmo FILE.csv]
-// [--mesh-out DIR]`: the optic nerve head analysis (SPEC §5, docs/algorithms/onh.md); outputs
+// [--mesh-out DIR]`: the optic nerve head analysis (docs/algorithms/onh.md); outputs
 // documented in docs/outputs.md. The per-eye work is analyse_onh_eye (commands/onh_eye.h),
 // shared with `octshape cohort`.
 

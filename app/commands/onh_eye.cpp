@@ -67,6 +67,7 @@ std::string onh_options_text(const OnhEyeOptions& o) {
     const retina::ScanTypeParams classifier;
     std::ostringstream s;
     s.precision(17);
+    s << std::boolalpha;  // switches as true/false, as the provenance's qc_pictures
     const std::string bmo = o.bmo_file.empty() ? std::string("automatic")
                                                 : file_fingerprint(o.bmo_file);
     s << "onh ilm=" << o.ilm << " bmo=" << bmo << " bmo_points=" << p.bmo_points

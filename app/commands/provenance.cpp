@@ -62,9 +62,11 @@ nlohmann::ordered_json options_from_text(const std::string& text) {
         }
         const bool closes = !group.empty() && value.ends_with(")");
         if (closes) value.pop_back();
-        const auto number = nlohmann::ordered_json::parse(value, nullptr, false);
+        // Numbers and the switches (true/false) as JSON numbers and booleans, the rest as text.
+        const auto parsed = nlohmann::ordered_json::parse(value, nullptr, false);
         nlohmann::ordered_json& into = group.empty() ? o : o[group];
-        into[key] = number.is_number() ? number : nlohmann::ordered_json(value);
+        into[key] =
+            parsed.is_number() || parsed.is_boolean() ? parsed : nlohmann::ordered_json(value);
         if (closes) group.clear();
     }
     return o;

@@ -29,9 +29,9 @@ namespace octshape::app {
 // SHA-256 over the software identity and `parameters_text`, first 16 hex digits.
 [[nodiscard]] std::string fingerprint(const std::string& parameters_text);
 // The canonical option text "name k1=v1 k2=v2 ..." (the fingerprint's parameter text) as a
-// JSON object {k1: v1, ...}: a value that is a JSON number becomes that number, any other a
-// string; "group(k=v ... k=v)" becomes {"group": {k: v, ...}}; a word without '=' (the
-// analysis's name) is left out.
+// JSON object {k1: v1, ...}: a value that is a JSON number becomes that number, true/false a
+// boolean, any other a string; "group(k=v ... k=v)" becomes {"group": {k: v, ...}}; a word without
+// '=' (the analysis's name) is left out.
 [[nodiscard]] nlohmann::ordered_json options_from_text(const std::string& text);
 
 // The provenance block of one run (above): the software identity, the command, its inputs by

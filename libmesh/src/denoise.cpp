@@ -75,8 +75,8 @@ RofiParams fixed_p_rofi_params(const NoiseEstimate& noise) {
     const double theta = noise.normal_angle_deg * std::numbers::pi / 180.0;  // radians
     RofiParams p;
     // A wider, flatter disk than §5.2's (r = 2 c_a, σ_c = c_a): both doubled, r = 4 c_a and
-    // σ_c = 2 c_a (the paper's ratio r = 2 σ_c kept). A deliberate deviation from the paper
-    // (SPEC §6), measured in docs/algorithms/rofi.md, "Automatic parameters": lower MSAE on all
+    // σ_c = 2 c_a (the paper's ratio r = 2 σ_c kept). A deliberate deviation from the paper,
+    // measured in docs/algorithms/rofi.md, "Automatic parameters": lower MSAE on all
     // four shared pairs and on fresh noise draws, no more flips created. The factors are in
     // units of c_a, so the disk follows the mesh's sampling; the grids showed no dependence
     // on the noise level that four pairs could pin down, so they are constants.

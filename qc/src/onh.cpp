@@ -33,36 +33,22 @@ cv::Mat enface_picture(const io::Scan& scan, const retina::OnhResult& r,
     const retina::GridSurface& g = r.rpe;
     const int cw = g.cols - 1;
     const int ch = g.rows - 1;
-    const CellHeights heights = onh_cell_heights(r);
-    const std::vector<double>& h = heights.h;
-    const double lo = heights.lo;
-    const double hi = heights.hi;
     const FundusFrame ff = fundus_frame(scan, cw * g.dx_mm, ch * g.dy_mm);
     // The cells in the fundus frame: fw x fh of them; cell (a, b) of the grid at column fa and
     // row fh - 1 - fb (row 0 at the top = superior).
     const int fw = ff.keeps_axes() ? cw : ch;
     const int fh = ff.keeps_axes() ? ch : cw;
-    auto cell = [&](int a, int b) {
+    const CellLayers cells = onh_cell_layers(r, cv::Size(fw, fh), [&](int a, int b) {
         const auto [fa, fb] = ff.fundus_cell(a, b, cw, ch);
         return cv::Point(fa, fh - 1 - fb);
-    };
-    cv::Mat grey(fh, fw, CV_8UC1, cv::Scalar(0));
-    cv::Mat cup(fh, fw, CV_8UC1, cv::Scalar(0));
-    for (int b = 0; b < ch; ++b) {
-        for (int a = 0; a < cw; ++a) {
-            const double v = h[static_cast<std::size_t>(b) * static_cast<std::size_t>(cw) +
-                               static_cast<std::size_t>(a)];
-            const double u = std::isnan(v) ? 0.0 : (v - lo) / (hi - lo);
-            grey.at<uchar>(cell(a, b)) = static_cast<uchar>(std::lround(255 * u));
-            // Cup outline: the boundary of the cells below the RPE, in black.
-            if (v < 0.0) cup.at<uchar>(cell(a, b)) = 255;
-        }
-    }
+    });
+    const double lo = cells.lo;
+    const double hi = cells.hi;
     const int W = 800;
     const double ppm = W / ff.width_mm;
     const int H = std::max(40, static_cast<int>(std::lround(ff.height_mm * ppm)));
     cv::Mat big;
-    cv::resize(grey, big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
+    cv::resize(cells.grey, big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
     cv::Mat img;
     cv::applyColorMap(big, img, cv::COLORMAP_VIRIDIS);
     auto px = [&](double x, double y) {
@@ -71,7 +57,8 @@ cv::Mat enface_picture(const io::Scan& scan, const retina::OnhResult& r,
                          static_cast<int>(std::lround(H - 1 - f.y() * ppm)));
     };
     cv::Mat cup_big;
-    cv::resize(cup, cup_big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
+    // Cup outline: the boundary of the cells below the RPE, in black.
+    cv::resize(cells.cup, cup_big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
     std::vector<std::vector<cv::Point>> contours;
     cv::findContours(cup_big, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
     cv::drawContours(img, contours, -1, cv::Scalar(0, 0, 0), 2, cv::LINE_AA);

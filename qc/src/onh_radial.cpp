@@ -70,13 +70,34 @@ cv::Point RadialSheetLayout::px(int line, double ascan, double depth_px) const {
     return round_pt(o.x + (ascan + 0.5) * sx() - 0.5, o.y + (depth_px - z0 + 0.5) * sz() - 0.5);
 }
 
-CellHeights onh_cell_heights(const retina::OnhResult& r) {
-    CellHeights out;
-    out.h = retina::onh_enface_heights(r).height_mm;
-    for (const double v : out.h) {
+CellLayers onh_cell_layers(const retina::OnhResult& r,
+                           cv::Size size,
+                           const std::function<cv::Point(int, int)>& place) {
+    const retina::OnhEnfaceGrid grid = retina::onh_enface_heights(r);
+    CellLayers out;
+    out.cols = grid.cols;
+    out.rows = grid.rows;
+    for (const double v : grid.height_mm) {
         if (std::isnan(v)) continue;
         out.lo = std::min(out.lo, v);
         out.hi = std::max(out.hi, v);
+    }
+    if (size.empty()) size = cv::Size(grid.cols, grid.rows);
+    out.grey = cv::Mat(size, CV_8UC1, cv::Scalar(0));
+    out.cup = cv::Mat(size, CV_8UC1, cv::Scalar(0));
+    out.none = cv::Mat(size, CV_8UC1, cv::Scalar(0));
+    for (int b = 0; b < grid.rows; ++b) {
+        for (int a = 0; a < grid.cols; ++a) {
+            const cv::Point at = place ? place(a, b) : cv::Point(a, grid.rows - 1 - b);
+            const double v = grid.at(a, b);
+            if (std::isnan(v)) {
+                out.none.at<uchar>(at) = 255;
+                continue;
+            }
+            out.grey.at<uchar>(at) =
+                static_cast<uchar>(std::lround(255 * ((v - out.lo) / (out.hi - out.lo))));
+            if (v < 0.0) out.cup.at<uchar>(at) = 255;
+        }
     }
     return out;
 }
@@ -99,29 +120,12 @@ cv::Mat radial_enface_picture(const io::Scan& scan,
     const retina::RadialGeometry geo = retina::radial_geometry(scan);
     const int nx = scan.meta.size_x;
     const retina::GridSurface& g = r.rpe;
-    const int cw = g.cols - 1;
-    const int ch = g.rows - 1;
-    const CellHeights heights = onh_cell_heights(r);
-    const std::vector<double>& h = heights.h;
-    const double lo = heights.lo;
-    const double hi = heights.hi;
-    cv::Mat grey(ch, cw, CV_8UC1, cv::Scalar(0));
-    cv::Mat none(ch, cw, CV_8UC1, cv::Scalar(0));
-    cv::Mat cup(ch, cw, CV_8UC1, cv::Scalar(0));
-    for (int b = 0; b < ch; ++b) {
-        for (int a = 0; a < cw; ++a) {
-            const double v = h[static_cast<std::size_t>(b) * static_cast<std::size_t>(cw) +
-                               static_cast<std::size_t>(a)];
-            // Image row 0 at the top = largest grid y (superior).
-            if (std::isnan(v)) {
-                none.at<uchar>(ch - 1 - b, a) = 255;
-                continue;
-            }
-            grey.at<uchar>(ch - 1 - b, a) =
-                static_cast<uchar>(std::lround(255 * (v - lo) / (hi - lo)));
-            if (v < 0.0) cup.at<uchar>(ch - 1 - b, a) = 255;
-        }
-    }
+    // Image row 0 at the top = largest grid y (superior).
+    const CellLayers cells = onh_cell_layers(r);
+    const int cw = cells.cols;
+    const int ch = cells.rows;
+    const double lo = cells.lo;
+    const double hi = cells.hi;
     RadialEnfaceLayout L;
     const int W = 760;
     L.ppm = W / (cw * g.dx_mm);
@@ -132,9 +136,9 @@ cv::Mat radial_enface_picture(const io::Scan& scan,
     cv::Mat big;
     cv::Mat none_big;
     cv::Mat cup_big;
-    cv::resize(grey, big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
-    cv::resize(none, none_big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
-    cv::resize(cup, cup_big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
+    cv::resize(cells.grey, big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
+    cv::resize(cells.none, none_big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
+    cv::resize(cells.cup, cup_big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
     cv::Mat map;
     cv::applyColorMap(big, map, cv::COLORMAP_VIRIDIS);
     map.setTo(kNotScanned, none_big);

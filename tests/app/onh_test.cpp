@@ -58,13 +58,13 @@ TEST(OnhCli, AxialRegistrationIsOnByDefaultAndRecorded) {
     ASSERT_EQ(off.exit_code, 0) << off.err;
     const json a = json::parse(slurp(dir / "on.json"));
     const json b = json::parse(slurp(dir / "off.json"));
-    // The JSON's options are the provenance's (one list): 1 on, 0 off.
-    EXPECT_EQ(a["options"]["axial_registration"], 1);
-    EXPECT_EQ(b["options"]["axial_registration"], 0);
+    // The JSON's options are the provenance's (one list): true on, false off.
+    EXPECT_EQ(a["options"]["axial_registration"], true);
+    EXPECT_EQ(b["options"]["axial_registration"], false);
     EXPECT_EQ(a["axial_registration"]["applied"], true);
     EXPECT_EQ(b["axial_registration"]["applied"], false);
-    EXPECT_EQ(a["provenance"]["options"]["axial_registration"], 1);
-    EXPECT_EQ(b["provenance"]["options"]["axial_registration"], 0);
+    EXPECT_EQ(a["provenance"]["options"]["axial_registration"], true);
+    EXPECT_EQ(b["provenance"]["options"]["axial_registration"], false);
     const auto& t = truth["acquisition"]["axial_shift_um"];
     const auto& e = a["axial_registration"]["shift_um"];
     ASSERT_EQ(e.size(), t.size());

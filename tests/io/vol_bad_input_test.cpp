@@ -1,6 +1,7 @@
-// Hostile and damaged .vol input (SPEC §9): every truncation, wrong magic, absurd sizes, NaN
-// and FLT_MAX in every floating-point field, seeded random mutations. The reader must throw
-// InputError (never anything else, never crash) and never allocate more than the file allows.
+// Hostile and damaged .vol input (docs/formats.md "Validation", "Robustness evidence"): every
+// truncation, wrong magic, absurd sizes, NaN and FLT_MAX in every floating-point field, seeded
+// random mutations. The reader must throw InputError (never anything else, never crash) and never
+// allocate more than the file allows.
 
 #include <gtest/gtest.h>
 

@@ -279,7 +279,8 @@ TEST(Rofi, CubeKeepsItsRightDihedralAngles) {
 // Eq. 5.1–5.9 evaluated literally, one iteration: the filtered normals by Eq. 5.1 with
 // Tukey's g = ½(1 − (x/σ_s)²)² (Eq. 5.3) and Gaussian closeness (σ_c = c_a) over the disks of
 // radius 2 c_a, then Eq. 5.9 in its printed double-sum form over the edges (i, j) of the star
-// (sign as in SPEC §6) plus λ_I (D_i + D_t,i) with w_ij = |v_i − v_j|². Boundary vertices fixed.
+// (sign corrected as in docs/algorithms/rofi.md "One iteration") plus λ_I (D_i + D_t,i) with w_ij =
+// |v_i − v_j|². Boundary vertices fixed.
 mesh::Vertices reference_iteration(const mesh::Vertices& V, const mesh::Faces& F,
                                    const mesh::Csr& omega, double ca, double sigma_s,
                                    double lambda) {

@@ -1,5 +1,5 @@
 // BMO: automatic detection from the BM gap, the user CSV, the direct ellipse fit and its
-// resampling (SPEC §5.3).
+// resampling (docs/algorithms/onh.md "BMO").
 
 #include "octshape/retina/bmo.h"
 

@@ -41,9 +41,10 @@ std::vector<V2> sample_by_x(const Ctrl& c, int n) {
 }
 
 TEST(CubeMaxSlope, ClosedFormMatchesDenseEvaluation) {
-    // SPEC §4.6: s = dy / (sqrt(ab) + w - a - b) at t_m = sqrt(a) / (sqrt(a) + sqrt(b)). The
-    // dense maximum of y'(t)/x'(t) over 200 000 steps is independent of that derivation; the
-    // slope is flat at its maximum, so a t-step of 5e-6 changes it by ~1e-10 relative.
+    // docs/algorithms/cube.md `max_pit_slope_deg`: s = dy / (sqrt(ab) + w - a - b) at t_m = sqrt(a)
+    // / (sqrt(a) + sqrt(b)). The dense maximum of y'(t)/x'(t) over 200 000 steps is independent of
+    // that derivation; the slope is flat at its maximum, so a t-step of 5e-6 changes it by ~1e-10
+    // relative.
     const std::array<std::array<double, 5>, 5> cases{{{0.225, 1.1, 0.35, 0.26, 0.55},
                                                       {0.2, 0.9, 0.33, 0.05, 0.8},
                                                       {0.24, 1.3, 0.36, 0.6, 0.4},
@@ -497,9 +498,9 @@ SLOW_TEST(CubePhantom, ScheibeWithinOnePercentAt193) {
     EXPECT_LE(x.vr_rel, 0.01);
     EXPECT_LE(x.vir_rel, 0.01);
     EXPECT_LE(x.vp_rel, 0.01);
-    // Model limit (SPEC §4.7): a cubic cannot follow Scheibe's pit bottom; the pit-flat
-    // diameter errs by 1-17 %. Assert that bound, and that the RMSE stays in the model's
-    // 0.3-1.2 um band (plus the sampling of a 39 um grid, < 0.1 um here).
+    // Model limit (docs/algorithms/cube.md "Model limit"): a cubic cannot follow Scheibe's pit
+    // bottom; the pit-flat diameter errs by 1-17 %. Assert that bound, and that the RMSE stays in
+    // the model's 0.3-1.2 um band (plus the sampling of a 39 um grid, < 0.1 um here).
     EXPECT_LE(x.flat_diameter, 0.17 * t.pit_flat_diameter_mm);
     EXPECT_LE(x.rmse_um, 1.2);
 }
@@ -508,9 +509,10 @@ SLOW_TEST(CubePhantom, ScheibeWithinOnePercentAt193) {
 SLOW_TEST(CubePhantom, ScheibeFlatPitsHitTheModelLimit) {
     // Flat Scheibe pits (gamma 3.2): the documented model limit. Measured from the true centre
     // so that sampling plays no part: what remains is the model's own error.
-    // SPEC §4.7's statement is for the rim at the maximum sample (RimPoint::kMaximum, SPEC
-    // §4.4); the fitted rim (the default) carries the model mismatch into the rim radius here:
-    // its errors are recorded, and reported in docs/algorithms/cube.md ("Rim point").
+    // The model limit's statement is for the rim at the maximum sample (RimPoint::kMaximum,
+    // docs/algorithms/cube.md step 4); the fitted rim (the default) carries the model mismatch into
+    // the rim radius here: its errors are recorded, and reported in docs/algorithms/cube.md ("Rim
+    // point").
     MaculaPhantomParams p = volume_params(MaculaFamily::kScheibe, 193, true);
     const MaculaPhantom ph = make_macula_phantom(p);
     CubeParams cp;
@@ -520,13 +522,13 @@ SLOW_TEST(CubePhantom, ScheibeFlatPitsHitTheModelLimit) {
     const CubeResult r = analyse_macula(ph.scan, cp);
     const Errors e = errors(r, ph);
     record("scheibe_flat_true_centre", e);
-    // Rim, CFT and volumes stay well under 1 % (SPEC §4.7).
+    // Rim, CFT and volumes stay well under 1 % (the model limit).
     EXPECT_LE(e.rim_height, 0.01 * ph.truth.rim_height_mm);
     EXPECT_LE(e.rim_diameter, 0.01 * ph.truth.rim.diameter_mm);
     EXPECT_LE(e.vr_rel, 0.01);
     // Pit-flat diameter and maximum slope are where the cubic cannot follow Scheibe's pit
-    // (SPEC §4.7); their errors here (recorded above, reported in docs/algorithms/cube.md)
-    // exceed both the issue's targets and SPEC's indicative 17 % / 0.25 deg: no bound is
+    // (the model limit); their errors here (recorded above, reported in docs/algorithms/cube.md)
+    // exceed both the issue's targets and the limit's indicative 17 % / 0.25 deg: no bound is
     // asserted for them rather than one fitted to the output.
 }
 
@@ -611,7 +613,7 @@ SLOW_TEST(CubePhantom, SegmentationNoiseGivesRmseOfTheNoiseLevel) {
         // noise of the top is most often one of the outer ones, for every half-line alike, so
         // the bias survives the average over 24 half-lines (3-6 % of the diameter here). The
         // fitted rim has no such selection: its error must be well below that bias. Compared on
-        // the bilinear samples of SPEC §4.3, whose noise (0.5-1 sigma) the argument is about:
+        // the bilinear samples of cube.md step 3, whose noise (0.5-1 sigma) the argument is about:
         // the local fits' smaller noise shrinks the maximum's bias itself.
         CubeParams crest_bilinear;
         crest_bilinear.local_fit_min_noise_um = std::numeric_limits<double>::infinity();

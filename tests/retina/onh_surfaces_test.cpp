@@ -1,5 +1,6 @@
 // Graph surfaces of the ONH analysis: the thin-plate (biharmonic) fill reproduces a quadratic
-// BM exactly where a harmonic fill cannot (SPEC §5.1), bilinear interpolation, graph meshes.
+// BM exactly where a harmonic fill cannot (docs/algorithms/onh.md "Surfaces"), bilinear
+// interpolation, graph meshes.
 
 #include "octshape/retina/onh_surfaces.h"
 
@@ -127,10 +128,10 @@ TEST(ThinPlateFill, ReproducesAQuadraticBmExactly) {
 }
 
 TEST(ThinPlateFill, HarmonicFillCannotReproduceTheEyeWallCurvature) {
-    // SPEC §5.1: for the eye wall (x^2 + y^2) / 2R over a disc of radius 0.8 mm a harmonic fill
-    // errs by ~25 um at the centre: the membrane solution with the constant boundary value
-    // r^2 / 2R is flat, 0.64 / 24 mm = 26.7 um above the true centre (the discrete hole's
-    // boundary ring lies a little outside r, so slightly more).
+    // docs/algorithms/onh.md "Thin-plate fill": for the eye wall (x^2 + y^2) / 2R over a disc of
+    // radius 0.8 mm a harmonic fill errs by ~25 um at the centre: the membrane solution with the
+    // constant boundary value r^2 / 2R is flat, 0.64 / 24 mm = 26.7 um above the true centre (the
+    // discrete hole's boundary ring lies a little outside r, so slightly more).
     GridSurface s = quadratic_grid(200, 70, paraboloid);
     punch_hole(s, 0.8, 0.8);
     const std::vector<double> harmonic = harmonic_fill(s);

@@ -1,5 +1,5 @@
-// The ONH analysis (SPEC §5) against closed forms and the ONH phantoms' truth, with the device
-// ILM as a graph mesh. The truth is computed from the phantom's generating functions
+// The ONH analysis (docs/algorithms/onh.md) against closed forms and the ONH phantoms' truth, with
+// the device ILM as a graph mesh. The truth is computed from the phantom's generating functions
 // (phantom_onh.h), never from sampled lines or pixels.
 //
 // Sampling of the full-size phantoms: ScaleX dx = 4.35/384 = 11.3 um, Distance dy = 4.35/144

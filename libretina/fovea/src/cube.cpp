@@ -1,5 +1,6 @@
-// CuBe fovea analysis (thesis §7.1-7.3, SPEC §4): the driver and its fitting stages. The
-// stages and what they hand each other: cube_stages.h; decisions: docs/algorithms/cube.md.
+// CuBe fovea analysis (thesis §7.1-7.3, docs/algorithms/cube.md): the driver and its fitting
+// stages. The stages and what they hand each other: cube_stages.h; decisions:
+// docs/algorithms/cube.md.
 
 #include "octshape/retina/cube.h"
 
@@ -84,7 +85,8 @@ CftPass cft_pass(const std::vector<CubeHalfLine>& lines,
                  double crest_mm) {
     // The CFT pass only feeds P0.y into a mean: a relative energy change of 1e-6 leaves CFT
     // within 0.01 um of the 1e-10 result (12 noisy 193-B-scan phantoms) at ~60 % of the
-    // rounds; the final pass, warm-started from this one, keeps SPEC §4.5's 1e-10.
+    // rounds; the final pass, warm-started from this one, keeps the 1e-10 of
+    // docs/algorithms/cube.md step 5.
     constexpr double kCftPassTolerance = 1e-6;
     const FitSettings free_fs{
         .max_rounds = params.max_rounds,

@@ -1,6 +1,6 @@
-// CuBe fovea analysis, the Bézier fit (thesis §7.1-7.2, SPEC §4.4-4.5): the interior and
-// exterior cubic curves of one half-line, alone or jointly at the rim, by alternating foot
-// points and constrained least squares. Decisions: docs/algorithms/cube.md.
+// CuBe fovea analysis, the Bézier fit (thesis §7.1-7.2, docs/algorithms/cube.md steps 4-5): the
+// interior and exterior cubic curves of one half-line, alone or jointly at the rim, by alternating
+// foot points and constrained least squares. Decisions: docs/algorithms/cube.md.
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -234,7 +234,7 @@ BezierFit alternate(std::span<const V2> d, const FitSettings& s, Solve solve) {
         fit.t = std::move(t);
         fit.sse_mm2 = e;
         have_curve = true;
-        // Converged: the energy (SPEC §4.5), or no control point moves by 1e-7 mm (0.1 nm).
+        // Converged: the energy (cube.md step 5), or no control point moves by 1e-7 mm (0.1 nm).
         if (e <= 1e-30 || (round > 1 && std::fabs(prev - e) <= s.energy_tolerance * prev) ||
             step < 1e-7) {
             fit.converged = true;
@@ -250,7 +250,7 @@ BezierFit alternate(std::span<const V2> d, const FitSettings& s, Solve solve) {
 // Unknowns q = (alpha, beta, h_rim, alpha_ext, P2x_ext, P2y_ext, r_rim, P0.y). With the foot
 // points fixed both curves are linear in q: interior (Eq. 7.7) P0 = (0, P0.y), P0 + alpha (1,0),
 // (r_rim - beta, h_rim), (r_rim, h_rim); exterior (Eq. 7.11) (r_rim, h_rim), (r_rim + alpha_ext,
-// h_rim), P2_ext, P3. r_rim is pinned to the maximum sample (RimPoint::kMaximum, SPEC §4.4) or
+// h_rim), P2_ext, P3. r_rim is pinned to the maximum sample (RimPoint::kMaximum, cube.md step 4) or
 // free (kFit); P0.y is free only in the CFT pass and otherwise pinned to the shared CFT.
 constexpr int kJoint = 8;
 constexpr int kJointConstraints = 8;
@@ -578,7 +578,7 @@ void fit_half_line(CubeHalfLine& h,
     }
     std::size_t rim = 1;
     for (std::size_t k = 1; k < pts.size(); ++k) {
-        if (pts[k].y() > pts[rim].y()) rim = k;  // first maximum (SPEC §4.4)
+        if (pts[k].y() > pts[rim].y()) rim = k;  // first maximum (cube.md step 4)
     }
     if (rim < 2) {
         h.problem = "no pit: the maximum is next to the centre";
@@ -634,11 +634,11 @@ void fit_half_line(CubeHalfLine& h,
     double n = static_cast<double>(h.interior.num_samples + h.exterior.num_samples);
     double sse = h.interior.sse_mm2 + h.exterior.sse_mm2;
     if (bilinear != nullptr) {
-        // The fit used sector bins: its RMSE is measured against the bilinear samples (SPEC
-        // §4.3) as before, i.e. the map's deviation from the model: each sample's orthogonal
-        // distance to its segment (the interior up to the rim radius, the exterior beyond it up
-        // to its end; the first sample is the centre at CFT). The bilinear samples missing
-        // inside the rim are the pit's missing values.
+        // The fit used sector bins: its RMSE is measured against the bilinear samples
+        // (cube.md step 3) as before, i.e. the map's deviation from the model: each sample's
+        // orthogonal distance to its segment (the interior up to the rim radius, the exterior
+        // beyond it up to its end; the first sample is the centre at CFT). The bilinear samples
+        // missing inside the rim are the pit's missing values.
         const Ctrl& ce = h.exterior.control;
         std::vector<V2> rin;
         std::vector<V2> rex;
@@ -801,7 +801,7 @@ RimProfileFit fit_rim_profile(std::span<const V2> d,
         cur.t = start->interior.t;
         cur.t.insert(cur.t.end(), start->exterior.t.begin(), start->exterior.t.end());
     } else {
-        // Start (SPEC §4.4-4.5): both segments through the rim sample.
+        // Start (cube.md step 5, "Rim point"): both segments through the rim sample.
         FitSettings fixed = s;
         fixed.free_start_height = false;
         const BezierFit fi = fit_interior(d.subspan(0, r0 + 1), fixed);
@@ -884,7 +884,7 @@ RimProfileFit fit_rim_profile(std::span<const V2> d,
         const double step = (next.q - cur.q).cwiseAbs().maxCoeff();
         last_step = next.q - cur.q;
         cur = std::move(next);
-        // Converged: the energy (SPEC §4.5) or every control point has stopped moving (below
+        // Converged: the energy (cube.md step 5) or every control point has stopped moving (below
         // 1e-7 mm = 0.1 nm a round: the linear tail of a zig-zag changes no output).
         if (std::fabs(prev - cur.energy) <= s.energy_tolerance * prev || step < 1e-7) {
             out.converged = true;

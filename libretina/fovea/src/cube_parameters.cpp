@@ -1,5 +1,6 @@
-// CuBe fovea analysis, the parameters (thesis §7.3, SPEC §4.6): per half-line from its curves,
-// then the eye's means, disks and volumes, and the QC flags. Decisions: docs/algorithms/cube.md.
+// CuBe fovea analysis, the parameters (thesis §7.3, docs/algorithms/cube.md "Parameters"): per
+// half-line from its curves, then the eye's means, disks and volumes, and the QC flags. Decisions:
+// docs/algorithms/cube.md.
 
 #include <Eigen/Dense>
 #include <cmath>

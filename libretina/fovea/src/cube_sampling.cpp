@@ -1,6 +1,6 @@
-// CuBe fovea analysis, the samples (thesis §7.2.1, SPEC §4.1-4.3): the thickness map, its
-// noise, the fovea centre and the radial half-lines, with the noise-adaptive estimators (local
-// fits, sector bins). Decisions: docs/algorithms/cube.md.
+// CuBe fovea analysis, the samples (thesis §7.2.1, docs/algorithms/cube.md steps 1-3): the
+// thickness map, its noise, the fovea centre and the radial half-lines, with the noise-adaptive
+// estimators (local fits, sector bins). Decisions: docs/algorithms/cube.md.
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -226,7 +226,7 @@ struct LocalFitWindow {
 // symmetric window to first order). Quadratic in rho: a symmetric window's local quadratic is
 // unbiased for cubic profiles too, where a local linear fit errs by T'' h^2 / 6. The sample
 // is a; a window with fewer than min_nodes nodes or a singular design keeps the bilinear value.
-// Samples that are missing under SPEC §4.3 (a missing bilinear neighbour) stay missing.
+// Samples that are missing under cube.md step 3 (a missing bilinear neighbour) stay missing.
 // The sums of one sample's normal equations for T = a + b rho + c rho^2 + e tau (f = (1, rho,
 // rho^2, tau)): the 9 distinct entries of sum f f^T and the 4 of sum v f, added as scalars (the
 // same products as a rank-one update of the 4x4 matrix, at a third of its cost here).
@@ -472,8 +472,8 @@ Centre find_centre(const CentreInput& in) {
         if (std::isnan(out.cft_mm)) throw AnalysisError("no valid thickness at the given centre");
     } else {
         const double rs = params.search_radius_mm;
-        // The node box around the search circle; values: M smoothed for the search (SPEC §4.2
-        // on the smoothed map; docs/algorithms/cube.md "Centre").
+        // The node box around the search circle; values: M smoothed for the search (the
+        // minimum of Eq. 7.13 on the smoothed map; docs/algorithms/cube.md "Centre").
         const V2& sc = out.search_centre_mm;
         NodeBox bx;
         bx.a0 = std::clamp(static_cast<int>(std::floor((sc.x() - rs) / m.dx_mm)), 0, m.cols - 1);
@@ -664,7 +664,7 @@ double ThicknessMap::sample(double x_mm, double y_mm) const {
     const double m01 = at(b0, a0 + 1);
     const double m10 = at(b0 + 1, a0);
     const double m11 = at(b0 + 1, a0 + 1);
-    // SPEC §4.3: a sample whose four neighbours are not all valid is missing.
+    // cube.md step 3: a sample whose four neighbours are not all valid is missing.
     if (std::isnan(m00) || std::isnan(m01) || std::isnan(m10) || std::isnan(m11)) return kMissing;
     return (1.0 - v) * ((1.0 - u) * m00 + u * m01) + v * ((1.0 - u) * m10 + u * m11);
 }

@@ -61,7 +61,7 @@ inline constexpr double kDeg = 180.0 / kPi;
 // shorter) cannot give a half-line with its rim inside; AnalysisError naming both sizes.
 void check_macula_field(const ThicknessMap& m, const CubeParams& params, bool line_scan);
 
-// ---- stage 2: the centre (SPEC §4.2, Eq. 7.13) ---------------------------------------------
+// ---- stage 2: the centre (docs/algorithms/cube.md step 2, Eq. 7.13) -------------------------
 
 struct CentreInput {
     const io::Scan& scan;
@@ -110,7 +110,7 @@ struct Centre {
 
 [[nodiscard]] Centre find_centre(const CentreInput& in);
 
-// ---- stage 3: radial samples (SPEC §4.3) ----------------------------------------------------
+// ---- stage 3: radial samples (docs/algorithms/cube.md step 3) --------------------------------
 
 struct RadialSamples {
     double spacing_mm = 0.0;
@@ -139,8 +139,8 @@ void sector_bin_samples(std::vector<std::vector<V2>>& nodes, std::vector<CubeHal
 
 // ---- stages 4 and 5: the fits (cube_fit.cpp) ------------------------------------------------
 
-// The bilinear samples of a half-line at the regular radii (SPEC §4.3), kept beside the sector
-// bins for the RMSE and the count of missing values in the pit.
+// The bilinear samples of a half-line at the regular radii (docs/algorithms/cube.md step 3), kept
+// beside the sector bins for the RMSE and the count of missing values in the pit.
 struct BilinearSamples {
     const std::vector<double>& r_mm;
     const std::vector<double>& h_mm;

@@ -1,4 +1,4 @@
-// Level-set ILM of an ONH volume (thesis §8.1.1, SPEC §5.2): the driver over the stages of
+// Level-set ILM of an ONH volume (thesis §8.1.1): the driver over the stages of
 // levelset_stages.h and the stages that read the scan. Method, equations (LS-1 …) and
 // defaults: docs/algorithms/levelset.md.
 

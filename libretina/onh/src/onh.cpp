@@ -262,7 +262,8 @@ OnhRegions measure_onh_regions(const mesh::Vertices& V,
             } else {
                 if (reg & kRegionBmo) m.bmo_volume_mm3 += ah;     // Eq. 8.11-8.12
                 if (reg & kRegionDisc) m.total_volume_mm3 += ah;  // Eq. 8.14-8.15
-                // Eq. 8.16-8.17 as SPEC §5.6 reads it: the annulus minus the cup.
+                // Eq. 8.16-8.17 read as the annulus minus the cup (docs/algorithms/onh.md,
+                // `annular_volume_mm3`).
                 if ((reg & kRegionDisc) && !(reg & kRegionBmo)) m.annular_volume_mm3 += ah;
             }
         }
@@ -307,7 +308,8 @@ double anatomical_deg(const OnhResult& r, double dx, double dy) {
 }
 
 // Height of the topmost crossing of the vertical line through (x, y) with the mesh: what the
-// line meets first coming from the vitreous (SPEC §5.6 CONHT). NaN if it misses the mesh.
+// line meets first coming from the vitreous (docs/algorithms/onh.md, `conht_mm`). NaN if it misses
+// the mesh.
 double top_crossing(const mesh::Vertices& V, const mesh::Faces& F, double x, double y) {
     double best = -std::numeric_limits<double>::infinity();
     for (Eigen::Index f = 0; f < F.rows(); ++f) {

@@ -4,8 +4,9 @@
 // build_ilm_surface (onh.h); analyse_onh then runs, in this order:
 //
 //   check_onh_inputs   volume scan, orientation and spacing notes, a valid ILM mesh
-//   bmo_points         the BM height field (SPEC §5.1) and the BMO points: from a file or
-//                      detected at the BM gap (§5.3, bmo.cpp)
+//   bmo_points         the BM height field (docs/algorithms/onh.md "Surfaces") and the
+//                      BMO points: from a file or detected at the BM gap (onh.md "BMO",
+//                      bmo.cpp)
 //   bmo_ellipse        the ellipse through them, resampled; its anatomical orientation
 //   rpe_surface        the BM filled inside the BMO (thin plate) and its graph mesh
 //   orient_ilm         the ILM with its normals towards the vitreous; mesh quality
@@ -101,7 +102,8 @@ void check_onh_result(const OnhResult& r, double width, double height, double de
 void check_ilm_mesh(const IlmSurface& ilm);
 
 // Height of the topmost crossing of the vertical line through (x, y) with the mesh: what the
-// line meets first coming from the vitreous (SPEC §5.6 CONHT). NaN if it misses the mesh.
+// line meets first coming from the vitreous (docs/algorithms/onh.md, `conht_mm`). NaN if it misses
+// the mesh.
 [[nodiscard]] double top_crossing(const mesh::Vertices& V, const mesh::Faces& F, double x,
                                   double y);
 

@@ -502,8 +502,9 @@ double bezier_half_line(const MaculaPhantomParams& p, const MaculaTruthOptions& 
     h.rim_height_mm = b.rim_height_mm;
     h.alpha_mm = b.alpha_mm;
     h.beta_mm = b.beta_mm;
-    // Maximum slope (SPEC §4.6): dy/dx = 2 dy t(1-t) / (a(1-t)^2 + 2(w-a-b)t(1-t) + b t^2)
-    // is largest at t_m = sqrt(a)/(sqrt(a)+sqrt(b)) with value dy/(sqrt(ab) + w - a - b).
+    // Maximum slope (docs/algorithms/cube.md `max_pit_slope_deg`): dy/dx = 2 dy t(1-t) / (a(1-t)^2
+    // + 2(w-a-b)t(1-t) + b t^2) is largest at t_m = sqrt(a)/(sqrt(a)+sqrt(b)) with value
+    // dy/(sqrt(ab) + w - a - b).
     const double dy = b.rim_height_mm - b.cft_mm;
     const double sa = std::sqrt(b.alpha_mm);
     const double sb = std::sqrt(b.beta_mm);
@@ -696,8 +697,8 @@ MaculaTruth macula_truth(const MaculaPhantomParams& p, const MaculaTruthOptions&
     t.centre_x_mm = centre.x();
     t.centre_y_mm = centre.y();
     const bool bez_family = p.family == MaculaFamily::kBezier;
-    // A line scan has the two half-lines left and right of the centre (SPEC §4.8); a radial
-    // scan two per line.
+    // A line scan has the two half-lines left and right of the centre (docs/algorithms/cube.md
+    // "Parameters", line scans); a radial scan two per line.
     const int n = p.line ? 2 : p.radial ? 2 * p.radial_lines : o.num_half_lines;
     const double tau = o.tau_mm;
     QuadratureErrors quad_err;

@@ -21,7 +21,7 @@ namespace octshape::retina {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-constexpr double kDiscRadiusMm = 1.5;  // SPEC §5.5: total / annular volume disc
+constexpr double kDiscRadiusMm = 1.5;  // total / annular volume disc (docs/algorithms/onh.md)
 // Outside the BMO the ILM must stay this far above the BM (the cavity of an overhang may not
 // pass under Bruch's membrane, and every column needs some retina to draw).
 constexpr double kMinClearanceMm = 0.01;
@@ -794,7 +794,8 @@ TruthPass truth_pass(const OnhPhantomGeometry& g,
     t.av = ab * av * 2.0 * kPi / o.phi_steps;
 
     // Bending energy: area-weighted normal tensor of the whole BMO region (Eq. 8.18-8.20 with
-    // one tensor for the region, SPEC §5.6); its trace is 1, E_b = lambda2 + lambda3.
+    // one tensor for the region, docs/algorithms/onh.md `bending_energy`); its trace is 1, E_b =
+    // lambda2 + lambda3.
     Eigen::Matrix3d tensor = Eigen::Matrix3d::Zero();
     double area = 0.0;
     for (int j = 0; j < o.phi_steps; ++j) {

@@ -6,12 +6,13 @@
 // drawn) so that the tests can check marks at their pixels.
 
 #include <cmath>
+#include <functional>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
-#include "octshape/qc/draw.h"
 #include "octshape/io/scan.h"
+#include "octshape/qc/draw.h"
 #include "octshape/retina/onh.h"
 #include "octshape/retina/radial_geometry.h"
 
@@ -72,15 +73,26 @@ struct RadialSheetLayout {
 };
 
 // The analysis's en-face map (retina::onh_enface_heights: height above the RPE of the topmost
-// ILM face over each RPE grid cell, NaN: no face, row-major b * (cols - 1) + a): the en-face
-// pictures' values, a volume's and a radial scan's; with their colour range [lo, hi] (lo <= 0, hi >= 0.1
-// mm, so that a flat disc is not stretched over the whole scale).
-struct CellHeights {
-    std::vector<double> h;
+// ILM face over each RPE grid cell, NaN: no face) as the en-face pictures draw it, a volume's
+// and a radial scan's: three 8-bit layers of `size` cells, cell (a, b) of the grid at the
+// picture cell place(a, b) — `grey`, the height's colour level (0 at lo, 255 at hi; 0 where no
+// face), `cup`, 255 where the height is below the RPE (the cup's outline is its boundary), and
+// `none`, 255 where no face lies — with the colour range [lo, hi] (lo <= 0, hi >= 0.1 mm, so
+// that a flat disc is not stretched over the whole scale) and the grid's cells (cols x rows).
+struct CellLayers {
+    cv::Mat grey;
+    cv::Mat cup;
+    cv::Mat none;
     double lo = 0.0;
     double hi = 0.1;
+    int cols = 0;
+    int rows = 0;
 };
-[[nodiscard]] CellHeights onh_cell_heights(const retina::OnhResult& r);
+// `size` is the picture's cells (width x height); `place` maps grid cell (a, b) into it. With an
+// empty `size`, the grid's own (cols x rows) and place(a, b) = (a, rows - 1 - b): superior up.
+[[nodiscard]] CellLayers onh_cell_layers(const retina::OnhResult& r,
+                                         cv::Size size = {},
+                                         const std::function<cv::Point(int, int)>& place = {});
 
 // Fractional A-scan index along line `line` of grid mm point `xy` (its projection on the line).
 [[nodiscard]] double radial_ascan_of(const retina::RadialGeometry& geo,
