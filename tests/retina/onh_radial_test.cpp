@@ -507,7 +507,7 @@ SLOW_TEST(OnhRadialLeak, CleftAndShadowsFallBackToTheDeviceIlm) {
 // Without pixels, or with a B-scan that holds no image, the level set refuses (naming the
 // B-scan); the device ILM analyses the same scan from its lines.
 // The overhang with vessel shadows (issue 32 item 3), 12 lines (the smallest scan that shows it;
-// ~2.5 s Release on the loaded machine: phantom, truth, one level set). Under the rim lip the
+// 1.9 s CPU in Release, 2-4 s wall on the loaded machine: phantom, truth, one level set). Under the rim lip the
 // front crosses from the cavity sideways into a vessel's shadow and runs down under the cup
 // wall to its window's bottom: without the cut, in-plane MRW -16.2 um, 3-D MRW -14.7 um (worst
 // point 116 um), MRW area -10.5 %, 0.66 mm2 facing down; the top-crossing rule cannot see it
