@@ -188,6 +188,64 @@ TEST(LevelSetStages, LeaksFallBackToTheDeviceIlmAndLipTipsAndSpikesDoNot) {
     }
 }
 
+// Shadowed tissue (docs/algorithms/levelset.md "Leaks"): a flat ILM at row 20.25 (hz 4 um;
+// hidden = more than 16 um = 4 rows below it, rows >= 25), vitreous 0.1 above it, tissue 0.6
+// below (c_tissue): the threshold is 0.1 + 0.5 / 4 = 0.225. In B-scan 1, rows 26-33 are vitreous
+// (phi > 0) in a dark cavity (A-scans 5-12, 0.07: a shadowed cavity is darker, never brighter,
+// than the vitreous), its wall's 2-A-scan blur (13-14, 0.35: thinner than the 3 x 3 block) and
+// a leak into shadowed tissue (20-27, 0.35); a bright floater lies in the open vitreous (rows
+// 10-14, A-scans 30-35, 0.5). Only the leak is cut (phi <= 0 there, its 8 columns counted);
+// the cavity, the blur, the floater, the tissue around the leak and B-scan 0 keep their phi.
+TEST(LevelSetStages, ShadowedTissueIsCutAndCavitiesWallBlurAndFloatersAreNot) {
+    const int na = 40;
+    const DeviceIlm d = flat_ilm(2, na, 60, 20.25F);
+    LevelSetParams p;
+    const Windows w = depth_windows(d, p);
+    std::vector<float> phi = initial_phi(w, d);
+    std::vector<float> image(phi.size());
+    for (std::size_t c = 0; c < w.lo.size(); ++c) {
+        for (int r = 0; r < w.len[c]; ++r) {
+            image[static_cast<std::size_t>(w.offset[c] + r)] = w.lo[c] + r < 20.25 ? 0.1F : 0.6F;
+        }
+    }
+    auto set = [&](int a0, int a1, int r0, int r1, float value, bool vitreous) {
+        for (int a = a0; a <= a1; ++a) {
+            const auto c = static_cast<std::size_t>(w.column(1, a));
+            for (int d_row = r0; d_row <= r1; ++d_row) {
+                const auto i = static_cast<std::size_t>(w.offset[c] + (d_row - w.lo[c]));
+                image[i] = value;
+                if (vitreous) phi[i] = static_cast<float>(d.h.hz);
+            }
+        }
+    };
+    set(5, 12, 26, 33, 0.07F, true);   // the cavity
+    set(13, 14, 26, 33, 0.35F, true);  // its wall's blur
+    set(20, 27, 26, 33, 0.35F, true);  // the leak
+    set(30, 35, 10, 14, 0.5F, false);  // the floater
+    ASSERT_LE(w.lo[0], 10);
+    ASSERT_GE(w.lo[0] + w.len[0], 34);
+    const std::vector<float> before = phi;
+    std::vector<int> bscans;
+    const std::int64_t n = cut_shadowed_tissue(w, phi, image, d, 0.6, p.leak_depth_mm, bscans);
+    EXPECT_EQ(n, 8);
+    EXPECT_EQ(bscans, std::vector<int>{1});
+    for (int b = 0; b < 2; ++b) {
+        for (int a = 0; a < na; ++a) {
+            const auto c = static_cast<std::size_t>(w.column(b, a));
+            for (int r = 0; r < w.len[c]; ++r) {
+                const auto i = static_cast<std::size_t>(w.offset[c] + r);
+                const int row = w.lo[c] + r;
+                const bool leak = b == 1 && a >= 20 && a <= 27 && row >= 26 && row <= 33;
+                if (leak) {
+                    EXPECT_LE(phi[i], 0.0F) << a << " " << row;
+                } else {
+                    EXPECT_EQ(phi[i], before[i]) << b << " " << a << " " << row;
+                }
+            }
+        }
+    }
+}
+
 // φ of a flat interface half-way between rows 20 and 21 on every column.
 struct FlatCase {
     DeviceIlm ilm;

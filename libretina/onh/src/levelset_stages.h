@@ -118,6 +118,20 @@ inline constexpr const char* kLeakFlag = "level-set front leaked into the tissue
                                                   int na,
                                                   double leak_rows);
 
+// Shadowed tissue taken for vitreous (docs/algorithms/levelset.md "Leaks", "Hidden vitreous").
+// Vitreous below the ILM seen from above (phi > 0 more than `leak_depth_mm` below the device
+// ILM: a cavity under a rim lip, or a leak) must look like vitreous. Per B-scan, v = the median
+// despeckled intensity of the vitreous above the device ILM (phi > 0, >= 3 rows above it); a
+// hidden vitreous voxel brighter than v + (c_tissue - v) / 4 is tissue when it belongs to a
+// 4-connected group of such voxels holding a 3 x 3 block of them (thicker than the one- or
+// two-voxel blur of a true cavity wall). There, and in the hidden vitreous beside it, phi is
+// lowered to the ramp hz (thr - I) / ((c_tissue - v) / 4), zero at the threshold. Returns the
+// number of columns holding such a group and appends the B-scans they lie in.
+[[nodiscard]] std::int64_t cut_shadowed_tissue(const Windows& w, std::vector<float>& phi,
+                                               const std::vector<float>& image,
+                                               const DeviceIlm& ilm, double c_tissue,
+                                               double leak_depth_mm, std::vector<int>& bscans);
+
 // The volume's leaks after the evolution: per B-scan the columns' top crossings on phi (rows
 // above a window are vitreous, below tissue), leak_runs, and phi of every leaking column set to
 // phi0 (the device ILM's signed vertical distance). Returns the number of such columns and the

@@ -463,6 +463,7 @@ OnhResult analyse_onh_radial(const io::Scan& scan, const IlmSurface& ilm,
     r.ilm_source = ilm.source;
     r.levelset_leak_bscans = ilm.leak_bscans;
     r.levelset_leak_fallback_ascans = ilm.leak_fallback_ascans;
+    r.levelset_leak_cut_ascans = ilm.leak_cut_ascans;
     radial_check(scan, grid, ilm, r);
     GridSurface bm = radial_bmo_points(scan, grid, params, bmo_file_points, r);
     bmo_ellipse(params, r);

@@ -6,8 +6,9 @@
 // the volume's marching cubes, clean-up and RoFi on that grid. Each line keeps its own curve
 // (the interpolation weight is 0 on it), and an overhang in the lines' planes is carried into
 // the surface between them: nothing here is a height field. Where a B-scan's front leaked
-// into the tissue (a cleft, a vessel's shadow), those A-scans take the device ILM
-// (docs/algorithms/levelset.md "Leaks").
+// into the tissue, the shadowed tissue it took under the ILM is cut from the vitreous (a vessel's
+// shadow) or, where its top crossing lies deep below the device ILM (a cleft), those A-scans take
+// the device ILM (docs/algorithms/levelset.md "Leaks").
 
 #include <algorithm>
 #include <array>
@@ -53,6 +54,7 @@ struct BscanLevelSet {
     bool reached_edge = false;
     int missing_ilm_columns = 0;
     int leak_ascans = 0;  // A-scans that fell back to the device ILM (a leak)
+    int shadow_ascans = 0;  // A-scans whose shadowed tissue was cut from the vitreous (a leak)
 
     [[nodiscard]] double at(int d, int a) const {
         if (d < r0) return kDistanceCapMm;
@@ -123,6 +125,11 @@ std::vector<double> evolve_bscan(const io::Scan& scan,
     std::vector<float> phi = ls::initial_phi(w, ilm);
     LevelSetResult res;
     ls::evolve(w, phi, image, params, ilm.h, res);
+    if (params.leak_fallback) {
+        std::vector<int> cut_bscans;
+        out.shadow_ascans = static_cast<int>(ls::cut_shadowed_tissue(
+            w, phi, image, ilm, res.c_tissue, params.leak_depth_mm, cut_bscans));
+    }
     out.iterations = res.iterations;
     out.converged = res.converged;
     out.reached_edge = res.front_reached_window_edge;
@@ -455,8 +462,9 @@ void report_bscans(std::vector<BscanLevelSet>& bs, IlmSurface& out) {
         missing += l.missing_ilm_columns;
         if (!l.converged) unconverged.push_back(k);
         if (l.reached_edge) edge.push_back(k);
-        if (l.leak_ascans > 0) out.leak_bscans.push_back(k);
+        if (l.leak_ascans > 0 || l.shadow_ascans > 0) out.leak_bscans.push_back(k);
         out.leak_fallback_ascans += l.leak_ascans;
+        out.leak_cut_ascans += l.shadow_ascans;
         out.bscan_curves[static_cast<std::size_t>(k)] = std::move(l.curve);
     }
     if (!unconverged.empty()) {
@@ -467,10 +475,16 @@ void report_bscans(std::vector<BscanLevelSet>& bs, IlmSurface& out) {
                                bscans_named(edge));
     }
     if (!out.leak_bscans.empty()) {
+        std::string what;
+        if (out.leak_fallback_ascans > 0) {
+            what = std::to_string(out.leak_fallback_ascans) + " A-scans fell back to the device ILM";
+        }
+        if (out.leak_cut_ascans > 0) {
+            what += (what.empty() ? "" : ", ") + std::string("shadowed tissue cut from the vitreous in ") +
+                    std::to_string(out.leak_cut_ascans) + " A-scans";
+        }
         out.qc_flags.push_back(std::string(ls::kLeakFlag) + " in radial " +
-                               bscans_named(out.leak_bscans) + ": " +
-                               std::to_string(out.leak_fallback_ascans) +
-                               " A-scans fell back to the device ILM");
+                               bscans_named(out.leak_bscans) + ": " + what);
     }
     out.notes.push_back("level-set iterations per radial B-scan (0, 1, ...): " +
                         bscan_list(iterations));

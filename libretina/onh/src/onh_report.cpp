@@ -78,6 +78,7 @@ J radial_json(const OnhResult& r) {
     if (r.ilm_source == "levelset") {
         rad["levelset_leak_bscans"] = r.levelset_leak_bscans;
         rad["levelset_leak_fallback_ascans"] = r.levelset_leak_fallback_ascans;
+        rad["levelset_leak_cut_ascans"] = r.levelset_leak_cut_ascans;
     }
     J isec = J::object();
     J ipts_n = J::object();

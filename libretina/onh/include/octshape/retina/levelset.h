@@ -88,8 +88,11 @@ struct LevelSetParams {
     // A front that entered the tissue (a dark cleft, a vessel's shadow) leaves its top crossing
     // more than `leak_depth_mm` below the device ILM's running median over >= 3 A-scans (an
     // overhang's cavity lies under the lip both see first); those A-scans fall back to the
-    // device ILM, flagged and counted (docs/algorithms/levelset.md "Leaks"). false: keep the
-    // leak (for measuring it). leak_depth_mm > 0.
+    // device ILM, flagged and counted (docs/algorithms/levelset.md "Leaks"). Vitreous more than
+    // `leak_depth_mm` below the device ILM (only a cavity under a lip can be there) that is
+    // brighter than a quarter of the way from the vitreous to the tissue, in a group holding a
+    // 3 x 3 block, is tissue in a vessel's shadow: cut from the vitreous, flagged and counted.
+    // false: keep every leak (for measuring it). leak_depth_mm > 0.
     bool leak_fallback = true;
     double leak_depth_mm = 0.016;
 

@@ -50,11 +50,13 @@ struct IlmSurface {
     // its 2-D level set in the B-scan's own plane; the in-plane MRW is measured on it. Empty
     // for the device ILM (the in-plane MRW then uses each B-scan's device ILM line).
     std::vector<std::vector<PlaneSegment>> bscan_curves;
-    // Radial level set: the B-scans where the front leaked into the tissue (a cleft, a shadow)
-    // and the leaking A-scans fell back to the device ILM, and how many A-scans in all
-    // (docs/algorithms/levelset.md "Leaks").
+    // Radial level set: the B-scans where the front leaked into the tissue (a cleft, a shadow),
+    // how many A-scans fell back to the device ILM (a top-crossing leak) and in how many the
+    // shadowed tissue under the ILM was cut from the vitreous (docs/algorithms/levelset.md
+    // "Leaks").
     std::vector<int> leak_bscans;
     int leak_fallback_ascans = 0;
+    int leak_cut_ascans = 0;
 };
 
 // The device ILM line as a graph mesh on the scan grid, missing values thin-plate filled
@@ -199,6 +201,7 @@ struct OnhResult {
     std::array<int, 12> mrw_inplane_sector_points{};
     std::vector<int> levelset_leak_bscans;  // IlmSurface::leak_bscans (radial level set)
     int levelset_leak_fallback_ascans = 0;
+    int levelset_leak_cut_ascans = 0;       // IlmSurface::leak_cut_ascans
 
     // Axial registration of the B-scans (set by the caller that registered the scan).
     AxialRegistration axial_registration;
