@@ -84,7 +84,8 @@ std::string onh_options_text(const OnhEyeOptions& o) {
       << " band_layers=" << ls.band_layers << " reinit_interval=" << ls.reinit_interval
       << " cfl=" << ls.cfl << " max_iterations=" << ls.max_iterations
       << " tile_mm=" << ls.tile_mm << " patience=" << ls.patience
-      << " slab_bscans=" << ls.slab_bscans << " smooth=" << ls.smooth << ")";
+      << " slab_bscans=" << ls.slab_bscans << " smooth=" << ls.smooth
+      << " leak_fallback=" << ls.leak_fallback << " leak_depth_mm=" << ls.leak_depth_mm << ")";
     const auto& r = ls.rofi;
     s << " rofi(sigma_s=" << r.sigma_s << " lambda_i=" << r.lambda_i
       << " iterations=" << r.iterations << " lambda_decay=" << r.lambda_decay
