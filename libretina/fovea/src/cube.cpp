@@ -116,7 +116,7 @@ CftPass cft_pass(const std::vector<CubeHalfLine>& lines,
 void final_fit(RadialSamples& s, const CftPass& cft, const CubeParams& params, double crest_mm) {
     // Under noise the final fit uses the sector bins (docs/algorithms/cube.md "Radial samples
     // under noise"), started from the CFT pass's curves.
-    if (s.noise_adaptive) sector_bin_samples(s.sector_nodes, s.half_lines);
+    if (s.noise_adaptive) sector_bin_samples(s.sector_nodes, s.half_lines, &cft.free_fits);
     const FitSettings fs{.max_rounds = params.max_rounds,
                          .energy_tolerance = params.energy_tolerance,
                          .free_start_height = false,

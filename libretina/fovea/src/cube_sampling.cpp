@@ -406,7 +406,9 @@ double median(std::vector<double> v) {
 // 0 stays the centre.
 constexpr std::size_t kMinSectorNodes = 16;
 
-void sector_bin_samples(std::vector<std::vector<V2>>& nodes, std::vector<CubeHalfLine>& lines) {
+void sector_bin_samples(std::vector<std::vector<V2>>& nodes,
+                        std::vector<CubeHalfLine>& lines,
+                        const std::vector<CubeHalfLine>* profiles) {
     const std::size_t n = lines.size();
     if (n == 0 || nodes.size() != n || lines.front().r_mm.size() < 2) return;
     const std::size_t regular = lines.front().r_mm.size() - 1;
@@ -424,16 +426,35 @@ void sector_bin_samples(std::vector<std::vector<V2>>& nodes, std::vector<CubeHal
         CubeHalfLine& h = lines[i];
         h.r_mm.resize(1);
         h.h_mm.resize(1);
+        const CubeHalfLine* profile =
+            profiles != nullptr && profiles->size() == n && (*profiles)[i].valid ? &(*profiles)[i]
+                                                                                 : nullptr;
         for (std::size_t j = 0; j < runs; ++j) {
             const std::size_t first = j * k;
             const std::size_t last = j + 1 == runs ? d.size() : first + k;
             double sum_h = 0.0;
+            double sum_r = 0.0;
             double sum_r2 = 0.0;
             for (std::size_t q = first; q < last; ++q) {
                 sum_h += d[q].y();
+                sum_r += d[q].x();
                 sum_r2 += d[q].x() * d[q].x();
             }
             const auto count = static_cast<double>(last - first);
+            if (profile != nullptr) {
+                // Every node moved along the profile to the run's mean radius.
+                const double rho = sum_r / count;
+                const double at_rho = fitted_thickness_mm(*profile, rho);
+                double shift = 0.0;
+                for (std::size_t q = first; q < last; ++q) {
+                    shift += at_rho - fitted_thickness_mm(*profile, d[q].x());
+                }
+                if (std::isfinite(shift)) {
+                    h.r_mm.push_back(rho);
+                    h.h_mm.push_back((sum_h + shift) / count);
+                    continue;
+                }
+            }
             h.r_mm.push_back(std::sqrt(sum_r2 / count));
             h.h_mm.push_back(sum_h / count);
         }

@@ -135,7 +135,9 @@ struct RadialSamples {
 
 // Replaces every half-line's samples (but the centre) by its sector bins
 // (docs/algorithms/cube.md "Radial samples under noise") (cube_sampling.cpp).
-void sector_bin_samples(std::vector<std::vector<V2>>& nodes, std::vector<CubeHalfLine>& lines);
+void sector_bin_samples(std::vector<std::vector<V2>>& nodes,
+                        std::vector<CubeHalfLine>& lines,
+                        const std::vector<CubeHalfLine>* profiles = nullptr);
 
 // ---- stages 4 and 5: the fits (cube_fit.cpp) ------------------------------------------------
 
