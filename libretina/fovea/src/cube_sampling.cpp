@@ -405,10 +405,16 @@ double median(std::vector<double> v) {
 // (k to 2k - 1 nodes). A half-line with fewer than kMinSectorNodes nodes keeps its samples. Sample
 // 0 stays the centre.
 constexpr std::size_t kMinSectorNodes = 16;
+// Above 1 axial pixel of noise per surface (node SD sqrt(2) x 3.87 um) the runs lengthen in
+// proportion to the noise SD, up to 4x (docs/algorithms/cube.md, "Bias under noise").
+constexpr double kOnePixelNodeSdMm = 0.0054754;
+constexpr double kMaxRunFactor = 4.0;
 
 void sector_bin_samples(std::vector<std::vector<V2>>& nodes,
                         std::vector<CubeHalfLine>& lines,
-                        const std::vector<CubeHalfLine>* profiles) {
+                        const std::vector<CubeHalfLine>* profiles,
+                        double noise_sd_mm) {
+    const double run_factor = std::clamp(noise_sd_mm / kOnePixelNodeSdMm, 1.0, kMaxRunFactor);
     const std::size_t n = lines.size();
     if (n == 0 || nodes.size() != n || lines.front().r_mm.size() < 2) return;
     const std::size_t regular = lines.front().r_mm.size() - 1;
@@ -421,7 +427,8 @@ void sector_bin_samples(std::vector<std::vector<V2>>& nodes,
         });
         const std::size_t k = std::max<std::size_t>(
             1, static_cast<std::size_t>(
-                   std::lround(static_cast<double>(d.size()) / static_cast<double>(regular))));
+                   std::lround(run_factor * static_cast<double>(d.size()) /
+                               static_cast<double>(regular))));
         const std::size_t runs = d.size() / k;
         CubeHalfLine& h = lines[i];
         h.r_mm.resize(1);
