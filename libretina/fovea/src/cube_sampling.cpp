@@ -405,6 +405,37 @@ double median(std::vector<double> v) {
 // (k to 2k - 1 nodes). A half-line with fewer than kMinSectorNodes nodes keeps its samples. Sample
 // 0 stays the centre.
 constexpr std::size_t kMinSectorNodes = 16;
+// A half-line's fitted profile (fitted_thickness_mm) at radii that increase from call to call
+// (a run's nodes, sorted): Newton on the segment's x(t) = r from the previous t, which the
+// sorted radii keep close; bisection (solve_x) where Newton does not converge in a few steps
+// (x'(t) = 0 at an end whose handle is 0). NaN outside [0, R] or on an invalid profile.
+class ProfileAt {
+public:
+    explicit ProfileAt(const CubeHalfLine& h) : h_(h) {}
+    double operator()(double r) {
+        if (!h_.valid || h_.r_mm.empty() || r < 0.0 || r > h_.r_mm.back()) return kMissing;
+        const bool interior = r <= h_.interior.control[3].x();
+        const Ctrl& c = interior ? h_.interior.control : h_.exterior.control;
+        if (r < c[0].x() || r > c[3].x()) return kMissing;
+        double& t = interior ? t_interior_ : t_exterior_;
+        bool converged = false;
+        for (int it = 0; it < 8 && !converged; ++it) {
+            const double dx = bezier_derivative(c, t).x();
+            if (!(dx > 0.0)) break;
+            const double step = (bezier_point(c, t).x() - r) / dx;
+            t = std::clamp(t - step, 0.0, 1.0);
+            converged = std::fabs(step) < 1e-13;
+        }
+        if (!converged) t = solve_x(c, r);
+        return bezier_point(c, t).y();
+    }
+
+private:
+    const CubeHalfLine& h_;
+    double t_interior_ = 0.5;
+    double t_exterior_ = 0.5;
+};
+
 // Above 1 axial pixel of noise per surface (node SD sqrt(2) x 3.87 um) the runs lengthen in
 // proportion to the noise SD, up to 4x (docs/algorithms/cube.md, "Bias under noise").
 constexpr double kOnePixelNodeSdMm = 0.0054754;
@@ -436,6 +467,8 @@ void sector_bin_samples(std::vector<std::vector<V2>>& nodes,
         const CubeHalfLine* profile =
             profiles != nullptr && profiles->size() == n && (*profiles)[i].valid ? &(*profiles)[i]
                                                                                  : nullptr;
+        std::optional<ProfileAt> at;
+        if (profile != nullptr) at.emplace(*profile);
         for (std::size_t j = 0; j < runs; ++j) {
             const std::size_t first = j * k;
             const std::size_t last = j + 1 == runs ? d.size() : first + k;
@@ -451,11 +484,9 @@ void sector_bin_samples(std::vector<std::vector<V2>>& nodes,
             if (profile != nullptr) {
                 // Every node moved along the profile to the run's mean radius.
                 const double rho = sum_r / count;
-                const double at_rho = fitted_thickness_mm(*profile, rho);
                 double shift = 0.0;
-                for (std::size_t q = first; q < last; ++q) {
-                    shift += at_rho - fitted_thickness_mm(*profile, d[q].x());
-                }
+                for (std::size_t q = first; q < last; ++q) shift -= (*at)(d[q].x());
+                shift += count * (*at)(rho);
                 if (std::isfinite(shift)) {
                     h.r_mm.push_back(rho);
                     h.h_mm.push_back((sum_h + shift) / count);
