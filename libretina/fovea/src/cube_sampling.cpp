@@ -403,7 +403,11 @@ double median(std::vector<double> v) {
 // run spans up to ~0.15 mm: the mean radius would put the mean ~1 um too high there); where a run
 // spans a few um, as elsewhere, the two radii differ by < 0.02 um. The last run takes the remainder
 // (k to 2k - 1 nodes). A half-line with fewer than kMinSectorNodes nodes keeps its samples. Sample
-// 0 stays the centre.
+// 0 stays the centre. With `profiles` (the CFT pass's fitted half-lines) each node is first moved
+// along its half-line's profile T^ to the run's mean radius (v + T^(mean) - T^(r)) and the sample
+// is their mean there: no T'' var(r) / 2 of the profile's curvature within a run (the RMS radius
+// stays for a half-line whose CFT pass failed). Above 1 axial pixel of noise per surface the runs
+// lengthen with noise_sd_mm (docs/algorithms/cube.md, "Bias under noise at 61 B-scans").
 constexpr std::size_t kMinSectorNodes = 16;
 // A half-line's fitted profile (fitted_thickness_mm) at radii that increase from call to call
 // (a run's nodes, sorted): Newton on the segment's x(t) = r from the previous t, which the
