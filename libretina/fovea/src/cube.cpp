@@ -118,7 +118,7 @@ CftPass cft_pass(const std::vector<CubeHalfLine>& lines,
 void final_fit(RadialSamples& s, const CftPass& cft, const CubeParams& params, double crest_mm) {
     // Under noise the final fit uses the sector bins (docs/algorithms/cube.md "Radial samples
     // under noise"), started from the CFT pass's curves.
-    if (s.noise_adaptive) sector_bin_samples(s.sector_nodes, s.half_lines);
+    if (s.noise_adaptive) sector_bin_samples(s.sector_nodes, s.half_lines, &cft.free_fits, s.noise_sd_mm);
     const FitSettings fs{.max_rounds = params.max_rounds,
                          .energy_tolerance = params.energy_tolerance,
                          .free_start_height = false,
@@ -227,6 +227,7 @@ CubeResult analyse_macula(const io::Scan& scan, const CubeParams& params) {
                                            scan.meta.scale_x_mm, res.line_scan, noisy, floor);
     res.sample_spacing_mm = samples.spacing_mm;
     res.noise_adaptive_samples = samples.noise_adaptive;
+    samples.noise_sd_mm = noise_sd_mm;
     fit_half_lines(res, samples, centre_sample_mm, params, crest_mm);
 
     summarise_macula(res, params);

@@ -403,10 +403,53 @@ double median(std::vector<double> v) {
 // run spans up to ~0.15 mm: the mean radius would put the mean ~1 um too high there); where a run
 // spans a few um, as elsewhere, the two radii differ by < 0.02 um. The last run takes the remainder
 // (k to 2k - 1 nodes). A half-line with fewer than kMinSectorNodes nodes keeps its samples. Sample
-// 0 stays the centre.
+// 0 stays the centre. With `profiles` (the CFT pass's fitted half-lines) each node is first moved
+// along its half-line's profile T^ to the run's mean radius (v + T^(mean) - T^(r)) and the sample
+// is their mean there: no T'' var(r) / 2 of the profile's curvature within a run (the RMS radius
+// stays for a half-line whose CFT pass failed). Above 1 axial pixel of noise per surface the runs
+// lengthen with noise_sd_mm (docs/algorithms/cube.md, "Bias under noise at 61 B-scans").
 constexpr std::size_t kMinSectorNodes = 16;
+// A half-line's fitted profile (fitted_thickness_mm) at radii that increase from call to call
+// (a run's nodes, sorted): Newton on the segment's x(t) = r from the previous t, which the
+// sorted radii keep close; bisection (solve_x) where Newton does not converge in a few steps
+// (x'(t) = 0 at an end whose handle is 0). NaN outside [0, R] or on an invalid profile.
+class ProfileAt {
+public:
+    explicit ProfileAt(const CubeHalfLine& h) : h_(h) {}
+    double operator()(double r) {
+        if (!h_.valid || h_.r_mm.empty() || r < 0.0 || r > h_.r_mm.back()) return kMissing;
+        const bool interior = r <= h_.interior.control[3].x();
+        const Ctrl& c = interior ? h_.interior.control : h_.exterior.control;
+        if (r < c[0].x() || r > c[3].x()) return kMissing;
+        double& t = interior ? t_interior_ : t_exterior_;
+        bool converged = false;
+        for (int it = 0; it < 8 && !converged; ++it) {
+            const double dx = bezier_derivative(c, t).x();
+            if (!(dx > 0.0)) break;
+            const double step = (bezier_point(c, t).x() - r) / dx;
+            t = std::clamp(t - step, 0.0, 1.0);
+            converged = std::fabs(step) < 1e-13;
+        }
+        if (!converged) t = solve_x(c, r);
+        return bezier_point(c, t).y();
+    }
 
-void sector_bin_samples(std::vector<std::vector<V2>>& nodes, std::vector<CubeHalfLine>& lines) {
+private:
+    const CubeHalfLine& h_;
+    double t_interior_ = 0.5;
+    double t_exterior_ = 0.5;
+};
+
+// Above 1 axial pixel of noise per surface (node SD sqrt(2) x 3.87 um) the runs lengthen in
+// proportion to the noise SD, up to 4x (docs/algorithms/cube.md, "Bias under noise").
+constexpr double kOnePixelNodeSdMm = 0.0054754;
+constexpr double kMaxRunFactor = 4.0;
+
+void sector_bin_samples(std::vector<std::vector<V2>>& nodes,
+                        std::vector<CubeHalfLine>& lines,
+                        const std::vector<CubeHalfLine>* profiles,
+                        double noise_sd_mm) {
+    const double run_factor = std::clamp(noise_sd_mm / kOnePixelNodeSdMm, 1.0, kMaxRunFactor);
     const std::size_t n = lines.size();
     if (n == 0 || nodes.size() != n || lines.front().r_mm.size() < 2) return;
     const std::size_t regular = lines.front().r_mm.size() - 1;
@@ -419,21 +462,41 @@ void sector_bin_samples(std::vector<std::vector<V2>>& nodes, std::vector<CubeHal
         });
         const std::size_t k = std::max<std::size_t>(
             1, static_cast<std::size_t>(
-                   std::lround(static_cast<double>(d.size()) / static_cast<double>(regular))));
+                   std::lround(run_factor * static_cast<double>(d.size()) /
+                               static_cast<double>(regular))));
         const std::size_t runs = d.size() / k;
         CubeHalfLine& h = lines[i];
         h.r_mm.resize(1);
         h.h_mm.resize(1);
+        const CubeHalfLine* profile =
+            profiles != nullptr && profiles->size() == n && (*profiles)[i].valid ? &(*profiles)[i]
+                                                                                 : nullptr;
+        std::optional<ProfileAt> at;
+        if (profile != nullptr) at.emplace(*profile);
         for (std::size_t j = 0; j < runs; ++j) {
             const std::size_t first = j * k;
             const std::size_t last = j + 1 == runs ? d.size() : first + k;
             double sum_h = 0.0;
+            double sum_r = 0.0;
             double sum_r2 = 0.0;
             for (std::size_t q = first; q < last; ++q) {
                 sum_h += d[q].y();
+                sum_r += d[q].x();
                 sum_r2 += d[q].x() * d[q].x();
             }
             const auto count = static_cast<double>(last - first);
+            if (profile != nullptr) {
+                // Every node moved along the profile to the run's mean radius.
+                const double rho = sum_r / count;
+                double shift = 0.0;
+                for (std::size_t q = first; q < last; ++q) shift -= (*at)(d[q].x());
+                shift += count * (*at)(rho);
+                if (std::isfinite(shift)) {
+                    h.r_mm.push_back(rho);
+                    h.h_mm.push_back((sum_h + shift) / count);
+                    continue;
+                }
+            }
             h.r_mm.push_back(std::sqrt(sum_r2 / count));
             h.h_mm.push_back(sum_h / count);
         }

@@ -121,6 +121,7 @@ struct RadialSamples {
     std::vector<std::vector<double>> bilinear;
     std::vector<std::vector<V2>> sector_nodes;
     bool noise_adaptive = false;
+    double noise_sd_mm = 0.0;  // the map's noise estimate (thickness_noise_sd): the runs' length
 };
 
 [[nodiscard]] RadialSamples radial_samples(const ThicknessMap& m,
@@ -135,7 +136,10 @@ struct RadialSamples {
 
 // Replaces every half-line's samples (but the centre) by its sector bins
 // (docs/algorithms/cube.md "Radial samples under noise") (cube_sampling.cpp).
-void sector_bin_samples(std::vector<std::vector<V2>>& nodes, std::vector<CubeHalfLine>& lines);
+void sector_bin_samples(std::vector<std::vector<V2>>& nodes,
+                        std::vector<CubeHalfLine>& lines,
+                        const std::vector<CubeHalfLine>* profiles = nullptr,
+                        double noise_sd_mm = 0.0);
 
 // ---- stages 4 and 5: the fits (cube_fit.cpp) ------------------------------------------------
 
