@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <algorithm>
 #include <cstring>
 #include <exception>
 #include <sstream>
@@ -22,6 +23,7 @@
 #include <Eigen/Dense>
 
 #include "octshape/retina/axial_registration.h"
+#include "octshape/retina/lateral_registration.h"
 #include "octshape/retina/onh.h"
 #include "octshape/retina/phantom_onh.h"
 
@@ -39,6 +41,24 @@ std::vector<std::string> split(const std::string& s) {
 }
 
 double pct(double v, double t) { return 100.0 * (v - t) / t; }
+
+// RMS of (estimated - identifiable true) lateral shifts, um: the true ones without their first
+// smooth_modes cosines across the B-scans (what a smooth eye cannot tell from smooth motion,
+// docs/algorithms/onh.md "Lateral registration").
+double lateral_error_um(const LateralRegistration& reg, const std::vector<double>& true_px,
+                        double um_per_ascan) {
+    const auto n = static_cast<Eigen::Index>(true_px.size());
+    if (n < 2 || reg.shift_um.size() != true_px.size()) return 0.0;
+    const int K = std::max(1, reg.smooth_modes);
+    Eigen::MatrixXd X(n, K);
+    Eigen::VectorXd d(n);
+    for (Eigen::Index b = 0; b < n; ++b) {
+        for (int k = 0; k < K; ++k) X(b, k) = std::cos(M_PI * k * (static_cast<double>(b) + 0.5) / static_cast<double>(n));
+        d(b) = reg.shift_um[static_cast<std::size_t>(b)] - true_px[static_cast<std::size_t>(b)] * um_per_ascan;
+    }
+    const Eigen::VectorXd r = d - X * X.colPivHouseholderQr().solve(d);
+    return std::sqrt(r.squaredNorm() / static_cast<double>(n));
+}
 
 // RMS of (estimated - identifiable true) shifts, um.
 double shift_error_um(const AxialRegistration& reg, const std::vector<double>& true_px,
@@ -68,6 +88,9 @@ int main(int argc, char** argv) {
         std::vector<std::string> motions = {"0", "30", "60", "100"};
         std::vector<std::string> ilms = {"device", "levelset"};
         std::vector<std::string> patterns = {"volume", "radial"};
+        std::vector<std::string> jitters = {"0"};
+        int bscans = 0;  // 0: the preset's
+        int ascans = 0;
         bool shadows = true;
         std::uint64_t seed = 1;
         for (int i = 1; i < argc; ++i) {
@@ -76,6 +99,9 @@ int main(int argc, char** argv) {
             if (a == "--motion" && more) motions = split(argv[++i]);
             else if (a == "--ilm" && more) ilms = split(argv[++i]);
             else if (a == "--pattern" && more) patterns = split(argv[++i]);
+            else if (a == "--jitter" && more) jitters = split(argv[++i]);
+            else if (a == "--bscans" && more) bscans = std::stoi(argv[++i]);
+            else if (a == "--ascans" && more) ascans = std::stoi(argv[++i]);
             else if (a == "--no-shadows") shadows = false;
             else if (a == "--seed" && more) seed = std::stoull(argv[++i]);
             else throw std::runtime_error("unknown argument " + a);
@@ -83,40 +109,50 @@ int main(int argc, char** argv) {
         std::printf("# errors against the still eye's truth: volumes, MRW area, bending energy in %%; "
                     "CONHT, MRW (3-D, in-plane) in um; shift err = RMS of estimated - true "
                     "identifiable shift (um)\n");
-        std::printf("%-7s %6s %-8s %-4s %8s %8s %8s %8s %8s %8s %7s %8s %8s %8s %9s %7s %7s  %s\n",
-                    "pattern", "SD_um", "ilm", "reg", "cup%", "conht", "bmoV%", "totV%", "annV%",
-                    "bmoA%", "mrw", "mrwA%", "bend%", "mrw_ip", "shift_err", "reg_s", "total_s",
+        std::printf("%-7s %6s %5s %-8s %-4s %8s %8s %8s %8s %8s %8s %7s %8s %8s %8s %9s %7s %7s %6s %7s %7s  %s\n",
+                    "pattern", "SD_um", "jit", "ilm", "reg", "cup%", "conht", "bmoV%", "totV%", "annV%",
+                    "bmoA%", "mrw", "mrwA%", "bend%", "mrw_ip", "shift_err", "lat_rms", "lat_err", "lat_se", "reg_s", "total_s",
                     "flags");
         for (const std::string& pattern : patterns) {
             OnhPhantomParams p = onh_phantom_preset(OnhShape::kCupped);
             p.radial = pattern == "radial";
             p.seed = seed;
+            if (bscans > 0) p.num_bscans = bscans;
+            if (ascans > 0) p.num_ascans = ascans;
             const OnhTruth truth = compute_onh_truth(p);
             for (const std::string& m : motions) {
+              for (const std::string& jit : jitters) {
                 OnhPhantomParams pm = p;
                 pm.artefacts.motion_sd_um = std::stod(m);
+                pm.artefacts.lateral_jitter_um = p.radial ? 0.0 : std::stod(jit);
                 pm.artefacts.vessel_shadows = shadows;
                 pm.artefacts.segmentation_faults = shadows;
                 const octshape::io::Scan scan0 = render_onh_scan(pm);
                 const auto true_shifts = onh_acquisition_shifts(pm).axial_px;
+                const auto true_lateral = onh_acquisition_shifts(pm).lateral_px;
                 for (const std::string& ilm_name : ilms) {
                     for (const bool reg_on : {false, true}) {
                         octshape::io::Scan scan = scan0;
                         const auto t0 = Clock::now();
                         AxialRegistrationParams rp;
                         rp.enabled = reg_on;
+                        LateralRegistrationParams lp;
+                        lp.enabled = reg_on;
+                        const LateralRegistration lat = register_laterally(scan, lp);
                         const AxialRegistration reg = register_axially(scan, rp);
                         const double reg_s = std::chrono::duration<double>(Clock::now() - t0).count();
                         const IlmSurface ilm = build_ilm_surface(scan, ilm_source_from_string(ilm_name));
                         OnhResult r = analyse_onh(scan, ilm);
                         const double total_s = std::chrono::duration<double>(Clock::now() - t0).count();
                         std::string flags;
+                        for (const auto& f : lat.qc_flags) flags += "[" + f + "] ";
                         for (const auto& f : reg.qc_flags) flags += "[" + f + "] ";
                         for (const auto& f : r.qc_flags) flags += "[" + f + "] ";
                         const double err = shift_error_um(reg, true_shifts, scan.meta.scale_z_mm * 1000.0, p.radial);
-                        std::printf("%-7s %6s %-8s %-4s %+8.2f %+8.1f %+8.2f %+8.2f %+8.2f %+8.2f %+7.1f "
-                                    "%+8.2f %+8.2f %+8.1f %9.2f %7.3f %7.2f  %s\n",
-                                    pattern.c_str(), m.c_str(), ilm_name.c_str(), reg_on ? "on" : "off",
+                        const double lat_err = lateral_error_um(lat, true_lateral, scan.meta.scale_x_mm * 1000.0);
+                        std::printf("%-7s %6s %5s %-8s %-4s %+8.2f %+8.1f %+8.2f %+8.2f %+8.2f %+8.2f %+7.1f "
+                                    "%+8.2f %+8.2f %+8.1f %9.2f %7.2f %7.2f %6.2f %7.3f %7.2f  %s\n",
+                                    pattern.c_str(), m.c_str(), jit.c_str(), ilm_name.c_str(), reg_on ? "on" : "off",
                                     pct(r.cup_volume_mm3, truth.cup_volume_mm3),
                                     1e3 * (r.conht_mm - truth.conht_mm),
                                     pct(r.bmo_volume_mm3, truth.bmo_volume_mm3),
@@ -127,10 +163,11 @@ int main(int argc, char** argv) {
                                     pct(r.mrw_area_mm2, truth.mrw_area_mm2),
                                     pct(r.bending_energy, truth.bending_energy),
                                     p.radial ? 1e3 * (r.mrw_inplane_mean_mm - truth.inplane.mean_mm) : 0.0,
-                                    err, reg_s, total_s, flags.c_str());
+                                    err, lat.rms_shift_um, lat_err, lat.shift_se_um, reg_s, total_s, flags.c_str());
                         std::fflush(stdout);
                     }
                 }
+              }
             }
         }
         return 0;
