@@ -92,6 +92,7 @@ int main(int argc, char** argv) {
         int bscans = 0;  // 0: the preset's
         int ascans = 0;
         bool shadows = true;
+        bool grain = false;
         std::uint64_t seed = 1;
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
@@ -103,6 +104,7 @@ int main(int argc, char** argv) {
             else if (a == "--bscans" && more) bscans = std::stoi(argv[++i]);
             else if (a == "--ascans" && more) ascans = std::stoi(argv[++i]);
             else if (a == "--no-shadows") shadows = false;
+            else if (a == "--spectralis-speckle") grain = true;
             else if (a == "--seed" && more) seed = std::stoull(argv[++i]);
             else throw std::runtime_error("unknown argument " + a);
         }
@@ -119,6 +121,12 @@ int main(int argc, char** argv) {
             p.seed = seed;
             if (bscans > 0) p.num_bscans = bscans;
             if (ascans > 0) p.num_ascans = ascans;
+            if (grain) {
+                // Real Spectralis speckle (docs/phantoms.md "Speckle"): 7 looks, grain 1.9 x 1.6 px.
+                p.speckle_looks = 7;
+                p.speckle_axial_half_width_px = 1.9;
+                p.speckle_lateral_half_width_px = 1.6;
+            }
             const OnhTruth truth = compute_onh_truth(p);
             for (const std::string& m : motions) {
               for (const std::string& jit : jitters) {

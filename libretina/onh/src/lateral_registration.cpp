@@ -333,10 +333,24 @@ void apply_lateral_registration(io::Scan& scan, const LateralRegistration& regis
     const double um_per_ascan = scan.meta.scale_x_mm * 1000.0;
     for (int b = 0; b < scan.num_bscans(); ++b) {
         const double dx = -registration.shift_um[static_cast<std::size_t>(b)] / um_per_ascan;
-        // Below 1e-3 A-scans a shift is numerically zero: the pixels stay as read.
+        io::BScan& bs = scan.bscans[static_cast<std::size_t>(b)];
+        // The lines by the shift itself (below 1e-3 A-scans numerically zero).
         if (std::fabs(dx) >= 1e-3) {
-            io::shift_bscan(scan.bscans[static_cast<std::size_t>(b)], scan.meta.size_x,
-                            scan.meta.size_z, 0.0, dx);
+            std::vector<float> pixels;
+            pixels.swap(bs.pixels);
+            io::shift_bscan(bs, scan.meta.size_x, scan.meta.size_z, 0.0, dx);
+            pixels.swap(bs.pixels);
+        }
+        // The pixels by whole A-scans: a fractional shift blends neighbouring A-scans, which
+        // changes the speckle's statistics in that B-scan alone and moves the level set.
+        // (Measured on a 97 x 256 cupped phantom with 30 um of jitter, level-set ILM: cup
+        // volume -4.6 % with fractional pixel shifts, -3.3 % with whole ones; still -1.5 %.)
+        const double whole = std::round(dx);
+        if (whole != 0.0 && !bs.pixels.empty()) {
+            std::vector<std::vector<float>> seg;
+            seg.swap(bs.seg);
+            io::shift_bscan(bs, scan.meta.size_x, scan.meta.size_z, 0.0, whole);
+            seg.swap(bs.seg);
         }
     }
 }
