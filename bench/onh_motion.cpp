@@ -22,6 +22,7 @@
 
 #include <Eigen/Dense>
 
+#include "octshape/io/scan_reader.h"
 #include "octshape/retina/axial_registration.h"
 #include "octshape/retina/lateral_registration.h"
 #include "octshape/retina/onh.h"
@@ -94,6 +95,7 @@ int main(int argc, char** argv) {
         bool shadows = true;
         bool grain = false;
         std::uint64_t seed = 1;
+        std::vector<std::string> files;
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
             const bool more = i + 1 < argc;
@@ -104,9 +106,27 @@ int main(int argc, char** argv) {
             else if (a == "--bscans" && more) bscans = std::stoi(argv[++i]);
             else if (a == "--ascans" && more) ascans = std::stoi(argv[++i]);
             else if (a == "--no-shadows") shadows = false;
+            else if (a == "--file" && more) files.push_back(argv[++i]);
             else if (a == "--spectralis-speckle") grain = true;
             else if (a == "--seed" && more) seed = std::stoull(argv[++i]);
             else throw std::runtime_error("unknown argument " + a);
+        }
+        if (!files.empty()) {
+            // Real scans: the lateral shifts the registration estimates (no truth).
+            std::printf("%-44s %5s %6s %7s %6s %8s %8s %7s %8s  %s\n", "file", "nb", "dy_um", "modes",
+                        "appl", "rms_um", "max_um", "se_um", "res_um", "flags");
+            for (const std::string& f : files) {
+                const octshape::io::Scan scan = octshape::io::read_scan(f);
+                const LateralRegistration lat = estimate_lateral_motion(scan);
+                std::string flags;
+                for (const auto& q : lat.qc_flags) flags += "[" + q + "] ";
+                const std::string name = f.substr(f.find_last_of('/') + 1);
+                std::printf("%-44s %5d %6.1f %7d %6s %8.2f %8.2f %7.2f %8.2f  %s\n", name.c_str(),
+                            scan.num_bscans(), scan.meta.distance_mm * 1000.0, lat.smooth_modes,
+                            lat.applied ? "yes" : "no", lat.rms_shift_um, lat.max_abs_shift_um,
+                            lat.shift_se_um, lat.residual_rms_um, flags.c_str());
+            }
+            return 0;
         }
         std::printf("# errors against the still eye's truth: volumes, MRW area, bending energy in %%; "
                     "CONHT, MRW (3-D, in-plane) in um; shift err = RMS of estimated - true "
