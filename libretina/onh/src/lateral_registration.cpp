@@ -10,6 +10,7 @@
 #include <Eigen/Dense>
 
 #include "octshape/error.h"
+#include "octshape/retina/axial_registration.h"
 #include "octshape/retina/radial_geometry.h"
 #include "octshape/retina/report_util.h"
 
@@ -360,10 +361,7 @@ void register_bmo_points_laterally(std::vector<BmoPoint>& points, const io::Scan
     if (!registration.applied || registration.shift_um.empty()) return;
     const int nb = static_cast<int>(registration.shift_um.size());
     for (BmoPoint& p : points) {
-        int b = p.bscan;
-        if (b < 0 && scan.meta.distance_mm > 0.0) {
-            b = static_cast<int>(std::lround(p.mm.y() / scan.meta.distance_mm));
-        }
+        const int b = bscan_of_bmo_point(p, scan);
         if (b < 0 || b >= nb) continue;
         // The B-scan's content moves towards lower A-scans by its shift.
         p.mm.x() -= registration.shift_um[static_cast<std::size_t>(b)] * 1e-3;

@@ -102,6 +102,18 @@ J radial_json(const OnhResult& r) {
     return rad;
 }
 
+// The per-B-scan arrays of a registration: shift_um[] and estimated[] (index = B-scan, from 0).
+void put_shifts(J& j, const std::vector<double>& shift_um, const std::vector<bool>& estimated) {
+    J shifts = J::array();
+    J est = J::array();
+    for (std::size_t b = 0; b < shift_um.size(); ++b) {
+        shifts.push_back(shift_um[b]);
+        est.push_back(b < estimated.size() && estimated[b]);
+    }
+    j["shift_um"] = std::move(shifts);
+    j["estimated"] = std::move(est);
+}
+
 }  // namespace
 
 J onh_json(const OnhResult& r, const J& options) {
@@ -129,14 +141,7 @@ J onh_json(const OnhResult& r, const J& options) {
         reg["bm_values_used"] = a.bm_values_used;
         reg["bm_values_rejected"] = a.bm_values_rejected;
         reg["bscans_not_estimated"] = a.bscans_not_estimated;
-        J shifts = J::array();
-        J est = J::array();
-        for (std::size_t b = 0; b < a.shift_um.size(); ++b) {
-            shifts.push_back(a.shift_um[b]);
-            est.push_back(static_cast<bool>(a.estimated[b]));
-        }
-        reg["shift_um"] = std::move(shifts);
-        reg["estimated"] = std::move(est);
+        put_shifts(reg, a.shift_um, a.estimated);
         j["axial_registration"] = std::move(reg);
     }
     {
@@ -160,14 +165,7 @@ J onh_json(const OnhResult& r, const J& options) {
         lat["values_used"] = l.values_used;
         lat["values_rejected"] = l.values_rejected;
         lat["bscans_not_estimated"] = l.bscans_not_estimated;
-        J shifts = J::array();
-        J est = J::array();
-        for (std::size_t b = 0; b < l.shift_um.size(); ++b) {
-            shifts.push_back(l.shift_um[b]);
-            est.push_back(static_cast<bool>(l.estimated[b]));
-        }
-        lat["shift_um"] = std::move(shifts);
-        lat["estimated"] = std::move(est);
+        put_shifts(lat, l.shift_um, l.estimated);
         j["lateral_registration"] = std::move(lat);
     }
 
