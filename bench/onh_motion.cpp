@@ -7,8 +7,15 @@
 // RMS error against the true shift (the identifiable part: a volume's true shifts minus their
 // best cubic in the B-scan position, a radial scan's minus their mean) and the time of the
 // registration and of the whole analysis.
+// Lateral jitter (volumes; docs/algorithms/onh.md, "Lateral registration"): --jitter 0,10,30
+// (SD, um; the lateral registration is on with "on"), --oracle adds a row "true" with the
+// phantom's true shifts applied as the registration applies its own, --whole-jitter rounds the
+// jitter to whole A-scans (no A-scans blended by the phantom). --bscans/--ascans resize the
+// volume, --spectralis-speckle gives it real Spectralis speckle. --file F (repeatable): the
+// lateral shifts estimated on a real scan instead (no truth).
 // Usage: onh_motion [--motion 0,30,60,100] [--ilm device,levelset] [--pattern volume,radial]
-//                   [--no-shadows] [--seed N]
+//                   [--no-shadows] [--seed N] [--jitter 0,10,30] [--bscans N] [--ascans N]
+//                   [--oracle] [--whole-jitter] [--spectralis-speckle] [--file F]
 
 #include <chrono>
 #include <cmath>
@@ -94,6 +101,8 @@ int main(int argc, char** argv) {
         int ascans = 0;
         bool shadows = true;
         bool grain = false;
+        bool oracle = false;
+        bool whole_jitter = false;
         std::uint64_t seed = 1;
         std::vector<std::string> files;
         for (int i = 1; i < argc; ++i) {
@@ -108,6 +117,8 @@ int main(int argc, char** argv) {
             else if (a == "--no-shadows") shadows = false;
             else if (a == "--file" && more) files.push_back(argv[++i]);
             else if (a == "--spectralis-speckle") grain = true;
+            else if (a == "--oracle") oracle = true;
+            else if (a == "--whole-jitter") whole_jitter = true;
             else if (a == "--seed" && more) seed = std::stoull(argv[++i]);
             else throw std::runtime_error("unknown argument " + a);
         }
@@ -155,18 +166,43 @@ int main(int argc, char** argv) {
                 pm.artefacts.lateral_jitter_um = p.radial ? 0.0 : std::stod(jit);
                 pm.artefacts.vessel_shadows = shadows;
                 pm.artefacts.segmentation_faults = shadows;
-                const octshape::io::Scan scan0 = render_onh_scan(pm);
                 const auto true_shifts = onh_acquisition_shifts(pm).axial_px;
-                const auto true_lateral = onh_acquisition_shifts(pm).lateral_px;
+                auto true_lateral = onh_acquisition_shifts(pm).lateral_px;
+                octshape::io::Scan scan0;
+                if (whole_jitter && !true_lateral.empty()) {
+                    // The jitter rounded to whole A-scans, applied to the phantom without it:
+                    // no A-scans blended (what a real acquisition does: it samples, it does
+                    // not interpolate).
+                    OnhPhantomParams ps = pm;
+                    ps.artefacts.lateral_jitter_um = 0.0;
+                    scan0 = render_onh_scan(ps);
+                    for (std::size_t b = 0; b < true_lateral.size(); ++b) {
+                        true_lateral[b] = std::round(true_lateral[b]);
+                        octshape::io::shift_bscan(scan0.bscans[b], scan0.meta.size_x, scan0.meta.size_z,
+                                                  0.0, true_lateral[b]);
+                    }
+                } else {
+                    scan0 = render_onh_scan(pm);
+                }
                 for (const std::string& ilm_name : ilms) {
-                    for (const bool reg_on : {false, true}) {
+                    for (const int mode : oracle ? std::vector<int>{0, 1, 2} : std::vector<int>{0, 1}) {
+                        const bool reg_on = mode > 0;
                         octshape::io::Scan scan = scan0;
                         const auto t0 = Clock::now();
                         AxialRegistrationParams rp;
                         rp.enabled = reg_on;
                         LateralRegistrationParams lp;
                         lp.enabled = reg_on;
-                        const LateralRegistration lat = register_laterally(scan, lp);
+                        LateralRegistration lat = estimate_lateral_motion(scan, lp);
+                        if (mode == 2) {
+                            // The oracle: the phantom's true shifts, applied as the registration
+                            // applies its own (lines fractional, pixels by whole A-scans).
+                            lat.applied = true;
+                            for (std::size_t b = 0; b < lat.shift_um.size() && b < true_lateral.size(); ++b) {
+                                lat.shift_um[b] = true_lateral[b] * scan.meta.scale_x_mm * 1000.0;
+                            }
+                        }
+                        apply_lateral_registration(scan, lat);
                         const AxialRegistration reg = register_axially(scan, rp);
                         const double reg_s = std::chrono::duration<double>(Clock::now() - t0).count();
                         const IlmSurface ilm = build_ilm_surface(scan, ilm_source_from_string(ilm_name));
@@ -180,7 +216,7 @@ int main(int argc, char** argv) {
                         const double lat_err = lateral_error_um(lat, true_lateral, scan.meta.scale_x_mm * 1000.0);
                         std::printf("%-7s %6s %5s %-8s %-4s %+8.2f %+8.1f %+8.2f %+8.2f %+8.2f %+8.2f %+7.1f "
                                     "%+8.2f %+8.2f %+8.1f %9.2f %7.2f %7.2f %6.2f %7.3f %7.2f  %s\n",
-                                    pattern.c_str(), m.c_str(), jit.c_str(), ilm_name.c_str(), reg_on ? "on" : "off",
+                                    pattern.c_str(), m.c_str(), jit.c_str(), ilm_name.c_str(), mode == 2 ? "true" : reg_on ? "on" : "off",
                                     pct(r.cup_volume_mm3, truth.cup_volume_mm3),
                                     1e3 * (r.conht_mm - truth.conht_mm),
                                     pct(r.bmo_volume_mm3, truth.bmo_volume_mm3),

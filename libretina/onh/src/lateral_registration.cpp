@@ -18,6 +18,8 @@ namespace octshape::retina {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// Most B-scans estimated: 2N unknowns, a dense solve per pass (512: ~1 s in all).
+constexpr int kMaxBscans = 512;
 
 // A device line at a fractional A-scan (linear between two valid values; NaN outside the
 // B-scan or next to a missing value).
@@ -227,6 +229,15 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
     const double um_per_px = scan.meta.scale_z_mm * 1000.0;
     if (is_radial_scan(scan)) {
         R.notes.push_back("lateral registration: not estimated on a radial scan");
+        return R;
+    }
+    if (nb > kMaxBscans) {
+        // The normal equations are dense in 2N unknowns (the smooth-mode constraint couples
+        // every B-scan): bounded time, at the cost of not estimating very dense volumes.
+        R.qc_flags.push_back("lateral motion not estimated (more than 512 B-scans)");
+        R.notes.push_back("lateral registration: " + std::to_string(nb) +
+                          " B-scans; estimated up to 512; nothing was shifted");
+        R.bscans_not_estimated = nb;
         return R;
     }
     const std::vector<int> lines = model_lines(scan);
