@@ -55,10 +55,11 @@ OnhResult analysed(io::Scan scan, bool register_lateral, LateralRegistration* re
     return analyse_onh(scan, build_ilm_surface(scan, ilm_source_from_string("device")));
 }
 
-// 30 um of jitter (2.8 A-scans RMS): the estimate matches the truth's identifiable part to
-// 2.5 um RMS (measured 2.54 um; the second differences of a cupped disc between B-scans 45 um
-// apart are not zero, and their part that correlates with the surfaces' slopes is read as
-// shift: a bound of 0.15 A-scan, which leaves a staircase well below the MRW's 5 um), and with
+// 30 um of jitter (1.8 A-scans RMS): the estimate matches the truth's identifiable part to a
+// quarter A-scan RMS (4.25 um; measured 2.54 um: the second differences of a cupped disc
+// between B-scans 45 um apart are not zero, and their part that correlates with the surfaces'
+// slopes is read as shift). A quarter A-scan left at a cup wall of slope ~1 is a 4 um step
+// between B-scans, below the MRW's 5 um tolerance; unregistered the error is 29.5 um. With
 // the device ILM every parameter returns to the still phantom's within the still tolerances
 // (volumes 2 %, BMO area 1 %, MRW 5 um, MRW area 2 %; measured: all within 0.2 % / 0.3 um),
 // while unregistered the MRW is more than 5 um off (measured -13.8 um): the test sees the
@@ -87,7 +88,7 @@ TEST(LateralRegistration, RecoversTheJitterAndLeavesAStillScan) {
     ASSERT_TRUE(reg.applied);
     EXPECT_EQ(reg.smooth_modes, 12);  // ceil(2 x 4.35 mm / 0.75 mm)
     EXPECT_NEAR(reg.rms_shift_um, 30.0, 3.0);
-    EXPECT_LT(identifiable_error_um(reg, moved_p), 0.15 * 17.0);
+    EXPECT_LT(identifiable_error_um(reg, moved_p), 0.25 * 17.0);  // ScaleX 17 um
     const auto pct = [](double v, double ref) { return 100.0 * std::fabs(v / ref - 1.0); };
     EXPECT_LT(pct(on.cup_volume_mm3, s.cup_volume_mm3), 2.0);
     EXPECT_LT(pct(on.bmo_volume_mm3, s.bmo_volume_mm3), 2.0);
