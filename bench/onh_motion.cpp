@@ -22,6 +22,7 @@
 #include <cstdio>
 #include <algorithm>
 #include <cstring>
+#include <limits>
 #include <exception>
 #include <sstream>
 #include <string>
@@ -129,6 +130,31 @@ int main(int argc, char** argv) {
             for (const std::string& f : files) {
                 const octshape::io::Scan scan = octshape::io::read_scan(f);
                 const LateralRegistration lat = estimate_lateral_motion(scan);
+                // The same from each line alone (the other one blanked): motion moves both
+                // surfaces, so the two estimates agree where the shifts are the eye's motion.
+                std::vector<double> alone[2];
+                for (int keep = 0; keep < 2; ++keep) {
+                    octshape::io::Scan one = scan;
+                    const int drop = keep == 0 ? 1 : 0;  // ILM = 0, BM = 1
+                    for (auto& bs : one.bscans) {
+                        if (static_cast<int>(bs.seg.size()) > drop) {
+                            for (float& v : bs.seg[static_cast<std::size_t>(drop)]) v = std::numeric_limits<float>::quiet_NaN();
+                        }
+                    }
+                    alone[keep] = estimate_lateral_motion(one).shift_um;
+                }
+                const auto corr = [](const std::vector<double>& x, const std::vector<double>& y) {
+                    const auto n = static_cast<double>(x.size());
+                    double mx = 0.0, my = 0.0;
+                    for (std::size_t i = 0; i < x.size(); ++i) { mx += x[i] / n; my += y[i] / n; }
+                    double sxy = 0.0, sxx = 0.0, syy = 0.0;
+                    for (std::size_t i = 0; i < x.size(); ++i) {
+                        sxy += (x[i] - mx) * (y[i] - my);
+                        sxx += (x[i] - mx) * (x[i] - mx);
+                        syy += (y[i] - my) * (y[i] - my);
+                    }
+                    return sxx > 0.0 && syy > 0.0 ? sxy / std::sqrt(sxx * syy) : 0.0;
+                };
                 std::string flags;
                 for (const auto& q : lat.qc_flags) flags += "[" + q + "] ";
                 const std::string name = f.substr(f.find_last_of('/') + 1);
@@ -136,6 +162,8 @@ int main(int argc, char** argv) {
                             scan.num_bscans(), scan.meta.distance_mm * 1000.0, lat.smooth_modes,
                             lat.applied ? "yes" : "no", lat.rms_shift_um, lat.max_abs_shift_um,
                             lat.shift_se_um, lat.residual_rms_um, flags.c_str());
+                std::printf("  ILM alone vs BM alone: correlation %.3f; ILM alone vs both %.3f\n",
+                            corr(alone[0], alone[1]), corr(alone[0], lat.shift_um));
             }
             return 0;
         }
