@@ -8,9 +8,11 @@
 // BM lines smoothest across B-scans: the second difference across B-scans of the registered
 // lines, R_b(a) = D_b(a + s_b) - o_b (o_b a per-B-scan depth offset, the axial motion, a
 // nuisance here), is minimised over every A-scan by robust (Tukey) Gauss-Newton least squares.
-// A common shift and a shift linear in the B-scan index (a shear of the grid, which keeps
-// every area and volume) are not identifiable and are set to zero. Radial scans: not
-// estimated (the lines cross; every line's A-scan at the crossing is the same point).
+// A smooth eye cannot be told from a smooth motion: the shifts' components along the cosines
+// across the B-scans with a wavelength above smooth_wavelength_mm are the eye's, constrained
+// to zero. Applied only above min_rms_um (a still scan stays as read); lines by the fractional
+// shift, pixels by whole A-scans. Radial scans: not estimated (the lines cross; every line's
+// A-scan at the crossing is the same point).
 
 #include <string>
 #include <vector>
