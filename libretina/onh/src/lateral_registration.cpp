@@ -300,6 +300,12 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
     // The standard errors from the final weights (one more pass at the solution).
     last = gauss_newton_pass(scan, lines, use, s, o, scale, 2);
     if (last.inliers >= 3.0 * nb) (void)solve_step(last, nb, smooth_modes, &se_diag);
+    const bool solved = s.allFinite() && se_diag.allFinite();
+    if (!solved) {
+        // A failed solve: no number of it is reported or applied.
+        s.setZero();
+        se_diag.setZero();
+    }
     R.values_used = static_cast<int>(last.inliers);
     R.values_rejected = last.rejected;
     const double sigma = last.inliers > 0.0 ? std::sqrt(last.ss / last.inliers) : 0.0;
@@ -315,7 +321,7 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
     }
     R.rms_shift_um = std::sqrt(sum2 / nb);
     R.shift_se_um = median_of(se);
-    R.estimable = R.shift_se_um <= params.max_shift_se_um && s.allFinite();
+    R.estimable = solved && R.shift_se_um <= params.max_shift_se_um;
     // Below the floor the shifts are not told from the model's own error on a still eye:
     // nothing is moved (a still scan stays as read).
     R.applied = params.enabled && R.estimable && R.rms_shift_um >= params.min_rms_um;
