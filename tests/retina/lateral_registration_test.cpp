@@ -4,6 +4,7 @@
 #include "octshape/retina/lateral_registration.h"
 
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include <Eigen/Dense>
@@ -119,6 +120,56 @@ TEST(LateralRegistration, BmoPointsMoveWithTheirBscan) {
     register_bmo_points_laterally(pts, scan, reg);
     EXPECT_NEAR(pts[0].mm.x(), 0.98, 1e-12);
     EXPECT_NEAR(pts[1].mm.x(), 1.01, 1e-12);
+}
+
+// A volume of `nb` B-scans `dy` mm apart, 64 A-scans, no pixels, with (or without) an ILM and
+// a BM line that are smooth bowls (nothing to estimate).
+io::Scan line_volume(int nb, double dy, bool with_lines) {
+    io::Scan scan;
+    scan.meta.pattern = io::ScanPattern::kVolume;
+    scan.meta.size_x = 64;
+    scan.meta.size_z = 200;
+    scan.meta.scale_x_mm = 0.01;
+    scan.meta.scale_z_mm = 0.0039;
+    scan.meta.distance_mm = dy;
+    scan.bscans.resize(static_cast<std::size_t>(nb));
+    for (int b = 0; b < nb; ++b) {
+        io::BScan& bs = scan.bscans[static_cast<std::size_t>(b)];
+        if (!with_lines) continue;
+        bs.seg.assign(2, std::vector<float>(64));
+        for (int a = 0; a < 64; ++a) {
+            const double r2 = (a - 32.0) * (a - 32.0) + 0.01 * (b - nb / 2.0) * (b - nb / 2.0);
+            bs.seg[0][static_cast<std::size_t>(a)] = static_cast<float>(60.0 + 0.01 * r2);
+            bs.seg[1][static_cast<std::size_t>(a)] = static_cast<float>(140.0 + 0.005 * r2);
+        }
+    }
+    return scan;
+}
+
+// What cannot be estimated says so and moves nothing: no lines; B-scans so far apart that the
+// eye's smooth shape takes half the modes (19 B-scans 0.25 mm apart, as the real Spectralis
+// macular segmentation of the test data); more than 512 B-scans (bounded time).
+TEST(LateralRegistration, WhatCannotBeEstimatedIsFlaggedAndNothingMoves) {
+    const auto flagged = [](const io::Scan& scan, const std::string& flag) {
+        io::Scan copy = scan;
+        const LateralRegistration r = register_laterally(copy);
+        EXPECT_FALSE(r.applied) << flag;
+        EXPECT_EQ(r.rms_shift_um, 0.0) << flag;
+        EXPECT_EQ(r.bscans_not_estimated, scan.num_bscans()) << flag;
+        ASSERT_EQ(r.qc_flags.size(), 1U) << flag;
+        EXPECT_EQ(r.qc_flags[0], flag);
+        for (std::size_t b = 0; b < scan.bscans.size(); ++b) EXPECT_EQ(copy.bscans[b].seg, scan.bscans[b].seg);
+    };
+    flagged(line_volume(49, 0.09, false), "lateral motion not estimated (too few B-scans with ILM and BM)");
+    flagged(line_volume(19, 0.25, true), "lateral motion not estimated (B-scans too far apart)");
+    flagged(line_volume(513, 0.01, true), "lateral motion not estimated (more than 512 B-scans)");
+    // The same lines 0.09 mm apart are estimated: a still bowl, no shift, nothing flagged.
+    io::Scan ok = line_volume(49, 0.09, true);
+    const LateralRegistration r = register_laterally(ok);
+    EXPECT_TRUE(r.estimable);
+    EXPECT_FALSE(r.applied);
+    EXPECT_LT(r.rms_shift_um, 0.1);
+    EXPECT_TRUE(r.qc_flags.empty());
 }
 
 }  // namespace
