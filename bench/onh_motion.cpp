@@ -93,47 +93,46 @@ double shift_error_um(const AxialRegistration& reg, const std::vector<double>& t
 // Real scans: the lateral shifts the registration estimates (no truth), and the agreement of
 // the ILM's and the BM's own estimates.
 int real_files(const std::vector<std::string>& files) {
-        // Real scans: the lateral shifts the registration estimates (no truth).
-        std::printf("%-44s %5s %6s %7s %6s %8s %8s %7s %8s  %s\n", "file", "nb", "dy_um", "modes",
-                    "appl", "rms_um", "max_um", "se_um", "res_um", "flags");
-        for (const std::string& f : files) {
-            const octshape::io::Scan scan = octshape::io::read_scan(f);
-            const LateralRegistration lat = estimate_lateral_motion(scan);
-            // The same from each line alone (the other one blanked): motion moves both
-            // surfaces, so the two estimates agree where the shifts are the eye's motion.
-            std::vector<double> alone[2];
-            for (int keep = 0; keep < 2; ++keep) {
-                octshape::io::Scan one = scan;
-                const int drop = keep == 0 ? 1 : 0;  // ILM = 0, BM = 1
-                for (auto& bs : one.bscans) {
-                    if (static_cast<int>(bs.seg.size()) > drop) {
-                        for (float& v : bs.seg[static_cast<std::size_t>(drop)]) v = std::numeric_limits<float>::quiet_NaN();
-                    }
+    std::printf("%-44s %5s %6s %7s %6s %8s %8s %7s %8s  %s\n", "file", "nb", "dy_um", "modes",
+                "appl", "rms_um", "max_um", "se_um", "res_um", "flags");
+    for (const std::string& f : files) {
+        const octshape::io::Scan scan = octshape::io::read_scan(f);
+        const LateralRegistration lat = estimate_lateral_motion(scan);
+        // The same from each line alone (the other one blanked): motion moves both
+        // surfaces, so the two estimates agree where the shifts are the eye's motion.
+        std::vector<double> alone[2];
+        for (int keep = 0; keep < 2; ++keep) {
+            octshape::io::Scan one = scan;
+            const int drop = keep == 0 ? 1 : 0;  // ILM = 0, BM = 1
+            for (auto& bs : one.bscans) {
+                if (static_cast<int>(bs.seg.size()) > drop) {
+                    for (float& v : bs.seg[static_cast<std::size_t>(drop)]) v = std::numeric_limits<float>::quiet_NaN();
                 }
-                alone[keep] = estimate_lateral_motion(one).shift_um;
             }
-            const auto corr = [](const std::vector<double>& x, const std::vector<double>& y) {
-                const auto n = static_cast<double>(x.size());
-                double mx = 0.0, my = 0.0;
-                for (std::size_t i = 0; i < x.size(); ++i) { mx += x[i] / n; my += y[i] / n; }
-                double sxy = 0.0, sxx = 0.0, syy = 0.0;
-                for (std::size_t i = 0; i < x.size(); ++i) {
-                    sxy += (x[i] - mx) * (y[i] - my);
-                    sxx += (x[i] - mx) * (x[i] - mx);
-                    syy += (y[i] - my) * (y[i] - my);
-                }
-                return sxx > 0.0 && syy > 0.0 ? sxy / std::sqrt(sxx * syy) : 0.0;
-            };
-            std::string flags;
-            for (const auto& q : lat.qc_flags) flags += "[" + q + "] ";
-            const std::string name = f.substr(f.find_last_of('/') + 1);
-            std::printf("%-44s %5d %6.1f %7d %6s %8.2f %8.2f %7.2f %8.2f  %s\n", name.c_str(),
-                        scan.num_bscans(), scan.meta.distance_mm * 1000.0, lat.smooth_modes,
-                        lat.applied ? "yes" : "no", lat.rms_shift_um, lat.max_abs_shift_um,
-                        lat.shift_se_um, lat.residual_rms_um, flags.c_str());
-            std::printf("  ILM alone vs BM alone: correlation %.3f; ILM alone vs both %.3f\n",
-                        corr(alone[0], alone[1]), corr(alone[0], lat.shift_um));
+            alone[keep] = estimate_lateral_motion(one).shift_um;
         }
+        const auto corr = [](const std::vector<double>& x, const std::vector<double>& y) {
+            const auto n = static_cast<double>(x.size());
+            double mx = 0.0, my = 0.0;
+            for (std::size_t i = 0; i < x.size(); ++i) { mx += x[i] / n; my += y[i] / n; }
+            double sxy = 0.0, sxx = 0.0, syy = 0.0;
+            for (std::size_t i = 0; i < x.size(); ++i) {
+                sxy += (x[i] - mx) * (y[i] - my);
+                sxx += (x[i] - mx) * (x[i] - mx);
+                syy += (y[i] - my) * (y[i] - my);
+            }
+            return sxx > 0.0 && syy > 0.0 ? sxy / std::sqrt(sxx * syy) : 0.0;
+        };
+        std::string flags;
+        for (const auto& q : lat.qc_flags) flags += "[" + q + "] ";
+        const std::string name = f.substr(f.find_last_of('/') + 1);
+        std::printf("%-44s %5d %6.1f %7d %6s %8.2f %8.2f %7.2f %8.2f  %s\n", name.c_str(),
+                    scan.num_bscans(), scan.meta.distance_mm * 1000.0, lat.smooth_modes,
+                    lat.applied ? "yes" : "no", lat.rms_shift_um, lat.max_abs_shift_um,
+                    lat.shift_se_um, lat.residual_rms_um, flags.c_str());
+        std::printf("  ILM alone vs BM alone: correlation %.3f; ILM alone vs both %.3f\n",
+                    corr(alone[0], alone[1]), corr(alone[0], lat.shift_um));
+    }
     return 0;
 }
 
