@@ -7,13 +7,22 @@
 // RMS error against the true shift (the identifiable part: a volume's true shifts minus their
 // best cubic in the B-scan position, a radial scan's minus their mean) and the time of the
 // registration and of the whole analysis.
+// Lateral jitter (volumes; docs/algorithms/onh.md, "Lateral registration"): --jitter 0,10,30
+// (SD, um; the lateral registration is on with "on"), --oracle adds a row "true" with the
+// phantom's true shifts applied as the registration applies its own, --whole-jitter rounds the
+// jitter to whole A-scans (no A-scans blended by the phantom). --bscans/--ascans resize the
+// volume, --spectralis-speckle gives it real Spectralis speckle. --file F (repeatable): the
+// lateral shifts estimated on a real scan instead (no truth).
 // Usage: onh_motion [--motion 0,30,60,100] [--ilm device,levelset] [--pattern volume,radial]
-//                   [--no-shadows] [--seed N]
+//                   [--no-shadows] [--seed N] [--jitter 0,10,30] [--bscans N] [--ascans N]
+//                   [--oracle] [--whole-jitter] [--spectralis-speckle] [--file F]
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <algorithm>
 #include <cstring>
+#include <limits>
 #include <exception>
 #include <sstream>
 #include <string>
@@ -21,7 +30,9 @@
 
 #include <Eigen/Dense>
 
+#include "octshape/io/scan_reader.h"
 #include "octshape/retina/axial_registration.h"
+#include "octshape/retina/lateral_registration.h"
 #include "octshape/retina/onh.h"
 #include "octshape/retina/phantom_onh.h"
 
@@ -39,6 +50,24 @@ std::vector<std::string> split(const std::string& s) {
 }
 
 double pct(double v, double t) { return 100.0 * (v - t) / t; }
+
+// RMS of (estimated - identifiable true) lateral shifts, um: the true ones without their first
+// smooth_modes cosines across the B-scans (what a smooth eye cannot tell from smooth motion,
+// docs/algorithms/onh.md "Lateral registration").
+double lateral_error_um(const LateralRegistration& reg, const std::vector<double>& true_px,
+                        double um_per_ascan) {
+    const auto n = static_cast<Eigen::Index>(true_px.size());
+    if (n < 2 || reg.shift_um.size() != true_px.size()) return 0.0;
+    const int K = std::max(1, reg.smooth_modes);
+    Eigen::MatrixXd X(n, K);
+    Eigen::VectorXd d(n);
+    for (Eigen::Index b = 0; b < n; ++b) {
+        for (int k = 0; k < K; ++k) X(b, k) = std::cos(M_PI * k * (static_cast<double>(b) + 0.5) / static_cast<double>(n));
+        d(b) = reg.shift_um[static_cast<std::size_t>(b)] - true_px[static_cast<std::size_t>(b)] * um_per_ascan;
+    }
+    const Eigen::VectorXd r = d - X * X.colPivHouseholderQr().solve(d);
+    return std::sqrt(r.squaredNorm() / static_cast<double>(n));
+}
 
 // RMS of (estimated - identifiable true) shifts, um.
 double shift_error_um(const AxialRegistration& reg, const std::vector<double>& true_px,
@@ -61,6 +90,52 @@ double shift_error_um(const AxialRegistration& reg, const std::vector<double>& t
     return std::sqrt(r.squaredNorm() / static_cast<double>(n));
 }
 
+// Real scans: the lateral shifts the registration estimates (no truth), and the agreement of
+// the ILM's and the BM's own estimates.
+int real_files(const std::vector<std::string>& files) {
+    std::printf("%-44s %5s %6s %7s %6s %8s %8s %7s %8s  %s\n", "file", "nb", "dy_um", "modes",
+                "appl", "rms_um", "max_um", "se_um", "res_um", "flags");
+    for (const std::string& f : files) {
+        const octshape::io::Scan scan = octshape::io::read_scan(f);
+        const LateralRegistration lat = estimate_lateral_motion(scan);
+        // The same from each line alone (the other one blanked): motion moves both
+        // surfaces, so the two estimates agree where the shifts are the eye's motion.
+        std::vector<double> alone[2];
+        for (int keep = 0; keep < 2; ++keep) {
+            octshape::io::Scan one = scan;
+            const int drop = keep == 0 ? 1 : 0;  // ILM = 0, BM = 1
+            for (auto& bs : one.bscans) {
+                if (static_cast<int>(bs.seg.size()) > drop) {
+                    for (float& v : bs.seg[static_cast<std::size_t>(drop)]) v = std::numeric_limits<float>::quiet_NaN();
+                }
+            }
+            alone[keep] = estimate_lateral_motion(one).shift_um;
+        }
+        const auto corr = [](const std::vector<double>& x, const std::vector<double>& y) {
+            const auto n = static_cast<double>(x.size());
+            double mx = 0.0, my = 0.0;
+            for (std::size_t i = 0; i < x.size(); ++i) { mx += x[i] / n; my += y[i] / n; }
+            double sxy = 0.0, sxx = 0.0, syy = 0.0;
+            for (std::size_t i = 0; i < x.size(); ++i) {
+                sxy += (x[i] - mx) * (y[i] - my);
+                sxx += (x[i] - mx) * (x[i] - mx);
+                syy += (y[i] - my) * (y[i] - my);
+            }
+            return sxx > 0.0 && syy > 0.0 ? sxy / std::sqrt(sxx * syy) : 0.0;
+        };
+        std::string flags;
+        for (const auto& q : lat.qc_flags) flags += "[" + q + "] ";
+        const std::string name = f.substr(f.find_last_of('/') + 1);
+        std::printf("%-44s %5d %6.1f %7d %6s %8.2f %8.2f %7.2f %8.2f  %s\n", name.c_str(),
+                    scan.num_bscans(), scan.meta.distance_mm * 1000.0, lat.smooth_modes,
+                    lat.applied ? "yes" : "no", lat.rms_shift_um, lat.max_abs_shift_um,
+                    lat.shift_se_um, lat.residual_rms_um, flags.c_str());
+        std::printf("  ILM alone vs BM alone: correlation %.3f; ILM alone vs both %.3f\n",
+                    corr(alone[0], alone[1]), corr(alone[0], lat.shift_um));
+    }
+    return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -68,55 +143,111 @@ int main(int argc, char** argv) {
         std::vector<std::string> motions = {"0", "30", "60", "100"};
         std::vector<std::string> ilms = {"device", "levelset"};
         std::vector<std::string> patterns = {"volume", "radial"};
+        std::vector<std::string> jitters = {"0"};
+        int bscans = 0;  // 0: the preset's
+        int ascans = 0;
         bool shadows = true;
+        bool grain = false;
+        bool oracle = false;
+        bool whole_jitter = false;
         std::uint64_t seed = 1;
+        std::vector<std::string> files;
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
             const bool more = i + 1 < argc;
             if (a == "--motion" && more) motions = split(argv[++i]);
             else if (a == "--ilm" && more) ilms = split(argv[++i]);
             else if (a == "--pattern" && more) patterns = split(argv[++i]);
+            else if (a == "--jitter" && more) jitters = split(argv[++i]);
+            else if (a == "--bscans" && more) bscans = std::stoi(argv[++i]);
+            else if (a == "--ascans" && more) ascans = std::stoi(argv[++i]);
             else if (a == "--no-shadows") shadows = false;
+            else if (a == "--file" && more) files.push_back(argv[++i]);
+            else if (a == "--spectralis-speckle") grain = true;
+            else if (a == "--oracle") oracle = true;
+            else if (a == "--whole-jitter") whole_jitter = true;
             else if (a == "--seed" && more) seed = std::stoull(argv[++i]);
             else throw std::runtime_error("unknown argument " + a);
         }
+        if (!files.empty()) return real_files(files);
         std::printf("# errors against the still eye's truth: volumes, MRW area, bending energy in %%; "
                     "CONHT, MRW (3-D, in-plane) in um; shift err = RMS of estimated - true "
                     "identifiable shift (um)\n");
-        std::printf("%-7s %6s %-8s %-4s %8s %8s %8s %8s %8s %8s %7s %8s %8s %8s %9s %7s %7s  %s\n",
-                    "pattern", "SD_um", "ilm", "reg", "cup%", "conht", "bmoV%", "totV%", "annV%",
-                    "bmoA%", "mrw", "mrwA%", "bend%", "mrw_ip", "shift_err", "reg_s", "total_s",
+        std::printf("%-7s %6s %5s %-8s %-4s %8s %8s %8s %8s %8s %8s %7s %8s %8s %8s %9s %7s %7s %6s %7s %7s  %s\n",
+                    "pattern", "SD_um", "jit", "ilm", "reg", "cup%", "conht", "bmoV%", "totV%", "annV%",
+                    "bmoA%", "mrw", "mrwA%", "bend%", "mrw_ip", "shift_err", "lat_rms", "lat_err", "lat_se", "reg_s", "total_s",
                     "flags");
         for (const std::string& pattern : patterns) {
             OnhPhantomParams p = onh_phantom_preset(OnhShape::kCupped);
             p.radial = pattern == "radial";
             p.seed = seed;
+            if (bscans > 0) p.num_bscans = bscans;
+            if (ascans > 0) p.num_ascans = ascans;
+            if (grain) {
+                // Real Spectralis speckle (docs/phantoms.md "Speckle"): 7 looks, grain 1.9 x 1.6 px.
+                p.speckle_looks = 7;
+                p.speckle_axial_half_width_px = 1.9;
+                p.speckle_lateral_half_width_px = 1.6;
+            }
             const OnhTruth truth = compute_onh_truth(p);
             for (const std::string& m : motions) {
+              for (const std::string& jit : jitters) {
                 OnhPhantomParams pm = p;
                 pm.artefacts.motion_sd_um = std::stod(m);
+                pm.artefacts.lateral_jitter_um = p.radial ? 0.0 : std::stod(jit);
                 pm.artefacts.vessel_shadows = shadows;
                 pm.artefacts.segmentation_faults = shadows;
-                const octshape::io::Scan scan0 = render_onh_scan(pm);
                 const auto true_shifts = onh_acquisition_shifts(pm).axial_px;
+                auto true_lateral = onh_acquisition_shifts(pm).lateral_px;
+                octshape::io::Scan scan0;
+                if (whole_jitter && !true_lateral.empty()) {
+                    // The jitter rounded to whole A-scans, applied to the phantom without it:
+                    // no A-scans blended (what a real acquisition does: it samples, it does
+                    // not interpolate).
+                    OnhPhantomParams ps = pm;
+                    ps.artefacts.lateral_jitter_um = 0.0;
+                    scan0 = render_onh_scan(ps);
+                    for (std::size_t b = 0; b < true_lateral.size(); ++b) {
+                        true_lateral[b] = std::round(true_lateral[b]);
+                        octshape::io::shift_bscan(scan0.bscans[b], scan0.meta.size_x, scan0.meta.size_z,
+                                                  0.0, true_lateral[b]);
+                    }
+                } else {
+                    scan0 = render_onh_scan(pm);
+                }
                 for (const std::string& ilm_name : ilms) {
-                    for (const bool reg_on : {false, true}) {
+                    for (const int mode : oracle ? std::vector<int>{0, 1, 2} : std::vector<int>{0, 1}) {
+                        const bool reg_on = mode > 0;
                         octshape::io::Scan scan = scan0;
                         const auto t0 = Clock::now();
                         AxialRegistrationParams rp;
                         rp.enabled = reg_on;
+                        LateralRegistrationParams lp;
+                        lp.enabled = reg_on;
+                        LateralRegistration lat = estimate_lateral_motion(scan, lp);
+                        if (mode == 2) {
+                            // The oracle: the phantom's true shifts, applied as the registration
+                            // applies its own (lines fractional, pixels by whole A-scans).
+                            lat.applied = true;
+                            for (std::size_t b = 0; b < lat.shift_um.size() && b < true_lateral.size(); ++b) {
+                                lat.shift_um[b] = true_lateral[b] * scan.meta.scale_x_mm * 1000.0;
+                            }
+                        }
+                        apply_lateral_registration(scan, lat);
                         const AxialRegistration reg = register_axially(scan, rp);
                         const double reg_s = std::chrono::duration<double>(Clock::now() - t0).count();
                         const IlmSurface ilm = build_ilm_surface(scan, ilm_source_from_string(ilm_name));
                         OnhResult r = analyse_onh(scan, ilm);
                         const double total_s = std::chrono::duration<double>(Clock::now() - t0).count();
                         std::string flags;
+                        for (const auto& f : lat.qc_flags) flags += "[" + f + "] ";
                         for (const auto& f : reg.qc_flags) flags += "[" + f + "] ";
                         for (const auto& f : r.qc_flags) flags += "[" + f + "] ";
                         const double err = shift_error_um(reg, true_shifts, scan.meta.scale_z_mm * 1000.0, p.radial);
-                        std::printf("%-7s %6s %-8s %-4s %+8.2f %+8.1f %+8.2f %+8.2f %+8.2f %+8.2f %+7.1f "
-                                    "%+8.2f %+8.2f %+8.1f %9.2f %7.3f %7.2f  %s\n",
-                                    pattern.c_str(), m.c_str(), ilm_name.c_str(), reg_on ? "on" : "off",
+                        const double lat_err = lateral_error_um(lat, true_lateral, scan.meta.scale_x_mm * 1000.0);
+                        std::printf("%-7s %6s %5s %-8s %-4s %+8.2f %+8.1f %+8.2f %+8.2f %+8.2f %+8.2f %+7.1f "
+                                    "%+8.2f %+8.2f %+8.1f %9.2f %7.2f %7.2f %6.2f %7.3f %7.2f  %s\n",
+                                    pattern.c_str(), m.c_str(), jit.c_str(), ilm_name.c_str(), mode == 2 ? "true" : reg_on ? "on" : "off",
                                     pct(r.cup_volume_mm3, truth.cup_volume_mm3),
                                     1e3 * (r.conht_mm - truth.conht_mm),
                                     pct(r.bmo_volume_mm3, truth.bmo_volume_mm3),
@@ -127,10 +258,11 @@ int main(int argc, char** argv) {
                                     pct(r.mrw_area_mm2, truth.mrw_area_mm2),
                                     pct(r.bending_energy, truth.bending_energy),
                                     p.radial ? 1e3 * (r.mrw_inplane_mean_mm - truth.inplane.mean_mm) : 0.0,
-                                    err, reg_s, total_s, flags.c_str());
+                                    err, lat.rms_shift_um, lat_err, lat.shift_se_um, reg_s, total_s, flags.c_str());
                         std::fflush(stdout);
                     }
                 }
+              }
             }
         }
         return 0;

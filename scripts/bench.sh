@@ -17,6 +17,10 @@ while read -r bench; do
     rofi_autostop) runs=("--bunny build/mesh_family/bunny.obj --curves build/bench/rofi_curves.tsv --trace build/bench/rofi_trace.tsv") ;;
     macula_rescan) runs=("" "--pattern radial --lines 12" "--pattern radial --lines 24") ;;
     onh_rescan) runs=("" "--pattern radial --lines 24" "--pattern radial --lines 24 --ilm device") ;;
+    # Lateral jitter of volumes (docs/algorithms/onh.md "Lateral registration"): the table, and
+    # the same with the jitter in whole A-scans (no A-scans blended by the phantom).
+    onh_motion) runs=("" "--pattern volume --motion 0,30 --jitter 0,10,30 --oracle"
+                      "--pattern volume --motion 0 --jitter 10,30 --oracle --whole-jitter") ;;
     *) runs=("") ;;
   esac
   for run in "${runs[@]}"; do

@@ -76,6 +76,8 @@ std::string onh_options_text(const OnhEyeOptions& o) {
       << " local_features=" << p.local_features
       << " axial_registration=" << p.axial_registration.enabled
       << " axial_registration_degree=" << p.axial_registration.surface_degree
+      << " lateral_registration=" << p.lateral_registration.enabled
+      << " lateral_registration_wavelength_mm=" << p.lateral_registration.smooth_wavelength_mm
       << " mesh=" << (o.mesh_dir.empty() ? std::string("none") : o.mesh_format);
     s << " levelset(lateral_radius_mm=" << ls.lateral_radius_mm << " margin_mm=" << ls.margin_mm
       << " despeckle_passes=" << ls.despeckle_passes << " mu_mm=" << ls.mu_mm
@@ -121,6 +123,10 @@ void add_onh_analysis_options(CLI::App* cmd, OnhEyeOptions& o, bool per_eye_file
         "--no-axial-registration", [&p] { p.axial_registration.enabled = false; },
         "Do not remove the axial eye motion between B-scans (estimated from the BM and "
         "reported either way; docs/algorithms/onh.md)");
+    cmd->add_flag_callback(
+        "--no-lateral-registration", [&p] { p.lateral_registration.enabled = false; },
+        "Do not remove the lateral shifts of a volume's B-scans (estimated from the ILM and BM "
+        "lines and reported either way; docs/algorithms/onh.md)");
     cmd->add_option("--min-gap-area-mm2", p.detection.min_gap_area_mm2,
                     "Smallest BM gap accepted as the disc by the automatic BMO detection (mm2)")
         ->capture_default_str();
@@ -154,8 +160,12 @@ EyeResult analyse_onh_eye(const std::string& file,
                   ? with_file_named(file, [&] { return retina::read_radial_bmo_csv(o.bmo_file, scan); })
                   : retina::read_bmo_csv(o.bmo_file, scan.meta, scan.num_bscans());
     }
-    // Axial registration before any surface (docs/algorithms/onh.md): the pixels and lines of
-    // every B-scan, and the user's BMO points with their B-scan.
+    // Lateral, then axial registration before any surface (docs/algorithms/onh.md): the
+    // pixels and lines of every B-scan, and the user's BMO points with their B-scan.
+    const retina::LateralRegistration lateral = with_file_named(
+        file, [&] { return retina::register_laterally(scan, o.params.lateral_registration); });
+    if (bmo && lateral.applied) retina::register_bmo_points_laterally(*bmo, scan, lateral);
+    prov.mark("lateral_registration");
     const retina::AxialRegistration registration = with_file_named(
         file, [&] { return retina::register_axially(scan, o.params.axial_registration); });
     if (bmo && registration.applied) retina::register_bmo_points(*bmo, scan, registration);
@@ -173,6 +183,9 @@ EyeResult analyse_onh_eye(const std::string& file,
     retina::OnhResult r =
         with_file_named(file, [&] { return retina::analyse_onh(scan, ilm, o.params, bmo); });
     r.axial_registration = registration;
+    r.lateral_registration = lateral;
+    r.qc_flags.insert(r.qc_flags.end(), lateral.qc_flags.begin(), lateral.qc_flags.end());
+    r.notes.insert(r.notes.end(), lateral.notes.begin(), lateral.notes.end());
     r.qc_flags.insert(r.qc_flags.end(), registration.qc_flags.begin(), registration.qc_flags.end());
     r.notes.insert(r.notes.end(), registration.notes.begin(), registration.notes.end());
     prov.mark("analysis");

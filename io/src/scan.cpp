@@ -230,10 +230,17 @@ void shift_bscan(BScan& bscan, int size_x, int size_z, double dz_px, double dx_p
     }
     for (auto& line : bscan.seg) {
         if (dx_px != 0.0 && line.size() == nx) {
-            // Linear between two present values; next to a missing one, the nearer sample (so
-            // the edge of a gap, e.g. the BMO, moves with the content, not always outward).
+            // Linear between two present values. Next to a missing one, the nearer sample
+            // decides whether the value is present (so the edge of a gap, e.g. the BMO, moves
+            // with the content, not always outward), and its value is the line extrapolated
+            // from that side (the slope of its two present samples; the sample itself when
+            // it has no present neighbour): the line's slope at a gap's edge survives a shift
+            // and its inverse.
             const std::vector<float> in = line;
             const double last = static_cast<double>(size_x - 1);
+            const auto present = [&](std::ptrdiff_t i) {
+                return i >= 0 && i < static_cast<std::ptrdiff_t>(nx) && std::isfinite(in[static_cast<std::size_t>(i)]);
+            };
             for (std::size_t a = 0; a < nx; ++a) {
                 const double src = std::clamp(static_cast<double>(a) - dx_px, 0.0, last);
                 const auto a0 = static_cast<std::size_t>(std::floor(src));
@@ -243,8 +250,16 @@ void shift_bscan(BScan& bscan, int size_x, int size_z, double dz_px, double dx_p
                 const float v1 = in[a1];
                 if (std::isfinite(v0) && std::isfinite(v1)) {
                     line[a] = static_cast<float>((1.0 - f) * v0 + f * v1);
+                } else if (f < 0.5) {
+                    const auto i0 = static_cast<std::ptrdiff_t>(a0);
+                    line[a] = std::isfinite(v0) && present(i0 - 1)
+                                  ? static_cast<float>(v0 + f * (v0 - in[a0 - 1]))
+                                  : v0;
                 } else {
-                    line[a] = f < 0.5 ? v0 : v1;
+                    const auto i1 = static_cast<std::ptrdiff_t>(a1);
+                    line[a] = std::isfinite(v1) && present(i1 + 1)
+                                  ? static_cast<float>(v1 - (1.0 - f) * (in[a1 + 1] - v1))
+                                  : v1;
                 }
             }
         }

@@ -152,9 +152,12 @@ cv::Mat bscan_panel(const io::Scan& scan, const retina::OnhResult& r, int b) {
         const Eigen::Vector3d& q = r.mrw_points_mm[i];
         cv::line(img, px(p.x(), p.z()), px(q.x(), q.z()), kMrw, 1, cv::LINE_AA);
     }
-    outlined_text(img, "B-scan " + std::to_string(b) + " of 0-" +
-                           std::to_string(scan.num_bscans() - 1) + registration_title(r, b),
+    // What the registrations did on a line of its own under the title: a panel of a small
+    // volume is too narrow for both on one line.
+    outlined_text(img, "B-scan " + std::to_string(b) + " of 0-" + std::to_string(scan.num_bscans() - 1),
                   {6, 18}, 0.5, palette::kWhite);
+    const std::string moved = registration_title(r, b);
+    if (moved.size() > 2) outlined_text(img, moved.substr(2), {6, 36}, 0.5, palette::kWhite);
     scale_bar(img, {10, H - 14}, 1.0 / dx, palette::kWhite);
     return img;
 }

@@ -78,6 +78,24 @@ bool pinkish(const cv::Vec3b& c) { return c[0] > 150 && c[2] > 150 && c[1] + 60 
 bool yellowish(const cv::Vec3b& c) { return c[2] > 150 && c[1] > 120 && c[0] + 80 < c[1]; }
 bool blueish(const cv::Vec3b& c) { return c[0] > 150 && c[0] > c[2] + 80 && c[1] + 20 < c[0]; }
 
+// The B-scan titles say what the registrations did (docs/algorithms/onh.md): the axial shift
+// (+ = the B-scan lay deeper, moved up), the lateral one (+ = it lay towards higher A-scans,
+// moved left), joined; nothing below 0.5 um or when a registration was not applied.
+TEST(OnhQc, RegistrationTitleSaysBothShifts) {
+    retina::OnhResult r;
+    r.axial_registration.applied = true;
+    r.axial_registration.shift_um = {12.3, 0.2, -7.0, 0.0};
+    r.lateral_registration.applied = true;
+    r.lateral_registration.shift_um = {9.0, -15.6, 0.4, 0.0};
+    EXPECT_EQ(qc::registration_title(r, 0), ", moved 12 um up, 9 um left");
+    EXPECT_EQ(qc::registration_title(r, 1), ", moved 16 um right");
+    EXPECT_EQ(qc::registration_title(r, 2), ", moved 7 um down");
+    EXPECT_EQ(qc::registration_title(r, 3), "");
+    EXPECT_EQ(qc::registration_title(r, 4), "");  // beyond the shifts
+    r.lateral_registration.applied = false;  // estimated, not removed: not said
+    EXPECT_EQ(qc::registration_title(r, 0), ", moved 12 um up");
+}
+
 TEST(OnhRadialQc, EnfaceDrawsEachBmoPointOnItsLine) {
     const RadialOnh& s = analysed_sample();
     ASSERT_TRUE(s.r.radial);

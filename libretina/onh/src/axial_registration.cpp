@@ -304,14 +304,19 @@ void register_bmo_points(std::vector<BmoPoint>& points, const io::Scan& scan,
     if (!registration.applied || registration.shift_um.empty()) return;
     const int nb = static_cast<int>(registration.shift_um.size());
     for (BmoPoint& p : points) {
-        int b = p.bscan;
-        if (b < 0 && scan.meta.distance_mm > 0.0) {
-            b = static_cast<int>(std::lround(p.mm.y() / scan.meta.distance_mm));
-        }
+        const int b = bscan_of_bmo_point(p, scan);
         if (b < 0 || b >= nb) continue;
         // The B-scan's content moves up by its shift: heights (z = -depth) rise by it.
         p.mm.z() += registration.shift_um[static_cast<std::size_t>(b)] * 1e-3;
     }
+}
+
+int bscan_of_bmo_point(const BmoPoint& point, const io::Scan& scan) {
+    if (point.bscan >= 0) return point.bscan;
+    if (scan.meta.distance_mm > 0.0) {
+        return static_cast<int>(std::lround(point.mm.y() / scan.meta.distance_mm));
+    }
+    return -1;
 }
 
 AxialRegistration register_axially(io::Scan& scan, const AxialRegistrationParams& params) {

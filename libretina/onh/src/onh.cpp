@@ -194,6 +194,7 @@ void OnhParams::validate() const {
         throw UsageError("disc_radius_mm must be a positive number");
     }
     detection.validate();
+    lateral_registration.validate();
 }
 
 void require_onh_scan(const io::Scan& scan) {

@@ -29,14 +29,25 @@ inline const cv::Scalar& kBm = palette::kBlue;
 inline const cv::Scalar& kMrw = palette::kPink;
 }  // namespace onh_colours
 
-// ", moved 12 um up" when the axial registration moved B-scan `b` (|shift| >= 0.5 um), else "":
-// the B-scan titles of both patterns' pictures show what the registration did.
+// ", moved 12 um up" when the axial registration moved B-scan `b`, ", moved 9 um left" (towards
+// lower A-scans) when the lateral one did, both joined ", moved 12 um up, 9 um left"; nothing
+// below 0.5 um: the B-scan titles of both patterns' pictures show what the registration did.
 inline std::string registration_title(const retina::OnhResult& r, int b) {
-    const auto& s = r.axial_registration.shift_um;
-    if (!r.axial_registration.applied || b < 0 || static_cast<std::size_t>(b) >= s.size()) return {};
-    const double v = s[static_cast<std::size_t>(b)];
-    if (std::fabs(v) < 0.5) return {};
-    return printf_number(v > 0.0 ? ", moved %.0f um up" : ", moved %.0f um down", std::fabs(v));
+    const auto moved = [b](bool applied, const std::vector<double>& s) {
+        if (!applied || b < 0 || static_cast<std::size_t>(b) >= s.size()) return 0.0;
+        const double v = s[static_cast<std::size_t>(b)];
+        return std::fabs(v) < 0.5 ? 0.0 : v;
+    };
+    const double up = moved(r.axial_registration.applied, r.axial_registration.shift_um);
+    const double left = moved(r.lateral_registration.applied, r.lateral_registration.shift_um);
+    std::string t;
+    if (up != 0.0) t = printf_number(up > 0.0 ? ", moved %.0f um up" : ", moved %.0f um down", std::fabs(up));
+    if (left != 0.0) {
+        t += printf_number(t.empty() ? (left > 0.0 ? ", moved %.0f um left" : ", moved %.0f um right")
+                                     : (left > 0.0 ? ", %.0f um left" : ", %.0f um right"),
+                           std::fabs(left));
+    }
+    return t;
 }
 
 // En-face picture: the (n - 1) x (n - 1) cells of the radial grid, `ppm` pixels per mm, inside

@@ -59,6 +59,9 @@ void apply_axial_registration(io::Scan& scan, const AxialRegistration& registrat
 // (a point from an x_mm,y_mm,z_mm file: the B-scan nearest its y).
 void register_bmo_points(std::vector<BmoPoint>& points, const io::Scan& scan,
                          const AxialRegistration& registration);
+// The B-scan a BMO point belongs to: its own, or (a point from an x_mm,y_mm,z_mm file) the
+// B-scan nearest its y; -1 when neither.
+[[nodiscard]] int bscan_of_bmo_point(const BmoPoint& point, const io::Scan& scan);
 // Both: estimate, then apply when params.enabled.
 [[nodiscard]] AxialRegistration register_axially(io::Scan& scan,
                                                  const AxialRegistrationParams& params = {});

@@ -18,6 +18,7 @@
 #include "octshape/io/scan.h"
 #include "octshape/mesh/mesh.h"
 #include "octshape/retina/axial_registration.h"
+#include "octshape/retina/lateral_registration.h"
 #include "octshape/retina/bmo.h"
 #include "octshape/retina/onh_surfaces.h"
 
@@ -89,6 +90,9 @@ struct OnhParams {
     // Axial registration of the B-scans before any surface is built (the caller applies it to
     // the scan: register_axially; analyse_onh only reports it).
     AxialRegistrationParams axial_registration;
+    // Lateral registration of a volume's B-scans, before the axial one (the caller applies it:
+    // register_laterally).
+    LateralRegistrationParams lateral_registration;
 
     void validate() const;  // throws UsageError naming the field
 };
@@ -205,6 +209,7 @@ struct OnhResult {
 
     // Axial registration of the B-scans (set by the caller that registered the scan).
     AxialRegistration axial_registration;
+    LateralRegistration lateral_registration;
 
     // QC.
     int rpe_filled_vertices = 0;
