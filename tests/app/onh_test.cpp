@@ -105,9 +105,9 @@ TEST(OnhCli, LateralRegistrationIsOnByDefaultAndRecorded) {
     ASSERT_EQ(off.exit_code, 0) << off.err;
     const json a = json::parse(slurp(dir / "on.json"));
     const json b = json::parse(slurp(dir / "off.json"));
-    EXPECT_EQ(a["options"]["lateral_registration"], 1);
-    EXPECT_EQ(b["options"]["lateral_registration"], 0);
-    EXPECT_EQ(a["provenance"]["options"]["lateral_registration"], 1);
+    EXPECT_EQ(a["options"]["lateral_registration"], true);
+    EXPECT_EQ(b["options"]["lateral_registration"], false);
+    EXPECT_EQ(a["provenance"]["options"]["lateral_registration"], true);
     EXPECT_EQ(a["options"]["lateral_registration_wavelength_mm"], 0.75);
     EXPECT_EQ(a["lateral_registration"]["applied"], true);
     EXPECT_EQ(b["lateral_registration"]["applied"], false);
