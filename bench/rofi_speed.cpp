@@ -275,7 +275,8 @@ void roofline(const std::filesystem::path& dir, int rounds) {
     };
     line("neighbourhoods", best.seconds_setup, 1.0);
     line("face update", best.phases.faces, it);
-    // Since session 17 the weights and the sums are one fused pass (rofi.md, "Speed").
+    // The weights and the sums printed as one phase (as on branch rofi-fast, whose fused pass
+    // could not time them apart).
     line("weights + sums", best.phases.weights + best.phases.sums, it);
     line("vertex step", best.phases.vertices, it);
     line("iteration", best.seconds_iterations - best.seconds_fold_repair, it);
