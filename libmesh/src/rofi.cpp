@@ -33,6 +33,9 @@ double seconds_since(Clock::time_point t0) {
 // slot_pair = −1. The list is padded to a multiple of kPairBlock with the pair (0, 0).
 constexpr int kPairBlock = 4;
 
+// λ_I below which the vertex step drops the fidelity term (rofi_denoise, Eq. 5.9).
+constexpr double kNegligibleLambda = 1e-16;
+
 struct PairTable {
     std::vector<int> first;      // pair k = (first[k], second[k])
     std::vector<int> second;
@@ -806,10 +809,16 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
             rows(2);  // weights and sums in one pass: counted as sums
         }
         lap(result.phases.sums);
-        // Eq. 5.9.
+        // Eq. 5.9. Once λ_I (decaying 0.6× per iteration by default: after ~70 iterations
+        // from 0.2) falls below kNegligibleLambda, its term is dropped (rofi.md, "Speed",
+        // "Issue 35 (session 17b)"): the term λ_I (D_i + D_t,i) moves a vertex by at most
+        // 2 λ_I |D_i| < 2e−16 of its longest edge (D_i is a weighted mean of its neighbours
+        // minus v_i), all later ones together by < 2e−16 / (1 − decay) of it: the size of one
+        // rounding of a coordinate, not a change of the filter.
+        const double lambda_used = lambda < kNegligibleLambda ? 0.0 : lambda;
         detail::parallel_for(n, params.threads, [&](int begin, int end) {
-            detail::vertex_step(result.V, faces.data(), setup.adjacency, setup.fixed, lambda,
-                                begin, end, next, avx2);
+            detail::vertex_step(result.V, faces.data(), setup.adjacency, setup.fixed,
+                                lambda_used, begin, end, next, avx2);
         });
         lap(result.phases.vertices);
         result.V.swap(next);
