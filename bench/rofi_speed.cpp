@@ -11,6 +11,8 @@
 //
 // Usage: rofi_speed [--quick] [--rounds N] [--scale MAX_FACES] [--scale-iterations P]
 //                   [--write-subdivided MESH_NAME LEVELS OUT] [SHARED_MESHES_DIR]
+//        rofi_speed --phases MESH_NAME LEVELS ITERATIONS THREADS [SHARED_MESHES_DIR]
+// --phases: one call, its time per phase (e.g. under `valgrind --tool=callgrind`).
 // --quick: the two smaller meshes of table 1, one round, no scale table (≈ 5 s).
 // Default: tables 1 and 2 (≈ 1 min on 2 cores). --scale 5400000 adds table 3 up to 5.3 M faces
 // (≈ 3 min, ≈ 3.5 GiB at the largest). Run it on a quiet machine: the figures are wall clock.
@@ -117,6 +119,23 @@ om::RofiParams issue_params(int threads, int iterations) {
     p.radius_factor = 2.0;
     p.threads = threads;
     return p;
+}
+
+// --phases: one call on one mesh, its time per phase (for a profiler such as callgrind, which
+// runs a few iterations of the large meshes in a minute).
+void phases(const std::filesystem::path& dir, const std::string& mesh, int levels,
+            int iterations, int threads) {
+    const Mesh m = load(dir, mesh, levels);
+    const auto out = om::rofi_denoise(m.V, m.F, issue_params(threads, iterations));
+    const double faces = static_cast<double>(m.F.rows());
+    const double k = 1e9 / out.iterations / faces;
+    std::printf("%s, %d subdivision(s), %ld faces, %d thread(s), %d iterations: set-up %.1f "
+                "ns/face; per iteration, ns/face: face update %.2f, weights %.2f, sums %.2f, "
+                "vertex step %.2f, whole %.2f\n",
+                mesh.c_str(), levels, static_cast<long>(m.F.rows()), threads, out.iterations,
+                1e9 * out.seconds_setup / faces, k * out.phases.faces,
+                k * out.phases.weights, k * out.phases.sums, k * out.phases.vertices,
+                k * (out.seconds_iterations - out.seconds_fold_repair));
 }
 
 // Table 1.
@@ -345,7 +364,12 @@ int main(int argc, char** argv) {
     int scale_iterations = 10;
     for (int a = 1; a < argc; ++a) {
         const std::string arg = argv[a];
-        if (arg == "--quick") {
+        if (arg == "--phases" && a + 4 < argc) {
+            const std::filesystem::path at = a + 5 < argc ? argv[a + 5] : dir;
+            phases(at, argv[a + 1], std::atoi(argv[a + 2]), std::atoi(argv[a + 3]),
+                   std::atoi(argv[a + 4]));
+            return 0;
+        } else if (arg == "--quick") {
             quick = true;
             rounds = 1;
         } else if (arg == "--rounds" && a + 1 < argc) {
@@ -367,7 +391,8 @@ int main(int argc, char** argv) {
         } else {
             std::fprintf(stderr,
                          "usage: rofi_speed [--quick] [--rounds N] [--scale MAX_FACES] "
-                         "[--scale-iterations P] [--write-subdivided MESH LEVELS OUT] [DIR]\n");
+                         "[--scale-iterations P] [--write-subdivided MESH LEVELS OUT] [DIR]\n"
+                         "       rofi_speed --phases MESH LEVELS ITERATIONS THREADS [DIR]\n");
             return 64;
         }
     }

@@ -119,12 +119,21 @@ namespace {
         }
         V4d step = splat(0.0);
         V4d normal = splat(0.0);
-        for (int p = fb; p < fe; ++p) {
-            const FaceState& s = faces[vf[p]];
-            const V4d nk = face_half(s, 0);  // ñ_k, a_k
-            const double d = dot3(nk, face_half(s, 1) - vi);
-            step = step + splat(d) * nk;             // Eq. 5.9 / 3.7, edge term
-            normal = normal + splat(s.area) * nk;    // Eq. 5.7
+        if (lambda_i != 0.0) {
+            for (int p = fb; p < fe; ++p) {
+                const FaceState& s = faces[vf[p]];
+                const V4d nk = face_half(s, 0);  // ñ_k, a_k
+                const double d = dot3(nk, face_half(s, 1) - vi);
+                step = step + splat(d) * nk;             // Eq. 5.9 / 3.7, edge term
+                normal = normal + splat(s.area) * nk;    // Eq. 5.7
+            }
+        } else {
+            // The same edge term; Eq. 5.7's normal is read only by the λ_I term.
+            for (int p = fb; p < fe; ++p) {
+                const FaceState& s = faces[vf[p]];
+                const V4d nk = face_half(s, 0);
+                step = step + splat(dot3(nk, face_half(s, 1) - vi)) * nk;
+            }
         }
         step = step * splat(1.0 / static_cast<double>(fe - fb));
         if (lambda_i != 0.0) {
@@ -221,7 +230,7 @@ void vertex_step_scalar(const Vertices& V,
                              nk[2] * (s.centroid[2] - vi[2]);
             for (int k = 0; k < 3; ++k) {
                 step[k] += d * nk[k];             // Eq. 5.9 / 3.7, edge term
-                normal[k] += s.area * nk[k];      // Eq. 5.7
+                if (lambda_i != 0.0) normal[k] += s.area * nk[k];  // Eq. 5.7, read by λ_I only
             }
         }
         const double inv_faces = 1.0 / static_cast<double>(fe - fb);
