@@ -282,7 +282,9 @@ TEST(AxialRegistration, RecoversTheMotionOfRadialLines) {
         const auto& bm_read = read.bscans[bi].seg[static_cast<std::size_t>(io::Layer::kBM)];
         for (int a = 0; a < nx; ++a) {
             const auto ai = static_cast<std::size_t>(a);
-            if (std::isfinite(bm_read[ai])) EXPECT_NEAR(bm[ai], bm_read[ai] + dz, 1e-4);
+            if (std::isfinite(bm_read[ai])) {
+                EXPECT_NEAR(bm[ai], bm_read[ai] + dz, 1e-4);
+            }
         }
     }
     EXPECT_GE(fractional, 6);  // 60 um SD of 3.87 um pixels: the fractional parts are uniform
