@@ -209,6 +209,13 @@ TEST(AxialRegistration, StillCurvedTiltedEyeIsNotFlattened) {
     EXPECT_LT(r.max_abs_shift_um, 0.01);
     EXPECT_LT(r.residual_rms_um, 0.01);
     EXPECT_TRUE(r.qc_flags.empty());
+    // Applied, the pixels stay as read byte for byte (every shift is far under half a row).
+    io::Scan registered = scan;
+    apply_axial_registration(registered, r);
+    for (int b = 0; b < scan.num_bscans(); ++b) {
+        const auto bi = static_cast<std::size_t>(b);
+        EXPECT_EQ(registered.bscans[bi].pixels, scan.bscans[bi].pixels) << "B-scan " << b;
+    }
 }
 
 // 60 um of motion with vessel shadows, an ILM spike and a BM gap: the identifiable motion is
