@@ -13,9 +13,12 @@
 // jitter to whole A-scans (no A-scans blended by the phantom). --bscans/--ascans resize the
 // volume, --spectralis-speckle gives it real Spectralis speckle. --file F (repeatable): the
 // lateral shifts estimated on a real scan instead (no truth). --shape overhang: the overhanging
-// disc instead of the cupped one; --lines N: radial lines; --on-only: the registered rows alone.
+// disc instead of the cupped one; --lines N: radial lines; --on-only: the registered rows alone;
+// --residual-only: the still eye's pixels with every line moved by the fractional part of the
+// true shift (what the axial registration's whole-row pixel shift leaves between pixels and
+// lines, without the phantom's blending of rows), registration off.
 // Usage: onh_motion [--motion 0,30,60,100] [--ilm device,levelset] [--pattern volume,radial]
-//                   [--shape cupped|overhang] [--lines N] [--on-only]
+//                   [--shape cupped|overhang] [--lines N] [--on-only] [--residual-only]
 //                   [--no-shadows] [--seed N] [--jitter 0,10,30] [--bscans N] [--ascans N]
 //                   [--oracle] [--whole-jitter] [--spectralis-speckle] [--file F]
 
@@ -155,6 +158,7 @@ int main(int argc, char** argv) {
         bool oracle = false;
         bool whole_jitter = false;
         bool on_only = false;
+        bool residual_only = false;
         std::uint64_t seed = 1;
         std::vector<std::string> files;
         for (int i = 1; i < argc; ++i) {
@@ -174,6 +178,7 @@ int main(int argc, char** argv) {
             else if (a == "--oracle") oracle = true;
             else if (a == "--whole-jitter") whole_jitter = true;
             else if (a == "--on-only") on_only = true;
+            else if (a == "--residual-only") residual_only = true;
             else if (a == "--seed" && more) seed = std::stoull(argv[++i]);
             else throw std::runtime_error("unknown argument " + a);
         }
@@ -222,11 +227,26 @@ int main(int argc, char** argv) {
                         octshape::io::shift_bscan(scan0.bscans[b], scan0.meta.size_x, scan0.meta.size_z,
                                                   0.0, true_lateral[b]);
                     }
+                } else if (residual_only) {
+                    // The axial registration's half-pixel residual alone: the still eye's pixels
+                    // (no rows blended), every line moved by the fractional part of the true
+                    // shift (|r| <= 0.5 px), as the registered lines lie against pixels moved by
+                    // whole rows. Run with the registration off (on, it undoes the lines).
+                    OnhPhantomParams ps = pm;
+                    ps.artefacts.motion_sd_um = 0.0;
+                    scan0 = render_onh_scan(ps);
+                    for (std::size_t b = 0; b < true_shifts.size(); ++b) {
+                        const double r = true_shifts[b] - std::round(true_shifts[b]);
+                        std::vector<float> pixels;
+                        pixels.swap(scan0.bscans[b].pixels);
+                        octshape::io::shift_bscan(scan0.bscans[b], scan0.meta.size_x, scan0.meta.size_z, r);
+                        pixels.swap(scan0.bscans[b].pixels);
+                    }
                 } else {
                     scan0 = render_onh_scan(pm);
                 }
                 for (const std::string& ilm_name : ilms) {
-                    for (const int mode : oracle ? std::vector<int>{0, 1, 2} : on_only ? std::vector<int>{1} : std::vector<int>{0, 1}) {
+                    for (const int mode : oracle ? std::vector<int>{0, 1, 2} : on_only ? std::vector<int>{1} : residual_only ? std::vector<int>{0} : std::vector<int>{0, 1}) {
                         const bool reg_on = mode > 0;
                         octshape::io::Scan scan = scan0;
                         const auto t0 = Clock::now();
