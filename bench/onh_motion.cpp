@@ -12,8 +12,13 @@
 // phantom's true shifts applied as the registration applies its own, --whole-jitter rounds the
 // jitter to whole A-scans (no A-scans blended by the phantom). --bscans/--ascans resize the
 // volume, --spectralis-speckle gives it real Spectralis speckle. --file F (repeatable): the
-// lateral shifts estimated on a real scan instead (no truth).
+// lateral shifts estimated on a real scan instead (no truth). --shape overhang: the overhanging
+// disc instead of the cupped one; --lines N: radial lines; --on-only: the registered rows alone;
+// --residual-only: the still eye's pixels with every line moved by the fractional part of the
+// true shift (what the axial registration's whole-row pixel shift leaves between pixels and
+// lines, without the phantom's blending of rows), registration off.
 // Usage: onh_motion [--motion 0,30,60,100] [--ilm device,levelset] [--pattern volume,radial]
+//                   [--shape cupped|overhang] [--lines N] [--on-only] [--residual-only]
 //                   [--no-shadows] [--seed N] [--jitter 0,10,30] [--bscans N] [--ascans N]
 //                   [--oracle] [--whole-jitter] [--spectralis-speckle] [--file F]
 
@@ -146,10 +151,14 @@ int main(int argc, char** argv) {
         std::vector<std::string> jitters = {"0"};
         int bscans = 0;  // 0: the preset's
         int ascans = 0;
+        int lines = 0;  // 0: the preset's (radial)
+        std::string shape = "cupped";
         bool shadows = true;
         bool grain = false;
         bool oracle = false;
         bool whole_jitter = false;
+        bool on_only = false;
+        bool residual_only = false;
         std::uint64_t seed = 1;
         std::vector<std::string> files;
         for (int i = 1; i < argc; ++i) {
@@ -161,11 +170,15 @@ int main(int argc, char** argv) {
             else if (a == "--jitter" && more) jitters = split(argv[++i]);
             else if (a == "--bscans" && more) bscans = std::stoi(argv[++i]);
             else if (a == "--ascans" && more) ascans = std::stoi(argv[++i]);
+            else if (a == "--lines" && more) lines = std::stoi(argv[++i]);
+            else if (a == "--shape" && more) shape = argv[++i];
             else if (a == "--no-shadows") shadows = false;
             else if (a == "--file" && more) files.push_back(argv[++i]);
             else if (a == "--spectralis-speckle") grain = true;
             else if (a == "--oracle") oracle = true;
             else if (a == "--whole-jitter") whole_jitter = true;
+            else if (a == "--on-only") on_only = true;
+            else if (a == "--residual-only") residual_only = true;
             else if (a == "--seed" && more) seed = std::stoull(argv[++i]);
             else throw std::runtime_error("unknown argument " + a);
         }
@@ -178,8 +191,10 @@ int main(int argc, char** argv) {
                     "bmoA%", "mrw", "mrwA%", "bend%", "mrw_ip", "shift_err", "lat_rms", "lat_err", "lat_se", "reg_s", "total_s",
                     "flags");
         for (const std::string& pattern : patterns) {
-            OnhPhantomParams p = onh_phantom_preset(OnhShape::kCupped);
+            if (shape != "cupped" && shape != "overhang") throw std::runtime_error("unknown shape " + shape);
+            OnhPhantomParams p = onh_phantom_preset(shape == "overhang" ? OnhShape::kOverhang : OnhShape::kCupped);
             p.radial = pattern == "radial";
+            if (lines > 0) p.radial_lines = lines;
             p.seed = seed;
             if (bscans > 0) p.num_bscans = bscans;
             if (ascans > 0) p.num_ascans = ascans;
@@ -212,11 +227,26 @@ int main(int argc, char** argv) {
                         octshape::io::shift_bscan(scan0.bscans[b], scan0.meta.size_x, scan0.meta.size_z,
                                                   0.0, true_lateral[b]);
                     }
+                } else if (residual_only) {
+                    // The axial registration's half-pixel residual alone: the still eye's pixels
+                    // (no rows blended), every line moved by the fractional part of the true
+                    // shift (|r| <= 0.5 px), as the registered lines lie against pixels moved by
+                    // whole rows. Run with the registration off (on, it undoes the lines).
+                    OnhPhantomParams ps = pm;
+                    ps.artefacts.motion_sd_um = 0.0;
+                    scan0 = render_onh_scan(ps);
+                    for (std::size_t b = 0; b < true_shifts.size(); ++b) {
+                        const double r = true_shifts[b] - std::round(true_shifts[b]);
+                        std::vector<float> pixels;
+                        pixels.swap(scan0.bscans[b].pixels);
+                        octshape::io::shift_bscan(scan0.bscans[b], scan0.meta.size_x, scan0.meta.size_z, r);
+                        pixels.swap(scan0.bscans[b].pixels);
+                    }
                 } else {
                     scan0 = render_onh_scan(pm);
                 }
                 for (const std::string& ilm_name : ilms) {
-                    for (const int mode : oracle ? std::vector<int>{0, 1, 2} : std::vector<int>{0, 1}) {
+                    for (const int mode : oracle ? std::vector<int>{0, 1, 2} : on_only ? std::vector<int>{1} : residual_only ? std::vector<int>{0} : std::vector<int>{0, 1}) {
                         const bool reg_on = mode > 0;
                         octshape::io::Scan scan = scan0;
                         const auto t0 = Clock::now();

@@ -4,6 +4,7 @@
 
 #include "octshape/retina/axial_registration.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -208,6 +209,13 @@ TEST(AxialRegistration, StillCurvedTiltedEyeIsNotFlattened) {
     EXPECT_LT(r.max_abs_shift_um, 0.01);
     EXPECT_LT(r.residual_rms_um, 0.01);
     EXPECT_TRUE(r.qc_flags.empty());
+    // Applied, the pixels stay as read byte for byte (every shift is far under half a row).
+    io::Scan registered = scan;
+    apply_axial_registration(registered, r);
+    for (int b = 0; b < scan.num_bscans(); ++b) {
+        const auto bi = static_cast<std::size_t>(b);
+        EXPECT_EQ(registered.bscans[bi].pixels, scan.bscans[bi].pixels) << "B-scan " << b;
+    }
 }
 
 // 60 um of motion with vessel shadows, an ILM spike and a BM gap: the identifiable motion is
@@ -249,12 +257,44 @@ TEST(AxialRegistration, SegmentationNoiseCostsSigmaOverRootN) {
 TEST(AxialRegistration, RecoversTheMotionOfRadialLines) {
     const OnhPhantomParams p = moving(true, 60.0, 12, 128);
     io::Scan scan = render_onh_scan(p);
+    const io::Scan read = scan;
     const AxialRegistration r = register_axially(scan);
     EXPECT_LT(identifiable_error_um(r, p), 0.01);
     // Registered, the BM of every line lies on one smooth surface again: a second estimate
     // finds nothing left to remove.
     const AxialRegistration again = estimate_axial_motion(scan);
     EXPECT_LT(again.max_abs_shift_um, 0.01);
+    // The lines move by the whole shift, the pixels by whole rows: every registered row is a
+    // row as read (edge rows repeated), so the speckle and edges are unchanged. Interpolated
+    // pixels would fail at every B-scan with a fractional part (checked to exist below).
+    const int nx = scan.meta.size_x;
+    const int nz = scan.meta.size_z;
+    int fractional = 0;
+    for (int b = 0; b < scan.num_bscans(); ++b) {
+        const auto bi = static_cast<std::size_t>(b);
+        const double dz = -r.shift_um[bi] / (scan.meta.scale_z_mm * 1000.0);
+        const auto whole = static_cast<int>(std::lround(dz));
+        if (std::fabs(dz - whole) > 0.1) ++fractional;
+        const auto& out = scan.bscans[bi].pixels;
+        const auto& in = read.bscans[bi].pixels;
+        ASSERT_EQ(out.size(), in.size());
+        for (int z = 0; z < nz; ++z) {
+            const int src = std::clamp(z - whole, 0, nz - 1);
+            for (int a = 0; a < nx; ++a) {
+                ASSERT_EQ(out[static_cast<std::size_t>(z * nx + a)], in[static_cast<std::size_t>(src * nx + a)])
+                    << "B-scan " << b << " row " << z << " A-scan " << a;
+            }
+        }
+        const auto& bm = scan.bscans[bi].seg[static_cast<std::size_t>(io::Layer::kBM)];
+        const auto& bm_read = read.bscans[bi].seg[static_cast<std::size_t>(io::Layer::kBM)];
+        for (int a = 0; a < nx; ++a) {
+            const auto ai = static_cast<std::size_t>(a);
+            if (std::isfinite(bm_read[ai])) {
+                EXPECT_NEAR(bm[ai], bm_read[ai] + dz, 1e-4);
+            }
+        }
+    }
+    EXPECT_GE(fractional, 6);  // 60 um SD of 3.87 um pixels: the fractional parts are uniform
 }
 
 // A user's BMO points move with their B-scan (a point of an x_mm,y_mm,z_mm file: the B-scan

@@ -291,10 +291,24 @@ void apply_axial_registration(io::Scan& scan, const AxialRegistration& registrat
     const double um_per_px = scan.meta.scale_z_mm * 1000.0;
     for (int b = 0; b < scan.num_bscans(); ++b) {
         const double dz = -registration.shift_um[static_cast<std::size_t>(b)] / um_per_px;
-        // Below 1e-3 px (4 nm) a shift is numerically zero: the pixels stay as read.
+        io::BScan& bs = scan.bscans[static_cast<std::size_t>(b)];
+        // The lines by the shift itself (below 1e-3 px, 4 nm, numerically zero: as read).
         if (std::fabs(dz) >= 1e-3) {
-            io::shift_bscan(scan.bscans[static_cast<std::size_t>(b)], scan.meta.size_x,
-                            scan.meta.size_z, dz);
+            std::vector<float> pixels;
+            pixels.swap(bs.pixels);
+            io::shift_bscan(bs, scan.meta.size_x, scan.meta.size_z, dz);
+            pixels.swap(bs.pixels);
+        }
+        // The pixels by whole rows: a fractional shift blends neighbouring rows, which smooths
+        // the speckle of the moved B-scans alone (and their edges) and moves the level set.
+        // The lines stay within half a pixel of the pixels' content, the level set's own
+        // resolution (docs/algorithms/onh.md, "Axial registration").
+        const double whole = std::round(dz);
+        if (whole != 0.0 && !bs.pixels.empty()) {
+            std::vector<std::vector<float>> seg;
+            seg.swap(bs.seg);
+            io::shift_bscan(bs, scan.meta.size_x, scan.meta.size_z, whole);
+            seg.swap(bs.seg);
         }
     }
 }

@@ -12,8 +12,9 @@
 // polynomial of the same degree in y fitted to the o_b is given back to the eye (a tilted,
 // curved eye wall is not "registered" flat); the motion is what remains. Radial lines all pass
 // through the crossing, so every function of the position is seen by several lines: only the
-// mean offset is the eye's. The motion is removed from the pixels and every segmentation line
-// of each B-scan together (io::shift_bscan).
+// mean offset is the eye's. The motion is removed from every segmentation line of each B-scan
+// and from its pixels rounded to whole rows (io::shift_bscan; no rows blended, so the speckle
+// and edges stay as read: the pixels lie up to half a pixel from their lines).
 
 #include <string>
 #include <vector>
@@ -53,7 +54,9 @@ struct AxialRegistration {
 // flag, when there is too little BM). Needs a volume or a radial scan.
 [[nodiscard]] AxialRegistration estimate_axial_motion(const io::Scan& scan,
                                                       const AxialRegistrationParams& params = {});
-// Removes the estimated motion from every B-scan (pixels and lines). No-op unless applied.
+// Removes the estimated motion from every B-scan: the lines by the shift, the pixels by the
+// shift rounded to whole rows (a shift under half a row leaves them as read). No-op unless
+// applied.
 void apply_axial_registration(io::Scan& scan, const AxialRegistration& registration);
 // Moves BMO points given in the unregistered scan with it: each point by its B-scan's shift
 // (a point from an x_mm,y_mm,z_mm file: the B-scan nearest its y).
