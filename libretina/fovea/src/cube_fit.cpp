@@ -975,7 +975,7 @@ RimProfileFit fit_rim_profile(std::span<const V2> d,
     out.interior = segment(joint_interior(cur.q, geo), 0, cur.split);
     out.exterior = segment(joint_exterior(cur.q, geo), cur.split, n);
     out.rim = V2(cur.q(6), cur.q(2));
-    out.interior_cov = interior_covariance(d, geo, cur);
+    if (s.covariance) out.interior_cov = interior_covariance(d, geo, cur);
     return out;
 }
 

@@ -129,6 +129,9 @@ struct FitSettings {
     // crest_tolerance_mm of the maximum sample (analyse_macula: 3 x thickness_noise_sd).
     RimPoint rim_point = RimPoint::kCrest;
     double crest_tolerance_mm = 0.0;
+    // fit_rim_profile only: also compute RimProfileFit::interior_cov (the final fit on sector
+    // bins, for the max slope's noise term; otherwise left NaN).
+    bool covariance = false;
 };
 
 // Interior fit (Eq. 7.5, 7.7-7.10): P0 = first sample, P3 = last sample, P1 = P0 + alpha (1,0),
@@ -151,7 +154,8 @@ struct RimProfileFit {
     // linearised at the fit: s^2 (Z^T H Z)^-1 with H the Gauss-Newton matrix of Eq. 7.8, Z the
     // directions the active bounds and pinned unknowns leave free, s^2 the fit's residual
     // variance (docs/algorithms/cube.md "Max slope: the plug-in maximum's noise term"), mm^2.
-    Eigen::Matrix4d interior_cov = Eigen::Matrix4d::Zero();
+    Eigen::Matrix4d interior_cov =
+        Eigen::Matrix4d::Constant(std::numeric_limits<double>::quiet_NaN());
 };
 
 // Fits a half-line profile (samples ordered by r; the first is the centre (0, CFT), the last
@@ -221,7 +225,8 @@ struct CubeHalfLine {
     int rmse_num_samples = 0;
     BezierFit interior;
     BezierFit exterior;
-    Eigen::Matrix4d interior_cov = Eigen::Matrix4d::Zero();  // RimProfileFit::interior_cov
+    Eigen::Matrix4d interior_cov =  // RimProfileFit::interior_cov
+        Eigen::Matrix4d::Constant(std::numeric_limits<double>::quiet_NaN());
 };
 
 struct CubeDisk {
