@@ -123,7 +123,8 @@ void final_fit(RadialSamples& s, const CftPass& cft, const CubeParams& params, d
                          .energy_tolerance = params.energy_tolerance,
                          .free_start_height = false,
                          .rim_point = params.rim_point,
-                         .crest_tolerance_mm = crest_mm};
+                         .crest_tolerance_mm = crest_mm,
+                         .covariance = s.noise_adaptive};
     for (std::size_t i = 0; i < s.half_lines.size(); ++i) {
         CubeHalfLine& h = s.half_lines[i];
         h.h_mm[0] = cft.cft_mm;

@@ -409,18 +409,20 @@ void project_joint(std::span<const V2> d,
     next.energy = centre + interior + exterior + squared_distances(d, PowerBasis(ce), t, n - 1, n);
 }
 
-// One round from `cur`: step (a) (Eq. 7.9 for both segments at once, with the tangent weight of
-// distance_weights), then step (b) (Eq. 7.10) on both segments.
-JointState joint_round(std::span<const V2> d,
-                       const JointGeometry& geo,
-                       const JointState& cur,
-                       double tangent_weight) {
+// The Gauss-Newton normal equations H q = g of step (a) at `cur` (Eq. 7.9 for both segments,
+// with the tangent weight of distance_weights).
+void normal_equations(std::span<const V2> d,
+                      const JointGeometry& geo,
+                      const JointState& cur,
+                      double tangent_weight,
+                      MJ& H,
+                      VJ& g) {
     const std::size_t n = d.size();
     const std::size_t split = cur.split;
     const Ctrl ci = joint_interior(cur.q, geo);
     const Ctrl ce = joint_exterior(cur.q, geo);
-    MJ H = MJ::Zero();
-    VJ g = VJ::Zero();
+    H.setZero();
+    g.setZero();
     for (std::size_t k = 0; k < n; ++k) {
         const bool in = k < split;
         const double t = cur.t[k];
@@ -466,6 +468,17 @@ JointState joint_round(std::span<const V2> d,
             g += ut * (w * tan.dot(r));
         }
     }
+}
+
+// One round from `cur`: step (a) (Eq. 7.9 for both segments at once, with the tangent weight of
+// distance_weights), then step (b) (Eq. 7.10) on both segments.
+JointState joint_round(std::span<const V2> d,
+                       const JointGeometry& geo,
+                       const JointState& cur,
+                       double tangent_weight) {
+    MJ H;
+    VJ g;
+    normal_equations(d, geo, cur, tangent_weight, H, g);
     CJ C;
     BJ b;
     joint_constraints(geo, C, b);
@@ -487,6 +500,60 @@ JointState joint_round(std::span<const V2> d,
     next.q = minimise_joint_qp(H, g, C, b, cur.q, next.active);
     project_joint(d, geo, cur, next);
     return next;
+}
+
+// Covariance of (alpha, beta, r_rim, h_rim) at the converged state: s^2 Z (Z^T H Z)^-1 Z^T,
+// H the Gauss-Newton matrix of the orthogonal residuals, Z spanning the directions the last
+// round's active bounds and the pinned unknowns leave free, s^2 = energy / (samples - free
+// unknowns): the fit's own residual variance, so that it needs no noise model (NaN when the
+// free block is singular).
+Eigen::Matrix4d interior_covariance(std::span<const V2> d,
+                                    const JointGeometry& geo,
+                                    const JointState& cur) {
+    MJ H;
+    VJ g;
+    normal_equations(d, geo, cur, 0.0, H, g);
+    CJ C;
+    BJ b;
+    joint_constraints(geo, C, b);
+    Eigen::MatrixXd A(0, kJoint);
+    auto add_row = [&](const Eigen::Matrix<double, 1, kJoint>& r) {
+        A.conservativeResize(A.rows() + 1, Eigen::NoChange);
+        A.row(A.rows() - 1) = r;
+    };
+    for (int c = 0; c < kJointConstraints; ++c) {
+        if ((cur.active & (1U << c)) != 0U) add_row(C.row(c));
+    }
+    Eigen::Matrix<double, 1, kJoint> e = Eigen::Matrix<double, 1, kJoint>::Zero();
+    if (!geo.free_rim) {
+        e(6) = 1.0;
+        add_row(e);
+        e(6) = 0.0;
+    }
+    if (!geo.free_p0y) {
+        e(7) = 1.0;
+        add_row(e);
+    }
+    Eigen::MatrixXd Z;
+    if (A.rows() == 0) {
+        Z = Eigen::MatrixXd::Identity(kJoint, kJoint);
+    } else {
+        const Eigen::FullPivLU<Eigen::MatrixXd> lu(A);
+        Z = lu.kernel();
+    }
+    Eigen::Matrix4d out = Eigen::Matrix4d::Constant(std::numeric_limits<double>::quiet_NaN());
+    const auto num_free = Z.cols();
+    const auto dof = static_cast<double>(d.size()) - static_cast<double>(num_free);
+    if (num_free == 0 || dof <= 0.0) return out;
+    const Eigen::MatrixXd red = Z.transpose() * H * Z;
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(red);
+    if (ldlt.info() != Eigen::Success) return out;
+    const Eigen::MatrixXd cov = (cur.energy / dof) * (Z * ldlt.solve(Z.transpose()));
+    const std::array<int, 4> ix{0, 1, 6, 2};
+    for (int a = 0; a < 4; ++a) {
+        for (int c = 0; c < 4; ++c) out(a, c) = cov(ix[a], ix[c]);
+    }
+    return out;
 }
 
 void require_samples(std::span<const V2> d, std::size_t min, const char* what) {
@@ -629,6 +696,7 @@ void fit_half_line(CubeHalfLine& h,
     }
     h.interior = std::move(pf.interior);
     h.exterior = std::move(pf.exterior);
+    h.interior_cov = pf.interior_cov;
     const Ctrl& qi = h.interior.control;
     half_line_parameters(h, p);
     double n = static_cast<double>(h.interior.num_samples + h.exterior.num_samples);
@@ -907,6 +975,7 @@ RimProfileFit fit_rim_profile(std::span<const V2> d,
     out.interior = segment(joint_interior(cur.q, geo), 0, cur.split);
     out.exterior = segment(joint_exterior(cur.q, geo), cur.split, n);
     out.rim = V2(cur.q(6), cur.q(2));
+    if (s.covariance) out.interior_cov = interior_covariance(d, geo, cur);
     return out;
 }
 

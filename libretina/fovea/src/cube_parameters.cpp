@@ -88,6 +88,50 @@ void half_line_parameters(CubeHalfLine& h, const CubeParams& p) {
     }
 }
 
+
+
+// The max slope's second-order noise term (docs/algorithms/cube.md "Max slope: the plug-in
+// maximum's noise term"): each half-line's max slope f = atan(s) with s = dy / (sqrt(alpha beta)
+// + w - alpha - beta) (interior_max_slope) is a convex function of the fitted (alpha, beta, w,
+// dy), so E[f(x^)] = f(x) + tr(f'' Cov) / 2 + O(sigma^4) (the delta method to second order).
+// Returned: the mean over the valid half-lines of tr(f'' Cov) / 2 in degrees, f'' by central
+// differences, Cov the fit's own (CubeHalfLine::interior_cov; dy = h_rim - CFT with CFT held,
+// it is shared). A half-line with alpha or beta within 0.02 mm of 0 (f is not smooth at 0: the
+// square root) or without a covariance contributes 0.
+double max_slope_noise_term_deg(const std::vector<CubeHalfLine>& lines) {
+    constexpr double kStep = 2e-3;       // mm: f'' to ~(kStep / alpha)^2 ~ 1e-4 relative
+    constexpr double kMinHandle = 0.02;  // mm, 10 steps
+    auto slope_deg = [](const Eigen::Vector4d& x) {
+        const double den = std::sqrt(std::max(0.0, x(0) * x(1))) + x(2) - x(0) - x(1);
+        return std::atan(x(3) / den) * kDeg;
+    };
+    double sum = 0.0;
+    int valid = 0;
+    for (const auto& h : lines) {
+        if (!h.valid) continue;
+        ++valid;
+        const Ctrl& q = h.interior.control;
+        const Eigen::Vector4d x(q[1].x() - q[0].x(), q[3].x() - q[2].x(), q[3].x() - q[0].x(),
+                                q[3].y() - q[0].y());
+        const Eigen::Matrix4d& cov = h.interior_cov;
+        if (!cov.allFinite() || std::min(x(0), x(1)) < kMinHandle) continue;
+        Eigen::Matrix4d f2;
+        for (int a = 0; a < 4; ++a) {
+            for (int b = 0; b < 4; ++b) {
+                auto at = [&](double sa, double sb) {
+                    Eigen::Vector4d y = x;
+                    y(a) += sa * kStep;
+                    y(b) += sb * kStep;
+                    return slope_deg(y);
+                };
+                f2(a, b) = (at(1, 1) - at(1, -1) - at(-1, 1) + at(-1, -1)) / (4.0 * kStep * kStep);
+            }
+        }
+        sum += 0.5 * f2.cwiseProduct(cov).sum();
+    }
+    return valid > 0 ? sum / valid : 0.0;
+}
+
 void summarise_macula(CubeResult& res, const CubeParams& params) {
     const int n = static_cast<int>(res.half_lines.size());
     int valid = 0;
@@ -127,6 +171,9 @@ void summarise_macula(CubeResult& res, const CubeParams& params) {
     res.rim_height_mm = rim_sum * inv;                  // Eq. 7.15
     res.pit_depth_mm = res.rim_height_mm - res.cft_mm;  // Eq. 7.19
     res.max_pit_slope_deg = slope_sum * inv;            // Eq. 7.21 on atan(s_i)
+    // Under noise (sector-bin samples) less its second-order noise term: the mean of plug-in
+    // maxima is biased upward by the noise (docs/algorithms/cube.md).
+    if (res.noise_adaptive_samples) res.max_pit_slope_deg -= max_slope_noise_term_deg(res.half_lines);
     res.alpha_mean_mm = alpha_sum * inv;
     res.beta_mean_mm = beta_sum * inv;
     if (flat_count == valid) res.pit_flat_diameter_mm = 2.0 * flat_sum / flat_count;  // Eq. 7.26

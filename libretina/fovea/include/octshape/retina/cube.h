@@ -129,6 +129,9 @@ struct FitSettings {
     // crest_tolerance_mm of the maximum sample (analyse_macula: 3 x thickness_noise_sd).
     RimPoint rim_point = RimPoint::kCrest;
     double crest_tolerance_mm = 0.0;
+    // fit_rim_profile only: also compute RimProfileFit::interior_cov (the final fit on sector
+    // bins, for the max slope's noise term; otherwise left NaN).
+    bool covariance = false;
 };
 
 // Interior fit (Eq. 7.5, 7.7-7.10): P0 = first sample, P3 = last sample, P1 = P0 + alpha (1,0),
@@ -147,6 +150,12 @@ struct RimProfileFit {
     Eigen::Vector2d rim{0.0, 0.0};  // (r_rim, h_rim) = interior P3 = exterior P0, mm
     int rounds = 0;                 // joint rounds run after the two start fits
     bool converged = false;
+    // Covariance of the interior's (alpha, beta, r_rim, h_rim) under white noise on the samples,
+    // linearised at the fit: s^2 (Z^T H Z)^-1 with H the Gauss-Newton matrix of Eq. 7.8, Z the
+    // directions the active bounds and pinned unknowns leave free, s^2 the fit's residual
+    // variance (docs/algorithms/cube.md "Max slope: the plug-in maximum's noise term"), mm^2.
+    Eigen::Matrix4d interior_cov =
+        Eigen::Matrix4d::Constant(std::numeric_limits<double>::quiet_NaN());
 };
 
 // Fits a half-line profile (samples ordered by r; the first is the centre (0, CFT), the last
@@ -216,6 +225,8 @@ struct CubeHalfLine {
     int rmse_num_samples = 0;
     BezierFit interior;
     BezierFit exterior;
+    Eigen::Matrix4d interior_cov =  // RimProfileFit::interior_cov
+        Eigen::Matrix4d::Constant(std::numeric_limits<double>::quiet_NaN());
 };
 
 struct CubeDisk {
@@ -268,7 +279,7 @@ struct CubeResult {
     double cft_sample_mm = kMissing;         // M at the centre (the raw sample)
     double rim_height_mm = kMissing;         // Eq. 7.15
     double pit_depth_mm = kMissing;          // Eq. 7.19
-    double max_pit_slope_deg = kMissing;     // mean of atan(s_i) (Eq. 7.20-7.21)
+    double max_pit_slope_deg = kMissing;     // mean of atan(s_i) (Eq. 7.20-7.21); sector bins: less its noise term
     double pit_flat_diameter_mm = kMissing;  // Eq. 7.26
     CubeDisk rim;                            // rim_diameter_mm, rim_disk_* (Eq. 7.16-7.18)
     CubeDisk slope;                          // slope_diameter_mm, slope_disk_* (Eq. 7.22-7.23)
