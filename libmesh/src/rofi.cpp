@@ -678,8 +678,171 @@ void simd_exp_nonpositive(const double* x, double* out, std::size_t n, SimdPath 
     }
 }
 
-// Long (163 lines, over the 150 of the style): one iteration loop whose phases share the run's
-// arrays, kernel and stop state; its pieces would pass a dozen of them (issue 35's measured code).
+namespace {
+
+// The arrays, pair table and kernel of one run's iterations (rofi_denoise), built once.
+// Not copyable: `kernel` points into the vectors.
+struct RofiRun {
+    RofiRun(const Vertices& V, const Faces& faces_in, const RofiParams& run_params,
+            const Csr& omega, double mean_centroid_distance)
+        : F(faces_in),
+          params(run_params),
+          n(static_cast<int>(V.rows())),
+          m(static_cast<int>(faces_in.rows())),
+          current(static_cast<std::size_t>(m)),
+          faces(static_cast<std::size_t>(m)),
+          shared(run_params.pair_weights == PairWeights::kShared),
+          table(shared ? pair_table(omega) : PairTable{}),
+          pair_weight(table.first.size()),
+          pair_blocks(static_cast<int>(table.first.size()) / kPairBlock),
+          tukey(run_params.similarity == Similarity::kTukey) {
+        const double sigma_c = params.sigma_c_factor * mean_centroid_distance;
+        const double s2 = params.sigma_s * params.sigma_s;
+        kernel = PairKernel{omega.offsets.data(), omega.items.data(), table.first.data(),
+                            table.second.data(), table.slot_pair.data(), pair_weight.data(),
+                            current.data(), faces.data(), 1.0 / s2,
+                            1.0 / (2.0 * sigma_c * sigma_c), 1.0 / (2.0 * s2)};
+        // The same bits on every path (simd.h). kAvx512 runs the pair weights 8 lanes wide
+        // and everything else as kAvx2.
+        const SimdPath path = run_path(params.simd, "RofiParams.simd");
+        avx512 = path == SimdPath::kAvx512;
+        avx2 = path != SimdPath::kBaseline;
+    }
+    RofiRun(const RofiRun&) = delete;
+    RofiRun& operator=(const RofiRun&) = delete;
+
+    // The records (normal, area, centroid) of X's faces into out[0 .. m).
+    void update_faces(const Vertices& X, detail::FaceState* out) const {
+        detail::parallel_for(m, params.threads, [&](int begin, int end) {
+            detail::update_faces(X, F, begin, end, out, avx2);
+        });
+    }
+
+    // One pass of the kernel over the pair blocks (kind 0) or the rows (1, 2): rows_impl.
+    void pass(int kind) const {
+        detail::parallel_for(kind == 0 ? pair_blocks : m, params.threads,
+                             [&](int begin, int end) {
+            if (avx512) {
+                rows_avx512(kernel, tukey, kind, begin, end);
+            } else if (avx2) {
+                rows_avx2(kernel, tukey, kind, begin, end);
+            } else {
+                rows_baseline(kernel, tukey, kind, begin, end);
+            }
+        });
+    }
+
+    const Faces& F;
+    const RofiParams& params;
+    int n;
+    int m;
+    // current[f]: normal, area and centroid of the current mesh; faces[f]: the same with the
+    // filtered normal ñ_f (what the vertex step reads).
+    std::vector<detail::FaceState> current;
+    std::vector<detail::FaceState> faces;
+    // The weight f g of a pair (Eq. 5.1 without a_j) is symmetric in i and j, and bit for bit
+    // so (|c_i − c_j|² and |n_i − n_j|² square the same differences up to sign). Where j ∈ Ω_i
+    // and i ∈ Ω_j (nearly always), it is computed once (PairTable) and read by both slots.
+    // Each weight has one writer, so any thread count gives the same bits. The centre face's
+    // own weight is exactly 1 (x = 0, d = 0: (1 − 0)² exp(−0) = 1) and is not computed.
+    bool shared;
+    PairTable table;
+    std::vector<double> pair_weight;
+    int pair_blocks;
+    PairKernel kernel{};
+    bool tukey;
+    bool avx512 = false;
+    bool avx2 = false;
+};
+
+// Adds the time since the last mark to a phase of DenoiseResult::phases and moves the mark.
+struct PhaseClock {
+    Clock::time_point mark = Clock::now();
+    void lap(double& phase) {
+        const auto now = Clock::now();
+        phase += std::chrono::duration<double>(now - mark).count();
+        mark = now;
+    }
+};
+
+// The residual test of RofiStop::kWhiteResidual and the observer's reports. The stop's test
+// runs after every even iteration and after the last (`tested`), and after every iteration
+// once the fall of W between its last two tests, extrapolated one iteration, would reach the
+// threshold (`dense`: the untested iteration could be the one). When it fires after an even k
+// with k − 1 untested, the state after k − 1 (still in `next`, the vertex step's other buffer)
+// is tested too and taken if it fires there. This equals testing after every iteration when W
+// crosses its threshold at most once in a run, as on every mesh measured (rofi.md, "Stopping",
+// cost), at about half the tests. The observer sees every iteration either way; the stop
+// decides from the same tests with or without it.
+struct ResidualStop {
+    ResidualStop(const RofiParams& run_params, const detail::DenoiseSetup& run_setup)
+        : params(run_params),
+          setup(run_setup),
+          stop(run_params.stop == RofiStop::kWhiteResidual),
+          measure(stop || static_cast<bool>(run_params.observer)) {}
+
+    bool tested(int k) const { return dense || k % 2 == 0 || k == params.iterations; }
+
+    // Whether the residual after `it` iterations is measured (run.current holds its records).
+    bool due(int it) const { return measure && it > 0 && (params.observer || tested(it)); }
+
+    // The residual of the mesh after `it` iterations (result.V, records in run.current): the
+    // observer sees it, the stop tests it (rofi.md, "Stopping": white while it is noise,
+    // smoother once signal). True = the run ends here (result.V, its iteration count,
+    // displacement and whiteness are then final; `next` holds V after it − 1).
+    bool after(int it, const Vertices& V0, RofiRun& run, Vertices& next, DenoiseResult& result) {
+        const RofiProgress progress = residual(result.V, V0, run.current.data());
+        result.displacement = progress.displacement;
+        result.residual_whiteness = progress.whiteness;
+        if (params.observer) params.observer(it, result.V, progress);
+        if (stop && tested(it) && progress.whiteness <= progress.threshold) {
+            if (it > 1 && !tested(it - 1)) {
+                RofiProgress before = previous;
+                if (!params.observer) {
+                    // `faces` is free until the next normal pass: V_{it−1}'s records.
+                    run.update_faces(next, run.faces.data());
+                    before = residual(next, V0, run.faces.data());
+                }
+                if (before.whiteness <= before.threshold) {
+                    result.V.swap(next);
+                    --result.iterations;
+                    result.displacement = before.displacement;
+                    result.residual_whiteness = before.whiteness;
+                }
+            }
+            return true;
+        }
+        if (stop && tested(it)) {
+            if (last_test > 0) {
+                const double fall = (last_whiteness - progress.whiteness) / (it - last_test);
+                dense = dense || progress.whiteness - fall <= progress.threshold;
+            }
+            last_test = it;
+            last_whiteness = progress.whiteness;
+        }
+        previous = progress;
+        return false;
+    }
+
+    RofiProgress residual(const Vertices& X, const Vertices& V0,
+                          const detail::FaceState* records) {
+        return residual_progress(X, V0, records, setup.adjacency, setup.fixed, params.sigma_s,
+                                 params.threads, work);
+    }
+
+    const RofiParams& params;
+    const detail::DenoiseSetup& setup;
+    bool stop;
+    bool measure;
+    ResidualWork work;
+    bool dense = false;
+    RofiProgress previous;       // after it − 1, when the observer had it measured
+    int last_test = 0;           // the iteration of the last test, 0 = none yet
+    double last_whiteness = 0;   // its W
+};
+
+}  // namespace
+
 DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& params) {
     params.validate();
     validate_mesh(V, F);
@@ -694,140 +857,38 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
     setup.adjacency.face_faces = Csr{};
 
     const auto t1 = Clock::now();
-    const auto n = static_cast<int>(V.rows());
-    const auto m = static_cast<int>(F.rows());
-    const Csr& omega = setup.omega;
-    const double sigma_c = params.sigma_c_factor * result.mean_centroid_distance;
-    const double inv_two_sc2 = 1.0 / (2.0 * sigma_c * sigma_c);
-    const double s2 = params.sigma_s * params.sigma_s;
-    const double inv_s2 = 1.0 / s2;
-    const double inv_two_s2 = 1.0 / (2.0 * s2);
-    const bool tukey = params.similarity == Similarity::kTukey;
-    // current[f]: normal, area and centroid of the current mesh; faces[f]: the same with the
-    // filtered normal ñ_f (what the vertex step reads).
-    std::vector<detail::FaceState> current(static_cast<std::size_t>(m));
-    std::vector<detail::FaceState> faces(static_cast<std::size_t>(m));
-    Vertices next(n, 3);
-    // The weight f g of a pair (Eq. 5.1 without a_j) is symmetric in i and j, and bit for bit
-    // so (|c_i − c_j|² and |n_i − n_j|² square the same differences up to sign). Where j ∈ Ω_i
-    // and i ∈ Ω_j (nearly always), it is computed once (PairTable) and read by both slots.
-    // Each weight has one writer, so any thread count gives the same bits. The centre face's
-    // own weight is exactly 1 (x = 0, d = 0: (1 − 0)² exp(−0) = 1) and is not computed.
-    const bool shared = params.pair_weights == PairWeights::kShared;
-    const PairTable table = shared ? pair_table(omega) : PairTable{};
-    std::vector<double> pair_weight(table.first.size());
-    const int pair_blocks = static_cast<int>(table.first.size()) / kPairBlock;
-    PairKernel kernel{omega.offsets.data(), omega.items.data(), table.first.data(),
-                      table.second.data(), table.slot_pair.data(), pair_weight.data(),
-                      current.data(), faces.data(), inv_s2, inv_two_sc2, inv_two_s2};
-    // The same bits on every path (simd.h). kAvx512 runs the pair weights 8 lanes wide and
-    // everything else as kAvx2.
-    const SimdPath path = run_path(params.simd, "RofiParams.simd");
-    const bool avx512 = path == SimdPath::kAvx512;
-    const bool avx2 = path != SimdPath::kBaseline;
+    RofiRun run(V, F, params, setup.omega, result.mean_centroid_distance);
+    Vertices next(run.n, 3);
+    ResidualStop residual(params, setup);
     double lambda = params.lambda_i;
-    const bool stop = params.stop == RofiStop::kWhiteResidual;
-    const bool measure = stop || static_cast<bool>(params.observer);
-    ResidualWork residual;
-    // The stop's test runs after every even iteration and after the last (`tested`), and after
-    // every iteration once the fall of W between its last two tests, extrapolated one
-    // iteration, would reach the threshold (`dense`: the untested iteration could be the one).
-    // When it fires after an even k with k − 1 untested, the state after k − 1 (still in
-    // `next`, the vertex step's other buffer) is tested too and taken if it fires there. This
-    // equals testing after every iteration when W crosses its threshold at most once in a
-    // run, as on every mesh measured (rofi.md, "Stopping", cost), at about half the tests.
-    // The observer sees every iteration either way; the stop decides from the same tests with
-    // or without it.
-    bool dense = false;
-    const auto tested = [&](int k) { return dense || k % 2 == 0 || k == params.iterations; };
-    RofiProgress previous;     // after it − 1, when the observer had it measured
-    int last_test = 0;         // the iteration of the last test, 0 = none yet
-    double last_whiteness = 0;  // its W
     for (int it = 0; it <= params.iterations; ++it) {
-        if (it == params.iterations && !measure) break;
-        auto t_phase = Clock::now();
-        // Adds the time since the last mark to `phase` and moves the mark.
-        const auto lap = [&t_phase](double& phase) {
-            const auto now = Clock::now();
-            phase += std::chrono::duration<double>(now - t_phase).count();
-            t_phase = now;
-        };
-        detail::parallel_for(m, params.threads, [&](int begin, int end) {
-            detail::update_faces(result.V, F, begin, end, current.data(), avx2);
-        });
-        lap(result.phases.faces);
-        if (measure && it > 0 && (params.observer || tested(it))) {
-            // The residual of the mesh after `it` iterations: the observer sees it, the stop
-            // tests it (rofi.md, "Stopping": white while it is noise, smoother once signal).
-            const RofiProgress progress =
-                residual_progress(result.V, V, current.data(), setup.adjacency, setup.fixed,
-                                  params.sigma_s, params.threads, residual);
-            result.displacement = progress.displacement;
-            result.residual_whiteness = progress.whiteness;
-            if (params.observer) params.observer(it, result.V, progress);
-            if (stop && tested(it) && progress.whiteness <= progress.threshold) {
-                if (it > 1 && !tested(it - 1)) {
-                    RofiProgress before = previous;
-                    if (!params.observer) {
-                        // `faces` is free until the next normal pass: V_{it−1}'s records.
-                        detail::parallel_for(m, params.threads, [&](int begin, int end) {
-                            detail::update_faces(next, F, begin, end, faces.data(), avx2);
-                        });
-                        before = residual_progress(next, V, faces.data(), setup.adjacency,
-                                                   setup.fixed, params.sigma_s, params.threads,
-                                                   residual);
-                    }
-                    if (before.whiteness <= before.threshold) {
-                        result.V.swap(next);
-                        --result.iterations;
-                        result.displacement = before.displacement;
-                        result.residual_whiteness = before.whiteness;
-                    }
-                }
-                break;
-            }
-            if (stop && tested(it)) {
-                if (last_test > 0) {
-                    const double fall = (last_whiteness - progress.whiteness) / (it - last_test);
-                    dense = dense || progress.whiteness - fall <= progress.threshold;
-                }
-                last_test = it;
-                last_whiteness = progress.whiteness;
-            }
-            previous = progress;
-            lap(result.phases.stop);
+        if (it == params.iterations && !residual.measure) break;
+        PhaseClock clock;
+        run.update_faces(result.V, run.current.data());
+        clock.lap(result.phases.faces);
+        if (residual.due(it)) {
+            if (residual.after(it, V, run, next, result)) break;
+            clock.lap(result.phases.stop);
         }
         if (it == params.iterations) break;
-        const auto rows = [&](int kind) {
-            detail::parallel_for(kind == 0 ? pair_blocks : m, params.threads,
-                                 [&](int begin, int end) {
-                if (avx512) {
-                    rows_avx512(kernel, tukey, kind, begin, end);
-                } else if (avx2) {
-                    rows_avx2(kernel, tukey, kind, begin, end);
-                } else {
-                    rows_baseline(kernel, tukey, kind, begin, end);
-                }
-            });
-        };
-        if (shared) {
+        if (run.shared) {
             // The pair weights (each row writes its own pairs and their mirror slots), then
             // the sums: two passes, so that every slot is written before any row reads it.
-            rows(0);
-            lap(result.phases.weights);
-            rows(1);
+            run.pass(0);
+            clock.lap(result.phases.weights);
+            run.pass(1);
         } else {
-            rows(2);  // weights and sums in one pass: counted as sums
+            run.pass(2);  // weights and sums in one pass: counted as sums
         }
-        lap(result.phases.sums);
+        clock.lap(result.phases.sums);
         // Eq. 5.9, without the λ_I term once it is negligible (kLambdaBudget).
         const double lambda_used =
             lambda < negligible_lambda(params.lambda_decay) ? 0.0 : lambda;
-        detail::parallel_for(n, params.threads, [&](int begin, int end) {
-            detail::vertex_step(result.V, faces.data(), setup.adjacency, setup.fixed,
-                                lambda_used, begin, end, next, avx2);
+        detail::parallel_for(run.n, params.threads, [&](int begin, int end) {
+            detail::vertex_step(result.V, run.faces.data(), setup.adjacency, setup.fixed,
+                                lambda_used, begin, end, next, run.avx2);
         });
-        lap(result.phases.vertices);
+        clock.lap(result.phases.vertices);
         result.V.swap(next);
         lambda *= params.lambda_decay;
         ++result.iterations;
