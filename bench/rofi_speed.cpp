@@ -130,12 +130,15 @@ void phases(const std::filesystem::path& dir, const std::string& mesh, int level
     const double faces = static_cast<double>(m.F.rows());
     const double k = 1e9 / out.iterations / faces;
     std::printf("%s, %d subdivision(s), %ld faces, %d thread(s), %d iterations: set-up %.1f "
-                "ns/face; per iteration, ns/face: face update %.2f, weights %.2f, sums %.2f, "
-                "vertex step %.2f, whole %.2f\n",
+                "ns/face, pair table %.1f, fold repair %.1f (once); per iteration, ns/face: "
+                "face update %.2f, weights %.2f, sums %.2f, vertex step %.2f, whole %.2f; "
+                "call %.4f s\n",
                 mesh.c_str(), levels, static_cast<long>(m.F.rows()), threads, out.iterations,
-                1e9 * out.seconds_setup / faces, k * out.phases.faces,
+                1e9 * out.seconds_setup / faces, 1e9 * out.phases.pair_table / faces,
+                1e9 * out.seconds_fold_repair / faces, k * out.phases.faces,
                 k * out.phases.weights, k * out.phases.sums, k * out.phases.vertices,
-                k * (out.seconds_iterations - out.seconds_fold_repair));
+                k * (out.seconds_iterations - out.seconds_fold_repair - out.phases.pair_table),
+                out.seconds_setup + out.seconds_iterations);
 }
 
 // Table 1.
@@ -274,11 +277,14 @@ void roofline(const std::filesystem::path& dir, int rounds) {
                     1e9 * seconds / per_call / faces, 1e9 * seconds / per_call / slots);
     };
     line("neighbourhoods", best.seconds_setup, 1.0);
+    line("pair table", best.phases.pair_table, 1.0);
+    line("fold repair", best.seconds_fold_repair, 1.0);
     line("face update", best.phases.faces, it);
     line("weights", best.phases.weights, it);
     line("sums", best.phases.sums, it);
     line("vertex step", best.phases.vertices, it);
-    line("iteration", best.seconds_iterations - best.seconds_fold_repair, it);
+    line("iteration",
+         best.seconds_iterations - best.seconds_fold_repair - best.phases.pair_table, it);
     // The stop test runs only with RofiStop::kWhiteResidual: one run with it, tested every
     // iteration where the stop asks (about every other).
     om::RofiParams p = issue_params(1, 100);

@@ -858,6 +858,7 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
 
     const auto t1 = Clock::now();
     RofiRun run(V, F, params, setup.omega, result.mean_centroid_distance);
+    result.phases.pair_table = seconds_since(t1);
     Vertices next(run.n, 3);
     ResidualStop residual(params, setup);
     double lambda = params.lambda_i;

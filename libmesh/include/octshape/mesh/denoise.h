@@ -30,8 +30,10 @@ struct DenoiseResult {
     // RoFi / bilateral: seconds_iterations split by phase (wall clock, summed over the
     // iterations; the rest of seconds_iterations is the fold repair and loop overhead): face
     // normals, areas and centroids; the pair weights f g; the sums of Eq. 5.1; the vertex
-    // step; the stop's residual test (docs/algorithms/rofi.md, "Roofline").
+    // step; the stop's residual test (docs/algorithms/rofi.md, "Roofline"); and, once per
+    // call before the iterations, the pair table of the shared weights.
     struct Phases {
+        double pair_table = 0;
         double faces = 0;
         double weights = 0;
         double sums = 0;
