@@ -55,20 +55,19 @@ struct PairTable {
 
 // Rows list f_i first and then ascending indices (mesh.h). Row j is searched for i only by
 // the rows i > j, in ascending order of i, so a cursor per row that only moves forward finds
-// every mirror slot in one sweep of the row (no bisection per slot).
+// every mirror slot in one sweep of the row (no bisection per slot). The loops index raw
+// pointers taken once (through the vectors, each push_back made GCC reload their data
+// pointers: 11.6 M more instructions at Fandisk0.3 ×16).
 PairTable pair_table(const Csr& omega) {
     PairTable t;
+    const int rows = omega.rows();
     t.slot_pair.assign(omega.items.size(), -1);
     std::vector<int> cursor(omega.offsets.begin(), omega.offsets.end() - 1);
-    for (int& c : cursor) ++c;  // past f_j
+    const int* const off = omega.offsets.data();
     const int* const items = omega.items.data();
-    const auto find = [&](int row, int item) {
-        int c = cursor[static_cast<std::size_t>(row)];
-        const int e = omega.end(row);
-        while (c < e && items[c] < item) ++c;
-        cursor[static_cast<std::size_t>(row)] = c;
-        return c < e && items[c] == item ? c : -1;
-    };
+    int* const slot_pair = t.slot_pair.data();
+    int* const cur = cursor.data();
+    for (int r = 0; r < rows; ++r) ++cur[r];  // past f_r
     const auto add = [&](int i, int j) {
         t.first.push_back(i);
         t.second.push_back(j);
@@ -76,23 +75,24 @@ PairTable pair_table(const Csr& omega) {
     };
     t.first.reserve(omega.items.size() / 2 + kPairBlock);
     t.second.reserve(omega.items.size() / 2 + kPairBlock);
-    for (int i = 0; i < omega.rows(); ++i) {
-        for (int p = omega.begin(i) + 1; p < omega.end(i); ++p) {
-            const int j = omega.item(p);
-            if (j < i) {
-                const int k = add(i, j);
-                t.slot_pair[static_cast<std::size_t>(p)] = k;
-                const int q = find(j, i);
-                if (q >= 0) t.slot_pair[static_cast<std::size_t>(q)] = k;
-            }
+    for (int i = 0; i < rows; ++i) {
+        for (int p = off[i] + 1; p < off[i + 1]; ++p) {
+            const int j = items[p];
+            if (j >= i) continue;
+            const int k = add(i, j);
+            slot_pair[p] = k;
+            // The mirror slot of i in row j, if any.
+            int c = cur[j];
+            const int e = off[j + 1];
+            while (c < e && items[c] < i) ++c;
+            cur[j] = c;
+            if (c < e && items[c] == i) slot_pair[c] = k;
         }
     }
     // The slots still without a pair: j > i with i ∉ Ω_j.
-    for (int i = 0; i < omega.rows(); ++i) {
-        for (int p = omega.begin(i) + 1; p < omega.end(i); ++p) {
-            if (t.slot_pair[static_cast<std::size_t>(p)] < 0) {
-                t.slot_pair[static_cast<std::size_t>(p)] = add(i, omega.item(p));
-            }
+    for (int i = 0; i < rows; ++i) {
+        for (int p = off[i] + 1; p < off[i + 1]; ++p) {
+            if (slot_pair[p] < 0) slot_pair[p] = add(i, items[p]);
         }
     }
     while (t.first.size() % kPairBlock != 0) add(0, 0);
