@@ -692,7 +692,7 @@ struct RofiRun {
           current(static_cast<std::size_t>(m)),
           faces(static_cast<std::size_t>(m)),
           shared(run_params.pair_weights == PairWeights::kShared),
-          table(shared ? pair_table(omega) : PairTable{}),
+          table(shared ? timed_pair_table(omega, table_seconds) : PairTable{}),
           pair_weight(table.first.size()),
           pair_blocks(static_cast<int>(table.first.size()) / kPairBlock),
           tukey(run_params.similarity == Similarity::kTukey) {
@@ -710,6 +710,13 @@ struct RofiRun {
     }
     RofiRun(const RofiRun&) = delete;
     RofiRun& operator=(const RofiRun&) = delete;
+
+    static PairTable timed_pair_table(const Csr& omega, double& seconds) {
+        const auto t0 = Clock::now();
+        PairTable t = pair_table(omega);
+        seconds = seconds_since(t0);
+        return t;
+    }
 
     // The records (normal, area, centroid) of X's faces into out[0 .. m).
     void update_faces(const Vertices& X, detail::FaceState* out) const {
@@ -746,6 +753,7 @@ struct RofiRun {
     // Each weight has one writer, so any thread count gives the same bits. The centre face's
     // own weight is exactly 1 (x = 0, d = 0: (1 − 0)² exp(−0) = 1) and is not computed.
     bool shared;
+    double table_seconds = 0;  // building `table` (DenoiseResult::phases.pair_table)
     PairTable table;
     std::vector<double> pair_weight;
     int pair_blocks;
@@ -858,7 +866,7 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
 
     const auto t1 = Clock::now();
     RofiRun run(V, F, params, setup.omega, result.mean_centroid_distance);
-    result.phases.pair_table = seconds_since(t1);
+    result.phases.pair_table = run.table_seconds;
     Vertices next(run.n, 3);
     ResidualStop residual(params, setup);
     double lambda = params.lambda_i;

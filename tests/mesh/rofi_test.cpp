@@ -74,6 +74,24 @@ TEST(Rofi, PerRowPairWeightsGiveTheSameBitsAsSharedOnes) {
     }
 }
 
+TEST(Rofi, PhaseTimesArePartsOfTheCall) {
+    // The phases are clock intervals inside seconds_iterations that do not overlap, so with
+    // the fold repair they cannot add up to more than it; the pair table exists only with
+    // shared weights, so kPerRow must report none and kShared some (its time is > 0: it
+    // reads the clock before and after building a table of thousands of pairs).
+    const auto family = noisy_family();
+    const auto& m = family.front();
+    auto p = params(5);
+    const auto shared = mesh::rofi_denoise(m.V, m.F, p);
+    const auto& ph = shared.phases;
+    EXPECT_GT(ph.pair_table, 0.0);
+    EXPECT_LE(ph.pair_table + ph.faces + ph.weights + ph.sums + ph.vertices + ph.stop +
+                  shared.seconds_fold_repair,
+              shared.seconds_iterations);
+    p.pair_weights = mesh::PairWeights::kPerRow;
+    EXPECT_EQ(mesh::rofi_denoise(m.V, m.F, p).phases.pair_table, 0.0);
+}
+
 TEST(Rofi, BaselineAvx2AndAvx512KernelsGiveTheSameBits) {
     // The vector kernels do the same IEEE operations per lane on SSE2, AVX2 and AVX-512 (no
     // FMA; AVX-512 only widens the pair weights to 8 lanes), so the results must be identical,
