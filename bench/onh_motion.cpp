@@ -10,7 +10,8 @@
 // Lateral jitter (volumes; docs/algorithms/onh.md, "Lateral registration"): --jitter 0,10,30
 // (SD, um; the lateral registration is on with "on"), --oracle adds a row "true" with the
 // phantom's true shifts applied as the registration applies its own, --whole-jitter rounds the
-// jitter to whole A-scans (no A-scans blended by the phantom). --bscans/--ascans resize the
+// jitter to whole A-scans and moves the still phantom's B-scans by them (the comparison made for
+// the earlier phantom, which blended A-scans; the phantom now renders the moved eye). --bscans/--ascans resize the
 // volume, --spectralis-speckle gives it real Spectralis speckle. --file F (repeatable): the
 // lateral shifts estimated on a real scan instead (no truth). --shape overhang: the overhanging
 // disc instead of the cupped one; --lines N: radial lines; --on-only: the registered rows alone;
@@ -216,9 +217,9 @@ int main(int argc, char** argv) {
                 auto true_lateral = onh_acquisition_shifts(pm).lateral_px;
                 octshape::io::Scan scan0;
                 if (whole_jitter && !true_lateral.empty()) {
-                    // The jitter rounded to whole A-scans, applied to the phantom without it:
-                    // no A-scans blended (what a real acquisition does: it samples, it does
-                    // not interpolate).
+                    // The jitter rounded to whole A-scans, applied to the phantom without it
+                    // (no A-scans blended; the phantom itself renders the moved eye, which
+                    // blends none either).
                     OnhPhantomParams ps = pm;
                     ps.artefacts.lateral_jitter_um = 0.0;
                     scan0 = render_onh_scan(ps);

@@ -5,6 +5,7 @@
 #include "octshape/retina/cube.h"
 #include "octshape/retina/etdrs.h"
 #include "octshape/retina/phantom_macula.h"
+#include "vitreous_speckle.h"
 
 namespace octshape::retina {
 namespace {
@@ -49,6 +50,19 @@ TEST(MaculaPhantomAcquisition, AxialMotionLeavesTheThicknessParametersUnchanged)
                 << kEtdrsSectorNames[s];
         }
     }
+}
+
+// The macula phantom renders the moved eye too: every B-scan of a moving, jittered acquisition
+// keeps the still speckle of its vitreous (the bound and its argument:
+// OnhPhantomAcquisition.MovedBscansKeepTheStillSpeckle; 96 A-scans, >= 90 vitreous rows).
+TEST(MaculaPhantomAcquisition, MovedBscansKeepTheStillSpeckle) {
+    MaculaPhantomParams macula;
+    macula.size_x = 96;
+    macula.num_bscans = 15;
+    macula.artefacts.motion_sd_um = 60.0;
+    macula.artefacts.lateral_jitter_um = 30.0;
+    const io::Scan scan = make_macula_phantom(macula).scan;
+    EXPECT_LT(test::worst_vitreous_speckle(scan, 0, macula.speckle.looks), 0.15);
 }
 
 }  // namespace

@@ -162,11 +162,25 @@ AcquisitionShifts acquisition_shifts(const AcquisitionArtefacts& artefacts,
     return s;
 }
 
+std::vector<Eigen::Vector2d> acquired_points(const std::vector<Eigen::Vector2d>& points,
+                                             int size_x,
+                                             const AcquisitionShifts& shifts) {
+    std::vector<Eigen::Vector2d> out = points;
+    const auto nx = static_cast<std::size_t>(std::max(0, size_x));
+    if (nx < 2) return out;
+    for (std::size_t b = 0; b < shifts.lateral_px.size() && (b + 1) * nx <= out.size(); ++b) {
+        const double dx = shifts.lateral_px[b];
+        if (dx == 0.0) continue;
+        const Eigen::Vector2d step = points[b * nx + 1] - points[b * nx];
+        for (std::size_t a = 0; a < nx; ++a) out[b * nx + a] -= dx * step;
+    }
+    return out;
+}
+
 void apply_acquisition_artefacts(io::Scan& scan,
                                  const std::vector<Eigen::Vector2d>& points,
                                  const std::vector<VesselPath>& vessels,
                                  const AcquisitionArtefacts& artefacts,
-                                 const AcquisitionShifts& shifts,
                                  int ilm_line,
                                  int bm_line,
                                  const Eigen::Vector2d& spare_centre_mm,
@@ -174,9 +188,8 @@ void apply_acquisition_artefacts(io::Scan& scan,
     const int nx = scan.meta.size_x;
     const int nz = scan.meta.size_z;
     const int nb = scan.num_bscans();
-    // The shifted retina must stay in the image (checked on the true lines, before any fault).
-    for (int b = 0; b < nb && !shifts.axial_px.empty(); ++b) {
-        const double dz = shifts.axial_px[static_cast<std::size_t>(b)];
+    // The moved retina must stay in the image (checked on its lines, before any fault).
+    for (int b = 0; b < nb; ++b) {
         const io::BScan& bs = scan.bscans[static_cast<std::size_t>(b)];
         float top = std::numeric_limits<float>::infinity();
         float bottom = -std::numeric_limits<float>::infinity();
@@ -187,7 +200,7 @@ void apply_acquisition_artefacts(io::Scan& scan,
                 bottom = std::max(bottom, v);
             }
         }
-        require(!std::isfinite(top) || (top + dz >= 1.0 && bottom + dz <= nz - 10.0),
+        require(!std::isfinite(top) || (top >= 1.0 && bottom <= nz - 10.0),
                 "motion_sd_um",
                 "moves the retina of B-scan " + std::to_string(b) +
                     " out of the image: use a larger depth or less motion");
@@ -220,12 +233,6 @@ void apply_acquisition_artefacts(io::Scan& scan,
                 line[static_cast<std::size_t>(a)] = std::numeric_limits<float>::quiet_NaN();
             }
         }
-    }
-    for (int b = 0; b < nb; ++b) {
-        const double dz = shifts.axial_px.empty() ? 0.0 : shifts.axial_px[static_cast<std::size_t>(b)];
-        const double dx = shifts.lateral_px.empty() ? 0.0 : shifts.lateral_px[static_cast<std::size_t>(b)];
-        if (dz == 0.0 && dx == 0.0) continue;
-        io::shift_bscan(scan.bscans[static_cast<std::size_t>(b)], nx, nz, dz, dx);
     }
 }
 

@@ -993,8 +993,7 @@ void apply_macula_artefacts(const MaculaPhantomParams& p, const std::vector<V2>&
         const V2 base = out.centre_mm + dist * normal;
         paths.push_back({{base - 12.0 * along, base + 12.0 * along}, 0.06 + 0.09 * rng.uniform()});
     }
-    const phantom::AcquisitionShifts shifts = macula_acquisition_shifts(p);
-    phantom::apply_acquisition_artefacts(out.scan, points, paths, p.artefacts, shifts, 0, 1,
+    phantom::apply_acquisition_artefacts(out.scan, points, paths, p.artefacts, 0, 1,
                                          out.centre_mm, 2.5);
 }
 
@@ -1029,11 +1028,25 @@ MaculaPhantom make_macula_phantom(const MaculaPhantomParams& p, const MaculaTrut
     const std::vector<Vessel> vessels = make_vessels(p, out.centre_mm);
     // Every A-scan's grid position: the same continuous eye for volumes, lines and radial scans.
     const std::vector<V2> points = macula_sample_points(p);
-    const TrueSurfaces surfaces = true_surfaces(p, out, points, vessels, nb, nx);
+    TrueSurfaces surfaces = true_surfaces(p, out, points, vessels, nb, nx);
+    // The still eye places the retina in the image; a moving one is then sampled where it moved
+    // (phantom::acquired_points, every height axial_px[b] pixels deeper) before any line or
+    // pixel is drawn.
     const DepthMap depth = depth_map(p, layout, surfaces);
+    const phantom::AcquisitionShifts shifts = macula_acquisition_shifts(p);
+    const std::vector<V2> moved = phantom::acquired_points(points, layout.size_x, shifts);
+    if (moved != points) surfaces = true_surfaces(p, out, moved, vessels, nb, nx);
+    for (std::size_t b = 0; b < nb && b < shifts.axial_px.size(); ++b) {
+        const double dz_mm = shifts.axial_px[b] * layout.scale_z_mm;
+        if (dz_mm == 0.0) continue;
+        for (std::size_t i = b * nx; i < (b + 1) * nx; ++i) {
+            surfaces.z_ilm[i] -= dz_mm;
+            surfaces.z_bm[i] -= dz_mm;
+        }
+    }
     write_segmentation(p, layout, surfaces, missing_ascans(p, nb, nx), depth, out.scan);
     if (p.pixels) render_macula_pixels(p, layout, surfaces, depth, vessels, out);
-    if (p.artefacts.any()) apply_macula_artefacts(p, points, out);
+    if (p.artefacts.any()) apply_macula_artefacts(p, moved, out);
     if (p.radial) place_radial_lines(p, out);
     if (!p.line && !p.radial) {  // line and radial scans carry no thickness grid
         const V2 hint = out.centre_mm + V2(p.grid_hint_dx_mm, p.grid_hint_dy_mm);

@@ -357,6 +357,22 @@ OnhPhantomGeometry::OnhPhantomGeometry(const OnhPhantomParams& params)
         }
     }
     s_max_ = std::max(s_max_ + 0.05, profile_.cup_radius + 0.05);
+    // Lateral jitter moves a volume's A-scans off the grid by up to its largest shift
+    // (phantom::acquired_points): the columns the pixels sample reach that far. s_max, and so
+    // every truth value, stays the still grid's.
+    reach_ = s_max_;
+    if (!params.radial && params.artefacts.lateral_jitter_um > 0.0) {
+        const phantom::AcquisitionShifts sh =
+            phantom::acquisition_shifts(params.artefacts, params.num_bscans, scale_z_mm_,
+                                        scale_x_mm_, false, params.seed);
+        double out = 0.0;
+        for (double px : sh.lateral_px) out = std::max(out, std::fabs(px) * scale_x_mm_);
+        for (double x : {-out, width + out}) {
+            for (double y : {0.0, height}) {
+                reach_ = std::max(reach_, normalised(x, y).norm() + 0.05);
+            }
+        }
+    }
 
     // Monotone pieces of rho(s): split at the roots of rho'(s).
     pieces_ = {0.0};
@@ -494,19 +510,11 @@ double OnhPhantomGeometry::drho(double s) const {
 std::vector<double> OnhPhantomGeometry::rho_roots(double target) const {
     std::vector<double> roots;
     if (profile_.undercut == 0.0) {
-        if (target >= 0.0 && target <= s_max_) roots.push_back(target);
+        if (target >= 0.0 && target <= reach_) roots.push_back(target);
         return roots;
     }
-    for (std::size_t i = 0; i + 1 < pieces_.size(); ++i) {
-        double lo = pieces_[i];
-        double hi = pieces_[i + 1];
-        const double flo = rho(lo) - target;
-        const double fhi = rho(hi) - target;
-        if (flo == 0.0) {
-            roots.push_back(lo);
-            continue;
-        }
-        if ((flo < 0.0) == (fhi < 0.0)) continue;  // fhi == 0 is the next piece's lo
+    // The root in [lo, hi] of a monotone piece whose ends bracket it (flo = rho(lo) - target).
+    const auto bisect = [&](double lo, double hi, double flo) {
         for (int it = 0; it < 200; ++it) {
             const double m = 0.5 * (lo + hi);
             if (m <= lo || m >= hi) break;
@@ -516,9 +524,25 @@ std::vector<double> OnhPhantomGeometry::rho_roots(double target) const {
                 hi = m;
             }
         }
-        roots.push_back(0.5 * (lo + hi));
+        return 0.5 * (lo + hi);
+    };
+    for (std::size_t i = 0; i + 1 < pieces_.size(); ++i) {
+        const double lo = pieces_[i];
+        const double hi = pieces_[i + 1];
+        const double flo = rho(lo) - target;
+        const double fhi = rho(hi) - target;
+        if (flo == 0.0) {
+            roots.push_back(lo);
+            continue;
+        }
+        if ((flo < 0.0) == (fhi < 0.0)) continue;  // fhi == 0 is the next piece's lo
+        roots.push_back(bisect(lo, hi, flo));
     }
     if (std::fabs(rho(pieces_.back()) - target) == 0.0) roots.push_back(pieces_.back());
+    // Beyond s_max (jittered columns only): rho(s) = s there (no undercut so far out).
+    if (reach_ > s_max_ && target > rho(s_max_) && target <= rho(reach_)) {
+        roots.push_back(bisect(s_max_, reach_, rho(s_max_) - target));
+    }
     std::vector<double> out;
     for (double r : roots) {
         if (out.empty() || r - out.back() > 1e-12) out.push_back(r);
@@ -1314,8 +1338,11 @@ io::Scan render_onh_scan(const OnhPhantomParams& params) {
     io::Scan scan =
         params.radial ? radial_scan_frame(params, layout) : phantom::make_scan_frame(layout);
     const int nb = scan.num_bscans();
-    // Every A-scan's grid position: the same continuous eye for volumes and radial scans.
-    const std::vector<Eigen::Vector2d> points = onh_sample_points(params);
+    // Every A-scan's grid position: the same continuous eye for volumes and radial scans, where
+    // the moving eye puts it (phantom::acquired_points; the still grid when still).
+    const phantom::AcquisitionShifts shifts = onh_acquisition_shifts(params);
+    const std::vector<Eigen::Vector2d> points =
+        phantom::acquired_points(onh_sample_points(params), params.num_ascans, shifts);
     scan.meta.prog_id = std::string("octshape ") + kVersion + " phantom onh";
     scan.notes.push_back("synthetic ONH phantom (" + to_string(params.shape) + ")");
     const double sz = g.scale_z_mm();
@@ -1326,6 +1353,10 @@ io::Scan render_onh_scan(const OnhPhantomParams& params) {
     for (int b = 0; b < nb; ++b) {
         auto& row = columns[static_cast<std::size_t>(b)];
         row.reserve(static_cast<std::size_t>(nx));
+        // The eye moved axial_px[b] deeper (heights are -depth): every height of the column,
+        // after the still eye was checked to fit (the moved retina's lines are checked by
+        // apply_acquisition_artefacts).
+        const double dz_mm = shifts.axial_px[static_cast<std::size_t>(b)] * sz;
         for (int a = 0; a < nx; ++a) {
             const Eigen::Vector2d& pt = points[static_cast<std::size_t>(b) *
                                                    static_cast<std::size_t>(nx) +
@@ -1341,6 +1372,10 @@ io::Scan render_onh_scan(const OnhPhantomParams& params) {
                     "too small: the BM or cup floor is within 20 px of the image bottom (B-scan " +
                         std::to_string(b) + ", A-scan " + std::to_string(a) +
                         "); increase depth or decrease bm_centre_depth_fraction");
+            if (dz_mm != 0.0) {
+                for (double& z : c.ilm_z) z -= dz_mm;
+                c.bm_z -= dz_mm;
+            }
             row.push_back(std::move(c));
         }
     }
@@ -1389,8 +1424,7 @@ io::Scan render_onh_scan(const OnhPhantomParams& params) {
             paths.push_back({vessels[v].line, kWidthMm[v % kWidthMm.size()]});
         }
         phantom::apply_acquisition_artefacts(
-            scan, points, paths, params.artefacts, onh_acquisition_shifts(params),
-            static_cast<int>(io::Layer::kILM), static_cast<int>(io::Layer::kBM), g.bmo_centre(),
+            scan, points, paths, params.artefacts, static_cast<int>(io::Layer::kILM), static_cast<int>(io::Layer::kBM), g.bmo_centre(),
             1.6);
     }
     const Eigen::Matrix2d slo_to_grid = gf.grid_to_slo.inverse();

@@ -200,23 +200,34 @@ struct AcquisitionShifts {
                                                    bool radial,
                                                    std::uint64_t seed);
 
+// Where the A-scans of a moving acquisition sample the eye: `points` (the still grid positions,
+// B-scan-major, `size_x` per B-scan) with B-scan b's moved by -lateral_px[b] of its own A-scan
+// steps (points[b][1] - points[b][0]), so that its content lies lateral_px[b] A-scans towards
+// higher indices. The eye moves and the scanner samples it: a generator renders each A-scan
+// from the eye at these positions (and its depths axial_px[b] deeper), so the pixels are drawn,
+// speckle included, after the geometry moved; no pixel or line is interpolated. `points`
+// itself when no B-scan moves laterally.
+[[nodiscard]] std::vector<Eigen::Vector2d> acquired_points(
+    const std::vector<Eigen::Vector2d>& points, int size_x, const AcquisitionShifts& shifts);
+
 // A vessel path on the grid (mm) and its lumen width (mm).
 struct VesselPath {
     std::vector<Eigen::Vector2d> line;
     double width_mm = 0.1;
 };
 
-// Applies `artefacts` to a rendered scan, in acquisition order: vessel lumen and shadow (drawn
-// under the device ILM line `ilm_line` at every A-scan whose grid position, `points` B-scan
-// major, lies within half a width of a vessel), the cleft, the device-line faults (at A-scans
-// whose grid position is farther than `spare_radius_mm` from `spare_centre_mm`: off the disc or
-// the fovea), then the shifts (pixels and every line together, shift_bscan). Throws
-// UsageError when the shifted retina leaves the image (a larger depth is needed).
+// Applies `artefacts` to a scan rendered from the moved eye (acquired_points, depths shifted by
+// the axial shifts), in acquisition order: vessel lumen and shadow (drawn under the device ILM
+// line `ilm_line` at every A-scan whose grid position, `points` B-scan major and moved as
+// rendered, lies within half a width of a vessel), the cleft, then the device-line faults (at
+// A-scans whose grid position is farther than `spare_radius_mm` from `spare_centre_mm`: off the
+// disc or the fovea). Nothing is shifted here: the motion is already in the pixels and lines.
+// Throws UsageError when a B-scan's moved retina (its ILM and BM lines) leaves the image (a
+// larger depth is needed).
 void apply_acquisition_artefacts(io::Scan& scan,
                                  const std::vector<Eigen::Vector2d>& points,
                                  const std::vector<VesselPath>& vessels,
                                  const AcquisitionArtefacts& artefacts,
-                                 const AcquisitionShifts& shifts,
                                  int ilm_line,
                                  int bm_line,
                                  const Eigen::Vector2d& spare_centre_mm,

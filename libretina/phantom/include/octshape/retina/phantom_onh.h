@@ -150,7 +150,8 @@ class OnhPhantomGeometry {
     [[nodiscard]] double drho(double s) const;
     // Largest s the curve is tabulated for (covers every grid column).
     [[nodiscard]] double s_max() const { return s_max_; }
-    // All s in [0, s_max] with rho(s) = target, ascending.
+    // All s with rho(s) = target, ascending: in [0, s_max], and beyond it up to the columns a
+    // volume's lateral jitter samples (the truth never asks there).
     [[nodiscard]] std::vector<double> rho_roots(double target) const;
     // Heights above the BM (mm) where the vertical line at normalised radius `r` meets the
     // ILM, descending (the first is what a device reports as the ILM).
@@ -182,6 +183,7 @@ class OnhPhantomGeometry {
     Eigen::Matrix2d frame_inv_ = Eigen::Matrix2d::Identity();
     double sphere_radius_mm_ = 0.0;  // spherical cup only
     double s_max_ = 0.0;
+    double reach_ = 0.0;  // >= s_max_: the farthest jittered column (rho_roots)
     std::vector<double> pieces_;  // s-boundaries of the intervals where rho is monotone
 };
 
