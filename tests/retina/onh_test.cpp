@@ -501,6 +501,28 @@ void expect_levelset_targets(const LevelSetCase& c, const std::string& name) {
                       overhang);
 }
 
+// The reduced cupped volume (73 x 192: A-scans 22.7 um, B-scans 60.4 um apart) with vessel
+// shadows and device-line faults, level-set ILM: the cup volume within the 2 %. The
+// despeckle's x blur is capped at the width the defaults were measured with (1 px of the
+// 384-A-scan scans, 11.4 um); 1 px at 22.7 um moved the steep cup wall towards the vitreous,
+// more under the bright vessel lumens, and missed it (-2.22 %, docs/algorithms/levelset.md
+// "Coarse A-scan spacing"). Measured -1.56 %; the device graph of the same scan -0.80 % (the
+// sampling of the BMO and the RPE), the level set's offset towards the vitreous (1-2 um over
+// ~0.9 mm2 of cup surface) the rest.
+TEST(OnhPhantomTruth, ReducedCuppedVolumeWithShadowsMeetsTheCupVolumeWithTheLevelSet) {
+    OnhPhantomParams p = onh_phantom_preset(OnhShape::kCupped);
+    p.num_bscans = 73;
+    p.num_ascans = 192;
+    p.artefacts.vessel_shadows = true;
+    p.artefacts.segmentation_faults = true;
+    const OnhPhantom ph = make_onh_phantom(p);
+    const OnhResult r = analyse_onh(ph.scan, levelset_ilm_surface(ph.scan));
+    const OnhTruth& t = ph.truth;
+    std::printf("reduced cupped volume, shadows, level set: cup volume %+.2f %%\n",
+                100.0 * (r.cup_volume_mm3 / t.cup_volume_mm3 - 1.0));
+    EXPECT_NEAR(r.cup_volume_mm3, t.cup_volume_mm3, 0.02 * t.cup_volume_mm3);
+}
+
 // Slow: a full-size ONH phantom (145 x 384 x 496): seconds, ~10x under the sanitizers.
 SLOW_TEST(OnhPhantomTruth, CuppedWithLevelSetIlm) {
     const LevelSetCase c = run_both(OnhShape::kCupped);

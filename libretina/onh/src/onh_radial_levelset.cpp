@@ -121,7 +121,7 @@ std::vector<double> evolve_bscan(const io::Scan& scan,
     out.na = na;
     out.missing_ilm_columns = ilm.missing_columns;
     const ls::Windows w = ls::depth_windows(ilm, params);
-    std::vector<float> image = ls::despeckle(scan, w, params.despeckle_passes, ilm, k);
+    std::vector<float> image = ls::despeckle(scan, w, params.despeckle_passes, params.despeckle_max_sigma_x_mm, ilm, k);
     std::vector<float> phi = ls::initial_phi(w, ilm);
     LevelSetResult res;
     ls::evolve(w, phi, image, params, ilm.h, res);
