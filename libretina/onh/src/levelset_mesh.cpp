@@ -44,11 +44,11 @@ Surface surface(const Windows& w, const std::vector<float>& phi, const Spacing& 
     // surface point then lies well inside its grid edge, far above the float rounding of the
     // output points (~5e-7 mm), so no two points coincide and the merge of the slabs' shared
     // planes by exact coordinates is unambiguous (manifold output). Where the zero level
-    // passes through a voxel (φ ≈ 0: a voxel that oscillated about its equilibrium until its
-    // tile froze), every edge at it gets a point next to it: slivers with almost no area,
-    // which RoFi turned over (the fold of the cupped volume with the cleft, 1.1e-4 mm² at
-    // 1e-2 ScaleZ; docs/algorithms/levelset.md "Folds"). 0.1 ScaleZ moves the zero level by at
-    // most 0.1 px there, a tenth of the level set's own offset.
+    // passes through a voxel (φ ≈ 0 out of the evolution, most likely a voxel that oscillated
+    // about its equilibrium until its tile froze), every edge at it gets a point next to it:
+    // slivers with almost no area, which RoFi turned over (the fold of the cupped volume with
+    // the cleft, 1.1e-4 mm² at 1e-2 ScaleZ; docs/algorithms/levelset.md "Folds"). 0.1 ScaleZ
+    // moves the zero level by at most 0.1 px there, a tenth of the level set's own offset.
     const auto eps = static_cast<float>(0.1 * hz);
     std::unordered_map<std::uint64_t, int> shared_prev, shared_next;
     std::vector<float> dense;

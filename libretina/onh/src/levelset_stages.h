@@ -80,8 +80,9 @@ struct Windows {
 
 // v^0.25 of every pixel, then despeckle_passes binomial [1 4 6 4 1]/16 passes per B-scan in x
 // and depth over the rows the B-scan's windows use (padded by 2 per pass), stored on the
-// windows; in x σ = min(1 px, max_sigma_x_mm / hx) (binomial_pass). A pixel at or above io::kInvalidThreshold (or NaN) counts as 0 and clears its
-// column's valid flag. Needs ilm.valid sized nb × na.
+// windows; in x σ = min(1 px, max_sigma_x_mm / hx) (binomial_pass). A pixel at or above
+// io::kInvalidThreshold (or NaN) counts as 0 and clears its column's valid flag. Needs
+// ilm.valid sized nb × na.
 // The windows' B-scan b is the scan's B-scan b0 + b.
 [[nodiscard]] std::vector<float> despeckle(const io::Scan& scan, const Windows& w,
                                            int despeckle_passes, double max_sigma_x_mm,
