@@ -100,6 +100,29 @@ TEST(LevelSetStages, BinomialPassKeepsConstantsAndSpreadsADeltaAsTheKernel) {
     }
 }
 
+// Below 1 px the x kernel is [q, 1-2q, q] twice (q = sigma^2 / 4): it keeps constants and
+// spreads a delta with variance sigma^2 along x; the depth pass is the binomial's.
+TEST(LevelSetStages, NarrowBinomialPassHasTheAskedVarianceAlongX) {
+    const int rows = 9, na = 9;
+    std::vector<float> buf(static_cast<std::size_t>(rows * na), 3.0F), tmp(buf.size());
+    binomial_pass(buf, tmp, rows, na, 0.5);
+    for (const float v : buf) EXPECT_FLOAT_EQ(v, 3.0F);
+    std::fill(buf.begin(), buf.end(), 0.0F);
+    buf[4 * na + 4] = 1.0F;
+    binomial_pass(buf, tmp, rows, na, 0.5);
+    double sum = 0.0, var = 0.0;
+    for (int a = 0; a < na; ++a) {
+        const double v = buf[static_cast<std::size_t>(4 * na + a)] * 16.0 / 6.0;  // depth tap 6/16
+        sum += v;
+        var += v * (a - 4) * (a - 4);
+    }
+    EXPECT_NEAR(sum, 1.0, 1e-6);
+    EXPECT_NEAR(var, 0.25, 1e-6);
+    EXPECT_FLOAT_EQ(buf[static_cast<std::size_t>(4 * na + 2)], 1.0F / 256.0F * 6.0F / 16.0F);  // q^2
+    EXPECT_FLOAT_EQ(buf[static_cast<std::size_t>(2 * na + 4)] / buf[static_cast<std::size_t>(4 * na + 4)],
+                    1.0F / 6.0F);  // depth: the binomial's 1/16 against 6/16
+}
+
 TEST(LevelSetStages, DespeckleStoresTheFourthRootOnTheWindowsAndMarksInvalidColumns) {
     DeviceIlm d = flat_ilm(2, 3, 10, 4.0F);
     io::Scan scan;
@@ -115,7 +138,7 @@ TEST(LevelSetStages, DespeckleStoresTheFourthRootOnTheWindowsAndMarksInvalidColu
     LevelSetParams p;
     p.margin_mm = 0.006;  // 1.5 rows: windows [2, 7)
     const Windows w = depth_windows(d, p);
-    const std::vector<float> img = despeckle(scan, w, 0, d);
+    const std::vector<float> img = despeckle(scan, w, 0, LevelSetParams{}.despeckle_max_sigma_x_mm, d);
     for (int b = 0; b < 2; ++b) {
         for (int a = 0; a < 3; ++a) {
             const auto c = static_cast<std::size_t>(w.column(b, a));

@@ -443,6 +443,9 @@ TEST(LevelSet, ValidateNamesTheBadField) {
     p = {};
     p.leak_depth_mm = std::numeric_limits<double>::quiet_NaN();
     EXPECT_NE(message(p).find("leak_depth_mm"), std::string::npos);
+    p = {};
+    p.despeckle_max_sigma_x_mm = -1e-3;
+    EXPECT_NE(message(p).find("despeckle_max_sigma_x_mm"), std::string::npos);
 }
 
 TEST(LevelSet, RefusesScansWithoutPixelsOrVolume) {

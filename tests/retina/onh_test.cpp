@@ -501,6 +501,37 @@ void expect_levelset_targets(const LevelSetCase& c, const std::string& name) {
                       overhang);
 }
 
+// The reduced cupped volume (73 x 192: A-scans 22.7 um, B-scans 60.4 um apart) with vessel
+// shadows and device-line faults, level-set ILM: the cup volume within the 2 %. The
+// despeckle's x blur is capped at the width the defaults were measured with (1 px of the
+// 384-A-scan scans, 11.4 um); 1 px at 22.7 um moved the steep cup wall towards the vitreous,
+// more under the bright vessel lumens, and missed it (-2.22 %, docs/algorithms/levelset.md
+// "Coarse A-scan spacing"). Measured -1.56 %; the device graph of the same scan -0.80 % (the
+// sampling of the BMO and the RPE), the level set's offset towards the vitreous (1-2 um over
+// ~0.9 mm2 of cup surface) the rest.
+TEST(OnhPhantomTruth, ReducedCuppedVolumeWithShadowsMeetsTheCupVolumeWithoutAFold) {
+    OnhPhantomParams p = onh_phantom_preset(OnhShape::kCupped);
+    p.num_bscans = 73;
+    p.num_ascans = 192;
+    p.artefacts.vessel_shadows = true;
+    p.artefacts.segmentation_faults = true;
+    const OnhPhantom ph = make_onh_phantom(p);
+    const OnhResult r = analyse_onh(ph.scan, levelset_ilm_surface(ph.scan));
+    const OnhTruth& t = ph.truth;
+    std::printf("reduced cupped volume, shadows, level set: cup volume %+.2f %%, facing down "
+                "%.2g mm2\n",
+                100.0 * (r.cup_volume_mm3 / t.cup_volume_mm3 - 1.0),
+                r.ilm_quality.negative_projected_area_mm2);
+    EXPECT_NEAR(r.cup_volume_mm3, t.cup_volume_mm3, 0.02 * t.cup_volume_mm3);
+    // No fold: the true ILM is a height field here, so nothing of the final mesh may face down
+    // but slivers. Bound: a hundredth of a grid cell (1.4e-5 mm2); a leak's fold covers cells
+    // (radial leak phantom: 7.2e-5 mm2), and the slivers RoFi turned over where the zero level
+    // passed through a voxel came to 2.3e-5 mm2 here before marching cubes kept the points a
+    // tenth of a pixel off the voxels (measured now 6e-7; docs/algorithms/levelset.md "Folds").
+    EXPECT_LE(r.ilm_quality.negative_projected_area_mm2,
+              0.01 * ph.scan.meta.scale_x_mm * ph.scan.meta.distance_mm);
+}
+
 // Slow: a full-size ONH phantom (145 x 384 x 496): seconds, ~10x under the sanitizers.
 SLOW_TEST(OnhPhantomTruth, CuppedWithLevelSetIlm) {
     const LevelSetCase c = run_both(OnhShape::kCupped);

@@ -204,15 +204,31 @@ Windows depth_windows(const DeviceIlm& ilm, const LevelSetParams& params) {
     return w;
 }
 
-void binomial_pass(std::vector<float>& buf, std::vector<float>& tmp, int rows, int na) {
+void binomial_pass(std::vector<float>& buf, std::vector<float>& tmp, int rows, int na,
+                   double sigma_x_px) {
     auto at = [](int i, int n) { return std::clamp(i, 0, n - 1); };
-    for (int r = 0; r < rows; ++r) {
-        const float* in = buf.data() + static_cast<std::ptrdiff_t>(r) * na;
-        float* out = tmp.data() + static_cast<std::ptrdiff_t>(r) * na;
-        for (int a = 0; a < na; ++a) {
-            out[a] = (in[at(a - 2, na)] + in[at(a + 2, na)] + 4.0F * (in[at(a - 1, na)] + in[at(a + 1, na)]) +
-                      6.0F * in[a]) *
-                     (1.0F / 16.0F);
+    if (sigma_x_px >= 1.0) {
+        for (int r = 0; r < rows; ++r) {
+            const float* in = buf.data() + static_cast<std::ptrdiff_t>(r) * na;
+            float* out = tmp.data() + static_cast<std::ptrdiff_t>(r) * na;
+            for (int a = 0; a < na; ++a) {
+                out[a] = (in[at(a - 2, na)] + in[at(a + 2, na)] +
+                          4.0F * (in[at(a - 1, na)] + in[at(a + 1, na)]) + 6.0F * in[a]) *
+                         (1.0F / 16.0F);
+            }
+        }
+    } else {
+        // [q, 1 - 2q, q] twice, q = sigma^2 / 4: variance 4q = sigma^2 (q = 1/4 is the
+        // binomial above).
+        const float q = static_cast<float>(std::max(0.0, sigma_x_px) * std::max(0.0, sigma_x_px) / 4.0);
+        const float k2 = q * q, k1 = 2.0F * q * (1.0F - 2.0F * q), k0 = 1.0F - 2.0F * (k1 + k2);
+        for (int r = 0; r < rows; ++r) {
+            const float* in = buf.data() + static_cast<std::ptrdiff_t>(r) * na;
+            float* out = tmp.data() + static_cast<std::ptrdiff_t>(r) * na;
+            for (int a = 0; a < na; ++a) {
+                out[a] = k2 * (in[at(a - 2, na)] + in[at(a + 2, na)]) +
+                         k1 * (in[at(a - 1, na)] + in[at(a + 1, na)]) + k0 * in[a];
+            }
         }
     }
     for (int r = 0; r < rows; ++r) {
@@ -229,10 +245,11 @@ void binomial_pass(std::vector<float>& buf, std::vector<float>& tmp, int rows, i
 }
 
 std::vector<float> despeckle(const io::Scan& scan, const Windows& w, int despeckle_passes,
-                             DeviceIlm& ilm, int b0) {
+                             double max_sigma_x_mm, DeviceIlm& ilm, int b0) {
     const int nb = w.nb, na = w.na, nz = ilm.nz;
     std::vector<float> image(static_cast<std::size_t>(w.size));
     const int pad = 2 * despeckle_passes;
+    const double sigma_x_px = std::min(1.0, max_sigma_x_mm / ilm.h.hx);
     std::vector<float> buf, tmp;
     for (int b = 0; b < nb; ++b) {
         int r0 = nz, r1 = 0;
@@ -259,7 +276,7 @@ std::vector<float> despeckle(const io::Scan& scan, const Windows& w, int despeck
                 out[a] = std::sqrt(std::sqrt(std::max(v, 0.0F)));
             }
         }
-        for (int k = 0; k < despeckle_passes; ++k) binomial_pass(buf, tmp, rows, na);
+        for (int k = 0; k < despeckle_passes; ++k) binomial_pass(buf, tmp, rows, na, sigma_x_px);
         for (int a = 0; a < na; ++a) {
             const auto c = static_cast<std::size_t>(b * na + a);
             float* dst = image.data() + w.offset[c];
@@ -500,6 +517,9 @@ void LevelSetParams::validate() const {
     if (!(lateral_radius_mm > 0.0)) bad("lateral_radius_mm", "must be > 0");
     if (!(margin_mm > 0.0)) bad("margin_mm", "must be > 0");
     if (despeckle_passes < 0) bad("despeckle_passes", "must be >= 0");
+    if (!(despeckle_max_sigma_x_mm >= 0.0) || !std::isfinite(despeckle_max_sigma_x_mm)) {
+        bad("despeckle_max_sigma_x_mm", "must be finite and >= 0");
+    }
     if (!(mu_mm >= 0.0) || !std::isfinite(mu_mm)) bad("mu_mm", "must be finite and >= 0");
     if (!(lambda_vitreous > 0.0)) bad("lambda_vitreous", "must be > 0");
     if (!(lambda_tissue > 0.0)) bad("lambda_tissue", "must be > 0");
@@ -559,7 +579,7 @@ Prepared prepare(const io::Scan& scan, const LevelSetParams& params) {
     p.res.missing_ilm_columns = p.ilm.missing_columns;
     p.windows = depth_windows(p.ilm, params);
     p.res.window_voxels = p.windows.size;
-    p.image = despeckle(scan, p.windows, params.despeckle_passes, p.ilm);
+    p.image = despeckle(scan, p.windows, params.despeckle_passes, params.despeckle_max_sigma_x_mm, p.ilm);
     for (std::size_t c = 0; c < p.ilm.valid.size(); ++c) {
         const int na = p.ilm.na;
         if (!p.ilm.valid[c] && io::is_valid(scan.depth_px(0, static_cast<int>(c) / na, static_cast<int>(c) % na))) {

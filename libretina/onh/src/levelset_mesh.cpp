@@ -40,11 +40,16 @@ Surface surface(const Windows& w, const std::vector<float>& phi, const Spacing& 
     // Rows outside a window: ±ScaleZ (vitreous above, tissue below), a distance-like value
     // for the depth edge that joins them to the window.
     const auto far = static_cast<float>(hz);
-    // |φ| below 1e-2 ScaleZ (39 nm) is set to ±1e-2 ScaleZ (φ ≤ 0 counts as tissue): every
-    // surface point then lies at least ~1e-2 ScaleZ inside its grid edge, far above the float
-    // rounding of the output points (~5e-7 mm), so no two points coincide and the merge of
-    // the slabs' shared planes by exact coordinates is unambiguous (manifold output).
-    const auto eps = static_cast<float>(1e-2 * hz);
+    // |φ| below 0.1 ScaleZ (0.39 µm) is set to ±0.1 ScaleZ (φ ≤ 0 counts as tissue): every
+    // surface point then lies well inside its grid edge, far above the float rounding of the
+    // output points (~5e-7 mm), so no two points coincide and the merge of the slabs' shared
+    // planes by exact coordinates is unambiguous (manifold output). Where the zero level
+    // passes through a voxel (φ ≈ 0 out of the evolution, most likely a voxel that oscillated
+    // about its equilibrium until its tile froze), every edge at it gets a point next to it:
+    // slivers with almost no area, which RoFi turned over (the fold of the cupped volume with
+    // the cleft, 1.1e-4 mm² at 1e-2 ScaleZ; docs/algorithms/levelset.md "Folds"). 0.1 ScaleZ
+    // moves the zero level by at most 0.1 px there, a tenth of the level set's own offset.
+    const auto eps = static_cast<float>(0.1 * hz);
     std::unordered_map<std::uint64_t, int> shared_prev, shared_next;
     std::vector<float> dense;
     // One depth range for all slabs, so that a point on a shared B-scan plane is computed

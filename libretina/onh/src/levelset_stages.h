@@ -80,15 +80,19 @@ struct Windows {
 
 // v^0.25 of every pixel, then despeckle_passes binomial [1 4 6 4 1]/16 passes per B-scan in x
 // and depth over the rows the B-scan's windows use (padded by 2 per pass), stored on the
-// windows. A pixel at or above io::kInvalidThreshold (or NaN) counts as 0 and clears its
-// column's valid flag. Needs ilm.valid sized nb × na.
+// windows; in x σ = min(1 px, max_sigma_x_mm / hx) (binomial_pass). A pixel at or above
+// io::kInvalidThreshold (or NaN) counts as 0 and clears its column's valid flag. Needs
+// ilm.valid sized nb × na.
 // The windows' B-scan b is the scan's B-scan b0 + b.
 [[nodiscard]] std::vector<float> despeckle(const io::Scan& scan, const Windows& w,
-                                           int despeckle_passes, DeviceIlm& ilm, int b0 = 0);
+                                           int despeckle_passes, double max_sigma_x_mm,
+                                           DeviceIlm& ilm, int b0 = 0);
 
 // One [1 4 6 4 1]/16 pass along x (rows of length na) and then along depth over rows
-// [0, rows), edge samples repeated.
-void binomial_pass(std::vector<float>& buf, std::vector<float>& tmp, int rows, int na);
+// [0, rows), edge samples repeated. sigma_x_px < 1: along x the kernel [q, 1−2q, q] applied
+// twice instead, q = sigma_x_px² / 4 (variance sigma_x_px²; q = 1/4 is the binomial).
+void binomial_pass(std::vector<float>& buf, std::vector<float>& tmp, int rows, int na,
+                   double sigma_x_px = 1.0);
 
 // φ0 on the windows: (ilm − d) * hz, positive above the device ILM (mm).
 [[nodiscard]] std::vector<float> initial_phi(const Windows& w, const DeviceIlm& ilm);

@@ -121,7 +121,7 @@ std::vector<double> evolve_bscan(const io::Scan& scan,
     out.na = na;
     out.missing_ilm_columns = ilm.missing_columns;
     const ls::Windows w = ls::depth_windows(ilm, params);
-    std::vector<float> image = ls::despeckle(scan, w, params.despeckle_passes, ilm, k);
+    std::vector<float> image = ls::despeckle(scan, w, params.despeckle_passes, params.despeckle_max_sigma_x_mm, ilm, k);
     std::vector<float> phi = ls::initial_phi(w, ilm);
     LevelSetResult res;
     ls::evolve(w, phi, image, params, ilm.h, res);
@@ -322,7 +322,8 @@ BscanLevelSet bscan_level_set(const io::Scan& scan,
         if (out.leak_ascans > 0) vit = vitreous_region(phi, rows, na);
     }
     // The values marching squares reads: phi where its sign agrees with the region, else the
-    // region's sign at one pixel of depth; |phi| kept off zero as in the volume's mesh stage.
+    // region's sign at one pixel of depth; |phi| kept off zero (1e-2 ScaleZ: a curve has no
+    // slivers to turn over, unlike the volume's marching cubes, levelset_mesh.cpp).
     const double eps = 1e-2 * hz;
     for (std::size_t i = 0; i < phi.size(); ++i) {
         const bool v = vit[i] != 0;

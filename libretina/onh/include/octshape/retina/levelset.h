@@ -40,6 +40,12 @@ struct LevelSetParams {
     // Display transform v^0.25, then per B-scan a binomial blur [1 4 6 4 1]/16
     // applied `despeckle_passes` times in x and in depth (σ = 1 px per pass). ≥ 0.
     int despeckle_passes = 1;
+    // The blur in x is 1 px but at most this wide (σ, mm): 1 px of the 384-A-scan Spectralis
+    // ONH volume and radial line (11.33 / 11.36 µm), where the defaults were measured. Coarser
+    // A-scans get σ = this / ScaleX px ([q, 1−2q, q] twice, q = σ²/4): a blur wider than that
+    // moves the steep cup wall towards the vitreous (docs/algorithms/levelset.md, "Coarse
+    // A-scan spacing"). ≥ 0.
+    double despeckle_max_sigma_x_mm = 0.0114;
 
     // --- Energy (Chan–Vese, Eq. LS-1 in docs/algorithms/levelset.md) ---
     // Length weight μ (mm): the curvature speed μκ is compared with the normalised region
