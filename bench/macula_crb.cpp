@@ -28,8 +28,8 @@
 // estimator's RMS, seeds 7, 8, ... as bench/macula_accuracy; 0 = the bound only. FIT_SEEDS
 // default 0: a joint least-squares fit of the model itself on that many seeds, ~1 s each at 193
 // B-scans, to see whether the bound is attained.)
-//        macula_crb bias [REALISATIONS [PX...]]   (the bias table at 61 B-scans, 0.5 / 1 / 2 px
-// per surface unless PX are given; see bias_table)
+//        macula_crb bias [REALISATIONS [PX...]] [--bscans=N]   (the bias table at 61 B-scans, or
+// N, 0.5 / 1 / 2 px per surface unless PX are given; see bias_table)
 
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
@@ -558,8 +558,7 @@ Eigen::VectorXd joint_fit(const Eigen::VectorXd& th0,
 // sqrt(2) x that). The CRB scales linearly with the node SD. Seeds 1001, 1002, ... at every
 // noise level (common random numbers). The bias's standard error is SD / sqrt(REALISATIONS):
 // <= 0.1 CRB needs REALISATIONS >= 100 (SD / CRB)^2, i.e. ~300 for SD up to 1.7 CRB.
-int bias_table(int realisations, std::vector<double> levels) {
-    const int nb = 61;
+int bias_table(int realisations, std::vector<double> levels, int nb) {
     const MaculaPhantomParams p = phantom_params(nb);
     const MaculaTruthOptions topt;
     const MaculaTruth truth = macula_truth(p, topt);
@@ -581,12 +580,14 @@ int bias_table(int realisations, std::vector<double> levels) {
         forced.local_fit_min_noise_um = 0.0;
         const std::vector<double> rf = parameter_values(analyse_macula(ph.scan, forced));
         const std::vector<double> rb = parameter_values(analyse_macula(ph.scan));
-        std::printf("\nnoise-free, error in units of the 1 px CRB: %-17s %9s %9s\n", "",
-                    "adaptive", "bilinear");
+        std::printf("\nnoise-free, error in units of the 1 px CRB (and in %%): %-6s %9s %9s %9s %9s\n",
+                    "", "adaptive", "bilinear", "adapt. %", "bilin. %");
         for (std::size_t k = 0; k < kParams.size(); ++k) {
             const double crb_sd = c.sd_free[k] * std::sqrt(2.0) * 3.8717 / kSigmaUm;
-            std::printf("  %-17s %+9.2f %+9.2f\n", kParams[k].name, (rf[k] - tv[k]) / crb_sd,
-                        (rb[k] - tv[k]) / crb_sd);
+            const double t = std::fabs(tv[k]);
+            std::printf("  %-17s %+9.2f %+9.2f %+9.3f %+9.3f\n", kParams[k].name,
+                        (rf[k] - tv[k]) / crb_sd, (rb[k] - tv[k]) / crb_sd,
+                        100.0 * (rf[k] - tv[k]) / t, 100.0 * (rb[k] - tv[k]) / t);
         }
     }
     if (levels.empty()) levels = {0.5, 1.0, 2.0};
@@ -653,9 +654,21 @@ int main(int argc, char** argv) {
     if (argc > 1 && std::string(argv[1]) == "bias") {
         // Further arguments: other noise levels (px per surface), e.g. 0.1 to see the part of
         // a bias that does not shrink with the noise.
+        // "--bscans=N": another phantom than the 61-B-scan one (e.g. 193).
         std::vector<double> levels;
-        for (int a = 3; a < argc; ++a) levels.push_back(std::atof(argv[a]));
-        return bias_table(argc > 2 ? std::max(2, std::atoi(argv[2])) : 300, levels);
+        int nb = 61;
+        int realisations = 300;
+        for (int a = 2; a < argc; ++a) {
+            const std::string arg = argv[a];
+            if (arg.rfind("--bscans=", 0) == 0) {
+                nb = std::max(3, std::atoi(arg.c_str() + 9));
+            } else if (a == 2) {
+                realisations = std::max(2, std::atoi(argv[a]));
+            } else {
+                levels.push_back(std::atof(argv[a]));
+            }
+        }
+        return bias_table(realisations, levels, nb);
     }
     const int seeds = argc > 1 ? std::max(0, std::atoi(argv[1])) : 36;
     const int fit_seeds = argc > 2 ? std::max(0, std::atoi(argv[2])) : 0;

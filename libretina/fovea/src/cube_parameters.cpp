@@ -3,6 +3,7 @@
 // docs/algorithms/cube.md.
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -132,6 +133,67 @@ double max_slope_noise_term_deg(const std::vector<CubeHalfLine>& lines) {
     return valid > 0 ? sum / valid : 0.0;
 }
 
+// The pit volume's second-order noise term (docs/algorithms/cube.md "V_p: the plug-in volume's
+// noise term"): V_p = A_3D(rim) h_r - V_r (Eq. 7.29) is a smooth function of every half-line's
+// fitted x_i = (alpha, beta, r_rim, h_rim) (CFT held: it is shared), so E[V_p(x^)] = V_p(x) +
+// sum_i tr(H_i Cov_i) / 2 + O(sigma^4) with H_i its Hessian in x_i and Cov_i the fit's own
+// covariance (CubeHalfLine::interior_cov); the half-lines' fits are independent (disjoint
+// sectors), so no cross terms. H_i by central differences (step 2 um: V_p is a polynomial in x_i
+// but for the rim plane's normal, so the truncation is ~(step / r_rim)^2 of a small term), the
+// whole Eq. 7.29 re-evaluated: V_r's integral to each half-line's own rim, A's bilinear and
+// normal terms and A's product with the mean rim height. A half-line without a covariance
+// contributes 0. Returned in mm^3.
+double pit_volume_noise_term_mm3(const std::vector<CubeHalfLine>& lines, const V2& centre) {
+    constexpr double kStep = 2e-3;  // mm
+    const std::size_t n = lines.size();
+    auto point = [&](const CubeHalfLine& h, double r, double z) {
+        const V2 o = std::isnan(h.origin_mm.x()) ? centre : h.origin_mm;
+        const V2 q = o + r * h.direction;
+        return V3(q.x(), q.y(), z);
+    };
+    std::vector<V3> pts;
+    double h_sum = 0.0;
+    double v_sum = 0.0;
+    for (const auto& h : lines) {
+        pts.push_back(point(h, h.rim_radius_mm, h.rim_height_mm));
+        h_sum += h.rim_height_mm;
+        v_sum += h.rim_volume_mm3;
+    }
+    const double inv_n = 1.0 / static_cast<double>(n);
+    double sum = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const CubeHalfLine& h = lines[i];
+        const Eigen::Matrix4d& cov = h.interior_cov;
+        if (!cov.allFinite()) continue;
+        const Ctrl& q = h.interior.control;
+        const Eigen::Vector4d x(q[1].x() - q[0].x(), q[3].x() - q[2].x(), q[3].x(), q[3].y());
+        // V_p with half-line i's x replaced by y, every other half-line as fitted.
+        auto vp = [&](const Eigen::Vector4d& y) {
+            const Ctrl c{q[0], V2(q[0].x() + y(0), q[0].y()), V2(y(2) - y(1), y(3)),
+                         V2(y(2), y(3))};
+            std::vector<V3> p = pts;
+            p[i] = point(h, y(2), y(3));
+            const double vr =
+                2.0 * kPi * inv_n * (v_sum - h.rim_volume_mm3 + bezier_volume_integral(c, 1.0));
+            return disk(std::move(p)).area_mm2 * (h_sum - h.rim_height_mm + y(3)) * inv_n - vr;
+        };
+        for (int a = 0; a < 4; ++a) {
+            for (int b = a; b < 4; ++b) {
+                auto at = [&](double sa, double sb) {
+                    Eigen::Vector4d y = x;
+                    y(a) += sa * kStep;
+                    y(b) += sb * kStep;
+                    return vp(y);
+                };
+                const double d2 =
+                    (at(1, 1) - at(1, -1) - at(-1, 1) + at(-1, -1)) / (4.0 * kStep * kStep);
+                sum += (a == b ? 0.5 : 1.0) * d2 * cov(a, b);  // symmetric: off-diagonals twice
+            }
+        }
+    }
+    return sum;
+}
+
 void summarise_macula(CubeResult& res, const CubeParams& params) {
     const int n = static_cast<int>(res.half_lines.size());
     int valid = 0;
@@ -209,6 +271,12 @@ void summarise_macula(CubeResult& res, const CubeParams& params) {
         res.rim_volume_mm3 = 2.0 * kPi / n * vr;                                         // Eq. 7.27
         res.inner_rim_volume_mm3 = 2.0 * kPi / n * vir;                                  // Eq. 7.28
         res.pit_volume_mm3 = res.rim.area_mm2 * res.rim_height_mm - res.rim_volume_mm3;  // 7.29
+        // Under noise (sector-bin samples) less its second-order noise term; a plug-in value
+        // smaller than the term gives 0 (no pit), never a negative volume.
+        if (res.noise_adaptive_samples && res.pit_volume_mm3 >= 0.0) {
+            res.pit_volume_mm3 = std::max(
+                0.0, res.pit_volume_mm3 - pit_volume_noise_term_mm3(res.half_lines, res.centre_mm));
+        }
     } else if (!res.line_scan) {
         res.notes.push_back("disks and volumes need every half-line: omitted");
     }
