@@ -149,7 +149,8 @@ std::optional<Quadratic> quadratic_surface(const ThicknessMap& m, const V2& c, d
 // Vertex of the least-squares quadratic surface fitted to the valid nodes of M within the window
 // |x - c.x| <= rx, |y - c.y| <= ry (a parabola in x for a line scan); nullopt when the fit is not
 // a bowl or its vertex leaves the window. `value`, when given, receives the surface's height at
-// the vertex (2-D fits only; the analysis uses it as the centre sample under noise).
+// the vertex (2-D fits only; the analysis's centre sample under noise when the pit floor's fit
+// fails).
 std::optional<V2> quadratic_vertex(
     const ThicknessMap& m, const V2& c, double rx, double ry, double* value = nullptr) {
     const bool line = m.rows == 1;
@@ -598,9 +599,13 @@ Centre find_centre(const CentreInput& in) {
                 // quadratic in both directions), at least the noise-free centre window.
                 const double fx = std::max(params.centre_fit_radius_mm, kFloorNodeSpans * m.dx_mm);
                 const double fy = std::max(params.centre_fit_radius_mm, kFloorNodeSpans * m.dy_mm);
+                // Its height at the centre is also the CFT pass's centre sample: the centre
+                // window's vertex height is biased by the wider window's cubic terms
+                // (docs/algorithms/cube.md, session 44).
                 if (const auto k = quadratic_surface(m, out.centre_mm, fx, fy)) {
                     out.floor = PitFloor{.origin = out.centre_mm, .k = *k, .half_x_mm = fx,
                                          .half_y_mm = fy};
+                    out.sample_mm = (*k)(0);
                 }
             }
         }
