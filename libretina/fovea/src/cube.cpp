@@ -100,9 +100,9 @@ CftPass cft_pass(const std::vector<CubeHalfLine>& lines,
     double sum = 0.0;
     int count = 0;
     // Every half-line's first sample is the centre: under noise the bilinear M there (4
-    // nodes, 2-4 um of noise) entered all 24 fits alike, an error no mean removes; the pit
-    // floor's quadratic surface at the centre averages the nodes of its window instead (at
-    // least 3 B-scans and 3 A-scans), or the centre window's vertex height without it.
+    // nodes, 2-4 um of noise) entered all 24 fits alike, an error no mean removes; a quadratic
+    // surface over half the centre window averages the nodes of its window instead (at least
+    // 3 B-scans and 3 A-scans), or the centre window's vertex height without it.
     const double centre_sample = std::isnan(centre_sample_mm) ? cft_sample_mm : centre_sample_mm;
     for (const auto& h0 : lines) {
         CubeHalfLine& h = out.free_fits.emplace_back(h0);

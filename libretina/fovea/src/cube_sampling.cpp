@@ -149,7 +149,7 @@ std::optional<Quadratic> quadratic_surface(const ThicknessMap& m, const V2& c, d
 // Vertex of the least-squares quadratic surface fitted to the valid nodes of M within the window
 // |x - c.x| <= rx, |y - c.y| <= ry (a parabola in x for a line scan); nullopt when the fit is not
 // a bowl or its vertex leaves the window. `value`, when given, receives the surface's height at
-// the vertex (2-D fits only; the analysis's centre sample under noise when the pit floor's fit
+// the vertex (2-D fits only; the analysis's centre sample under noise when the half-window fit
 // fails).
 std::optional<V2> quadratic_vertex(
     const ThicknessMap& m, const V2& c, double rx, double ry, double* value = nullptr) {
@@ -204,6 +204,11 @@ constexpr double kOnePixelNoiseMm = 0.0038717;
 // The pit floor's window: +-1.51 node spacings holds at least 3 B-scans and 3 A-scans wherever
 // the centre lies between them.
 constexpr double kFloorNodeSpans = 1.51;
+// The CFT pass's centre sample under noise: a quadratic surface over this fraction of the
+// centre window (measured: 0.5 keeps the CFT's and alpha_m's RMS within 6 % of the full
+// window's and removes half to all of their deterministic bias; docs/algorithms/cube.md,
+// session 44).
+constexpr double kCentreSampleWindowFraction = 0.5;
 double noisy_centre_fit_radius_mm(double sd_mm) {
     return kNoisyCentreFitRadiusMm * std::cbrt(sd_mm / kOnePixelNoiseMm);
 }
@@ -599,12 +604,18 @@ Centre find_centre(const CentreInput& in) {
                 // quadratic in both directions), at least the noise-free centre window.
                 const double fx = std::max(params.centre_fit_radius_mm, kFloorNodeSpans * m.dx_mm);
                 const double fy = std::max(params.centre_fit_radius_mm, kFloorNodeSpans * m.dy_mm);
-                // Its height at the centre is also the CFT pass's centre sample: the centre
-                // window's vertex height is biased by the wider window's cubic terms
-                // (docs/algorithms/cube.md, session 44).
                 if (const auto k = quadratic_surface(m, out.centre_mm, fx, fy)) {
                     out.floor = PitFloor{.origin = out.centre_mm, .k = *k, .half_x_mm = fx,
                                          .half_y_mm = fy};
+                }
+                // The CFT pass's centre sample: the height at the centre of the quadratic
+                // surface over half the centre window (at least the floor's). The centre
+                // window's vertex height is biased high by the pit's higher-order terms, which
+                // grow with the window; the floor's own window halves that bias but adds noise
+                // (docs/algorithms/cube.md, session 44). Without it: the vertex height.
+                const double sw = kCentreSampleWindowFraction * fit_r;
+                if (const auto k = quadratic_surface(m, out.centre_mm, std::max(fx, sw),
+                                                     std::max(fy, sw))) {
                     out.sample_mm = (*k)(0);
                 }
             }

@@ -100,8 +100,9 @@ struct Centre {
     double cft_mm = kMissing;  // M at the centre (the raw CFT sample)
     int num_tied_minima = 0;
     double fit_radius_mm = kMissing;  // CubeResult::centre_fit_radius_mm
-    // Under noise, the pit floor's height at the centre (without a floor fit, the centre
-    // window's vertex height): the first sample of the CFT pass (NaN: use cft_mm).
+    // Under noise, the height at the centre of a quadratic surface over half the centre window
+    // (without it, the centre window's vertex height): the first sample of the CFT pass (NaN:
+    // use cft_mm).
     double sample_mm = kMissing;
     PitFloor floor;  // under noise, when the quadratic surface was used
     std::vector<std::string> notes;
