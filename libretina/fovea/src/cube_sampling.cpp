@@ -610,9 +610,9 @@ Centre find_centre(const CentreInput& in) {
                 }
                 // The CFT pass's centre sample: the height at the centre of the quadratic
                 // surface over half the centre window (at least the floor's). The centre
-                // window's vertex height is biased high by the pit's higher-order terms, which
-                // grow with the window; the floor's own window halves that bias but adds noise
-                // (docs/algorithms/cube.md, session 44). Without it: the vertex height.
+                // window's vertex height is biased by the pit's higher-order terms, which grow
+                // with the window; the floor's own window removes more of that bias but adds
+                // noise (docs/algorithms/cube.md, session 44). Without it: the vertex height.
                 const double sw = kCentreSampleWindowFraction * fit_r;
                 if (const auto k = quadratic_surface(m, out.centre_mm, std::max(fx, sw),
                                                      std::max(fy, sw))) {
