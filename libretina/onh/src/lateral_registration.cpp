@@ -191,6 +191,46 @@ Eigen::VectorXd solve_step(Pass& p, int nb, int smooth_modes, Eigen::VectorXd* s
     return ldlt.solve(p.rhs);
 }
 
+// The model lines of `scan` alone (no pixels), each smoothed along its A-scans by a Gaussian of
+// SD `sd` A-scans (normalised over the present values within 3 SD; a missing value stays
+// missing). A smoothing along the A-scans commutes with a shift along them, so the shifts are
+// unchanged; what it removes is the noise of single values, which otherwise (a) makes the
+// slopes, the Jacobian, mostly noise where the surface is flat and (b) favours fractional
+// shifts, because a linear interpolation between two noisy values halves their variance at half
+// an A-scan (docs/algorithms/onh.md, "Lateral registration").
+io::Scan smoothed_lines(const io::Scan& scan, const std::vector<int>& lines, double sd) {
+    io::Scan out;
+    out.meta = scan.meta;
+    out.bscans.resize(scan.bscans.size());
+    const int nx = scan.meta.size_x;
+    const int half = static_cast<int>(std::ceil(3.0 * sd));
+    std::vector<double> w(static_cast<std::size_t>(half + 1));
+    for (int d = 0; d <= half; ++d) w[static_cast<std::size_t>(d)] = std::exp(-0.5 * d * d / (sd * sd));
+    for (std::size_t b = 0; b < scan.bscans.size(); ++b) {
+        for (int k : lines) {
+            const std::vector<float>* l = line_of(scan, static_cast<int>(b), k);
+            if (!l) continue;
+            auto& seg = out.bscans[b].seg;
+            if (static_cast<int>(seg.size()) <= k) seg.resize(static_cast<std::size_t>(k + 1));
+            std::vector<float> sm(l->size(), std::numeric_limits<float>::quiet_NaN());
+            for (int a = 0; a < nx; ++a) {
+                if (!io::is_valid((*l)[static_cast<std::size_t>(a)])) continue;
+                double sw = 0.0, sv = 0.0;
+                for (int d = -half; d <= half; ++d) {
+                    const int x = a + d;
+                    if (x < 0 || x >= nx || !io::is_valid((*l)[static_cast<std::size_t>(x)])) continue;
+                    const double wd = w[static_cast<std::size_t>(std::abs(d))];
+                    sw += wd;
+                    sv += wd * (*l)[static_cast<std::size_t>(x)];
+                }
+                sm[static_cast<std::size_t>(a)] = static_cast<float>(sv / sw);
+            }
+            seg[static_cast<std::size_t>(k)] = std::move(sm);
+        }
+    }
+    return out;
+}
+
 double median_of(std::vector<double> v) {
     if (v.empty()) return 0.0;
     const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
@@ -213,6 +253,9 @@ void LateralRegistrationParams::validate() const {
     require(std::isfinite(min_rms_um) && min_rms_um >= 0.0, "min_rms_um", "must be >= 0");
     require(min_line_fraction > 0.0 && min_line_fraction < 1.0, "min_line_fraction",
             "must be in (0, 1)");
+    require(std::isfinite(line_smoothing_ascans) && line_smoothing_ascans >= 0.0 &&
+                line_smoothing_ascans <= 16.0,
+            "line_smoothing_ascans", "must be in [0, 16]");
 }
 
 LateralRegistration estimate_lateral_motion(const io::Scan& scan,
@@ -276,6 +319,9 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
         return R;
     }
     const int smooth_modes = R.smooth_modes;
+    io::Scan smoothed;
+    if (params.line_smoothing_ascans > 0.0) smoothed = smoothed_lines(scan, lines, params.line_smoothing_ascans);
+    const io::Scan& fit = params.line_smoothing_ascans > 0.0 ? smoothed : scan;
     Eigen::VectorXd s = Eigen::VectorXd::Zero(nb);
     Eigen::VectorXd o = Eigen::VectorXd::Zero(nb);
     Eigen::VectorXd se_diag = Eigen::VectorXd::Zero(nb);
@@ -283,7 +329,7 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
     Pass last;
     constexpr int kMaxIterations = 20;
     for (int iter = 0; iter < kMaxIterations; ++iter) {
-        last = gauss_newton_pass(scan, lines, use, s, o, scale, 2);
+        last = gauss_newton_pass(fit, lines, use, s, o, scale, 2);
         R.iterations = iter + 1;
         if (last.inliers < 3.0 * nb) break;
         const Eigen::VectorXd d = solve_step(last, nb, smooth_modes, nullptr);
@@ -298,7 +344,7 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
         if (iter >= 4 && f * big < 1e-4) break;
     }
     // The standard errors from the final weights (one more pass at the solution).
-    last = gauss_newton_pass(scan, lines, use, s, o, scale, 2);
+    last = gauss_newton_pass(fit, lines, use, s, o, scale, 2);
     if (last.inliers >= 3.0 * nb) (void)solve_step(last, nb, smooth_modes, &se_diag);
     const bool solved = s.allFinite() && se_diag.allFinite();
     if (!solved) {

@@ -29,6 +29,9 @@ struct LateralRegistrationParams {
     double large_motion_um = 15.0;   // flag when the RMS of the shifts exceeds this
     double max_shift_se_um = 5.0;    // not estimable (nothing applied) above this median SE
     double min_line_fraction = 0.1;  // a B-scan with fewer valid ILM+BM values is not estimated
+    // The lines smoothed along their A-scans by a Gaussian of this SD (A-scans) before the fit;
+    // 0 = as read.
+    double line_smoothing_ascans = 0.0;
 
     void validate() const;  // throws UsageError naming the field
 };
