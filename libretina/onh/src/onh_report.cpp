@@ -145,30 +145,7 @@ J onh_json(const OnhResult& r, const J& options) {
         put_shifts(reg, a.shift_um, a.estimated);
         j["axial_registration"] = std::move(reg);
     }
-    {
-        // Per B-scan (from 0): the lateral shift estimated (+ = the B-scan lay towards higher
-        // A-scans than the eye) and removed when applied.
-        const LateralRegistration& l = r.lateral_registration;
-        J lat;
-        lat["applied"] = l.applied;
-        lat["estimable"] = l.estimable;
-        lat["model"] =
-            "the device ILM and BM lines smoothest across B-scans: second differences across "
-            "B-scans of the shifted lines (robust least squares, per-B-scan depth offsets free); "
-            "shifts varying slower than smooth_wavelength_mm across B-scans belong to the eye "
-            "(docs/algorithms/onh.md)";
-        lat["smooth_wavelength_mm"] = l.smooth_wavelength_mm;
-        lat["smooth_modes"] = l.smooth_modes;
-        lat["rms_shift_um"] = l.rms_shift_um;
-        lat["max_abs_shift_um"] = l.max_abs_shift_um;
-        lat["shift_se_um"] = l.shift_se_um;
-        lat["residual_rms_um"] = l.residual_rms_um;
-        lat["values_used"] = l.values_used;
-        lat["values_rejected"] = l.values_rejected;
-        lat["bscans_not_estimated"] = l.bscans_not_estimated;
-        put_shifts(lat, l.shift_um, l.estimated);
-        j["lateral_registration"] = std::move(lat);
-    }
+    j["lateral_registration"] = lateral_registration_json(r.lateral_registration);
 
     J v;
     v["has_cup"] = r.has_cup;

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "octshape/io/scan.h"
+#include "octshape/retina/lateral_registration.h"
 
 namespace octshape::retina {
 
@@ -103,6 +104,12 @@ struct CubeParams {
     // (noise-free maps, the device's smooth lines) and for line scans the samples are the
     // bilinear ones. +inf = always bilinear.
     double local_fit_min_noise_um = 0.5;
+    // Lateral registration of a volume's B-scans before the thickness map (the caller applies it:
+    // app/commands/macula_eye.cpp; docs/algorithms/cube.md, step 1). The macula's lines are
+    // smoothed along the A-scans (Gaussian SD 4 A-scans) for the estimate: its surfaces are
+    // flat over most of the field, where single values' noise otherwise makes the fit's slopes
+    // and favours fractional shifts (measured: bench macula_motion).
+    LateralRegistrationParams lateral_registration{.line_smoothing_ascans = 4.0};
     // Forces the centre (grid mm) instead of searching: validation from a known centre.
     std::optional<Eigen::Vector2d> centre_mm;
     // Throws UsageError naming the bad field.
@@ -298,6 +305,9 @@ struct CubeResult {
     bool noise_adaptive_samples = false;
     double centre_fit_radius_mm = kMissing;
     std::vector<CubeHalfLine> half_lines;
+    // What the lateral registration of the B-scans did (filled by the caller that registered the
+    // scan; analyse_macula itself analyses the scan as given).
+    LateralRegistration lateral_registration;
     std::vector<std::string> qc_flags;  // short, stable phrases
     std::vector<std::string> notes;
     ThicknessMap map;

@@ -1,6 +1,7 @@
 #pragma once
-// Lateral registration of the B-scans of a volume before any surface is built
-// (docs/algorithms/onh.md, "Lateral registration").
+// Lateral registration of the B-scans of a volume before any surface is built, for the ONH and
+// the macula analyses alike (docs/algorithms/onh.md, "Lateral registration";
+// docs/algorithms/cube.md for the macula).
 //
 // A tracking error moves a whole B-scan along its A-scans: B-scan b's content lies s_b A-scans
 // towards higher A-scans than the eye, while the header's positions are unchanged. The eye's
@@ -17,8 +18,9 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "octshape/io/scan.h"
-#include "octshape/retina/bmo.h"
 
 namespace octshape::retina {
 
@@ -62,12 +64,12 @@ struct LateralRegistration {
     const io::Scan& scan, const LateralRegistrationParams& params = {});
 // Removes the estimated shifts from every B-scan (pixels and lines). No-op unless applied.
 void apply_lateral_registration(io::Scan& scan, const LateralRegistration& registration);
-// Moves BMO points given in the unregistered scan with it (a point of an x_mm,y_mm,z_mm file:
-// the B-scan nearest its y).
-void register_bmo_points_laterally(std::vector<BmoPoint>& points, const io::Scan& scan,
-                                   const LateralRegistration& registration);
+// (The BMO points of a --bmo file move with their B-scan: register_bmo_points_laterally,
+// axial_registration.h.)
 // Both: estimate, then apply when params.enabled.
 [[nodiscard]] LateralRegistration register_laterally(
     io::Scan& scan, const LateralRegistrationParams& params = {});
+// The per-eye JSON's "lateral_registration" object (docs/outputs.md), the same for both analyses.
+[[nodiscard]] nlohmann::ordered_json lateral_registration_json(const LateralRegistration& l);
 
 }  // namespace octshape::retina

@@ -10,7 +10,6 @@
 #include <Eigen/Dense>
 
 #include "octshape/error.h"
-#include "octshape/retina/axial_registration.h"
 #include "octshape/retina/radial_geometry.h"
 #include "octshape/retina/report_util.h"
 
@@ -274,6 +273,10 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
         R.notes.push_back("lateral registration: not estimated on a radial scan");
         return R;
     }
+    if (nb < 2) {
+        R.notes.push_back("lateral registration: not estimated on a single B-scan");
+        return R;
+    }
     if (nb > kMaxBscans) {
         // The normal equations are dense in 2N unknowns (the smooth-mode constraint couples
         // every B-scan): bounded time, at the cost of not estimating very dense volumes.
@@ -419,22 +422,41 @@ void apply_lateral_registration(io::Scan& scan, const LateralRegistration& regis
     }
 }
 
-void register_bmo_points_laterally(std::vector<BmoPoint>& points, const io::Scan& scan,
-                                   const LateralRegistration& registration) {
-    if (!registration.applied || registration.shift_um.empty()) return;
-    const int nb = static_cast<int>(registration.shift_um.size());
-    for (BmoPoint& p : points) {
-        const int b = bscan_of_bmo_point(p, scan);
-        if (b < 0 || b >= nb) continue;
-        // The B-scan's content moves towards lower A-scans by its shift.
-        p.mm.x() -= registration.shift_um[static_cast<std::size_t>(b)] * 1e-3;
-    }
-}
-
 LateralRegistration register_laterally(io::Scan& scan, const LateralRegistrationParams& params) {
     LateralRegistration r = estimate_lateral_motion(scan, params);
     apply_lateral_registration(scan, r);
     return r;
+}
+
+nlohmann::ordered_json lateral_registration_json(const LateralRegistration& l) {
+    // Per B-scan (from 0): the lateral shift estimated (+ = the B-scan lay towards higher
+    // A-scans than the eye) and removed when applied.
+    nlohmann::ordered_json lat;
+    lat["applied"] = l.applied;
+    lat["estimable"] = l.estimable;
+    lat["model"] =
+        "the device ILM and BM lines smoothest across B-scans: second differences across "
+        "B-scans of the shifted lines (robust least squares, per-B-scan depth offsets free); "
+        "shifts varying slower than smooth_wavelength_mm across B-scans belong to the eye "
+        "(docs/algorithms/onh.md)";
+    lat["smooth_wavelength_mm"] = l.smooth_wavelength_mm;
+    lat["smooth_modes"] = l.smooth_modes;
+    lat["rms_shift_um"] = l.rms_shift_um;
+    lat["max_abs_shift_um"] = l.max_abs_shift_um;
+    lat["shift_se_um"] = l.shift_se_um;
+    lat["residual_rms_um"] = l.residual_rms_um;
+    lat["values_used"] = l.values_used;
+    lat["values_rejected"] = l.values_rejected;
+    lat["bscans_not_estimated"] = l.bscans_not_estimated;
+    nlohmann::ordered_json shifts = nlohmann::ordered_json::array();
+    nlohmann::ordered_json est = nlohmann::ordered_json::array();
+    for (std::size_t b = 0; b < l.shift_um.size(); ++b) {
+        shifts.push_back(l.shift_um[b]);
+        est.push_back(b < l.estimated.size() && l.estimated[b]);
+    }
+    lat["shift_um"] = std::move(shifts);
+    lat["estimated"] = std::move(est);
+    return lat;
 }
 
 }  // namespace octshape::retina
