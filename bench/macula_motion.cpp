@@ -23,7 +23,7 @@
 // Usage: macula_motion [--bscans N] [--ascans N] [--jitter 0,10,30] [--noise 0,1]
 //                      [--motion 0,30] [--seeds N] [--wavelength 0.75] [--scheibe] [--flat]
 //                      [--fovea-dx MM] [--fovea-dy MM] [--dx-mm MM] [--dy-mm MM]
-//                      [--smooth 0,2] [--whole-jitter] [--file F]
+//                      [--smooth 0,4 (default: the macula's, 4)] [--whole-jitter] [--file F]
 
 #include <algorithm>
 #include <cmath>
@@ -43,6 +43,7 @@
 #include "octshape/retina/etdrs.h"
 #include "octshape/retina/lateral_registration.h"
 #include "octshape/retina/phantom_macula.h"
+#include "fixtures/lateral_shifts.h"
 
 namespace {
 
@@ -59,21 +60,6 @@ std::vector<double> split(const std::string& s) {
 
 double pct(double v, double ref) { return 100.0 * (v / ref - 1.0); }
 
-double identifiable_error_um(const LateralRegistration& reg, const std::vector<double>& true_px,
-                             double um_per_ascan) {
-    const auto n = static_cast<Eigen::Index>(true_px.size());
-    if (n < 2 || reg.shift_um.size() != true_px.size()) return 0.0;
-    const int K = std::max(1, reg.smooth_modes);
-    Eigen::MatrixXd X(n, K);
-    Eigen::VectorXd d(n);
-    for (Eigen::Index b = 0; b < n; ++b) {
-        for (int k = 0; k < K; ++k) X(b, k) = std::cos(M_PI * k * (static_cast<double>(b) + 0.5) / static_cast<double>(n));
-        d(b) = reg.shift_um[static_cast<std::size_t>(b)] - true_px[static_cast<std::size_t>(b)] * um_per_ascan;
-    }
-    const Eigen::VectorXd r = d - X * X.colPivHouseholderQr().solve(d);
-    return std::sqrt(r.squaredNorm() / static_cast<double>(n));
-}
-
 void print_cube_row(const char* label, const CubeResult& r, const CubeResult& ref) {
     std::printf("  %-5s cft %+6.2f um  rimH %+6.2f um  rimD %+6.2f%%  rimA %+6.2f%%  rimV %+6.2f%%  "
                 "innerV %+6.2f%%  pitV %+6.2f%%  slope %+6.2f%%  slopeA %+6.2f%%  flatA %+6.2f%%\n",
@@ -88,16 +74,7 @@ void print_cube_row(const char* label, const CubeResult& r, const CubeResult& re
 }
 
 double corr(const std::vector<double>& x, const std::vector<double>& y) {
-    const auto n = static_cast<double>(x.size());
-    double mx = 0.0, my = 0.0;
-    for (std::size_t i = 0; i < x.size(); ++i) { mx += x[i] / n; my += y[i] / n; }
-    double sxy = 0.0, sxx = 0.0, syy = 0.0;
-    for (std::size_t i = 0; i < x.size(); ++i) {
-        sxy += (x[i] - mx) * (y[i] - my);
-        sxx += (x[i] - mx) * (x[i] - mx);
-        syy += (y[i] - my) * (y[i] - my);
-    }
-    return sxx > 0.0 && syy > 0.0 ? sxy / std::sqrt(sxx * syy) : 0.0;
+    return octshape::test::correlation(x, y);
 }
 
 // The shifts estimated from the ILM alone (keep 0) or the BM alone (keep 1), the other line
@@ -163,7 +140,7 @@ int phantoms(const MaculaPhantomParams& base, const std::vector<double>& jitters
                                     sm, wl, noise, motion, jit, seed, reg.smooth_modes,
                                     still_reg.rms_shift_um, still_reg.max_abs_shift_um,
                                     still_reg.applied ? 1 : 0, reg.rms_shift_um, reg.shift_se_um,
-                                    identifiable_error_um(reg, truth_px, um_x), reg.applied ? 1 : 0,
+                                    octshape::test::identifiable_lateral_error_um(reg, truth_px, um_x), reg.applied ? 1 : 0,
                                     reg.residual_rms_um, reg.qc_flags.size(), c_alone);
                         const CubeResult ref = analyse_macula(still);
                         const CubeResult off = analyse_macula(moved);
@@ -395,7 +372,8 @@ int main(int argc, char** argv) {
         std::vector<double> noises = {0, 1};
         std::vector<double> motions = {0, 30};
         std::vector<double> wavelengths = {0.75};
-        std::vector<double> smoothings = {0.0};
+        // The macula analysis's smoothing by default (CubeParams).
+        std::vector<double> smoothings = {CubeParams{}.lateral_registration.line_smoothing_ascans};
         bool whole_jitter = false;
         int seeds = 1;
         std::vector<std::string> files;

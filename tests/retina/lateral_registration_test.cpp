@@ -12,6 +12,7 @@
 
 #include "octshape/retina/onh.h"
 #include "octshape/retina/phantom_onh.h"
+#include "fixtures/lateral_shifts.h"
 
 namespace octshape::retina {
 namespace {
@@ -32,19 +33,8 @@ OnhPhantomParams jittered(double jitter_um) {
 // RMS (um) of (estimated - true) shifts without the first `modes` cosines across the B-scans:
 // what a smooth eye cannot tell from a smooth motion (the registration leaves it to the eye).
 double identifiable_error_um(const LateralRegistration& reg, const OnhPhantomParams& p) {
-    const std::vector<double> t = onh_acquisition_shifts(p).lateral_px;
-    const double um = p.field_mm / p.num_ascans * 1000.0;  // ScaleX
-    const auto n = static_cast<Eigen::Index>(t.size());
-    Eigen::MatrixXd X(n, reg.smooth_modes);
-    Eigen::VectorXd d(n);
-    for (Eigen::Index b = 0; b < n; ++b) {
-        for (int k = 0; k < reg.smooth_modes; ++k) {
-            X(b, k) = std::cos(M_PI * k * (static_cast<double>(b) + 0.5) / static_cast<double>(n));
-        }
-        d(b) = reg.shift_um[static_cast<std::size_t>(b)] - t[static_cast<std::size_t>(b)] * um;
-    }
-    const Eigen::VectorXd r = d - X * X.colPivHouseholderQr().solve(d);
-    return std::sqrt(r.squaredNorm() / static_cast<double>(n));
+    return test::identifiable_lateral_error_um(reg, onh_acquisition_shifts(p).lateral_px,
+                                               p.field_mm / p.num_ascans * 1000.0);  // ScaleX
 }
 
 OnhResult analysed(io::Scan scan, bool register_lateral, LateralRegistration* reg = nullptr) {

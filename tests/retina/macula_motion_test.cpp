@@ -7,12 +7,12 @@
 #include <cstring>
 #include <vector>
 
-#include <Eigen/Dense>
 
 #include "octshape/retina/cube.h"
 #include "octshape/retina/etdrs.h"
 #include "octshape/retina/lateral_registration.h"
 #include "octshape/retina/phantom_macula.h"
+#include "fixtures/lateral_shifts.h"
 
 namespace octshape::retina {
 namespace {
@@ -110,19 +110,9 @@ TEST(MaculaPhantomAcquisition, LateralJitterIsRegisteredAndAStillEyeIsAnalysedAs
     const LateralRegistration reg = register_laterally(reg_scan, lp);
     ASSERT_TRUE(reg.applied);
     EXPECT_EQ(reg.smooth_modes, 20);  // ceil(2 x 7.5 mm / 0.75 mm)
-    const std::vector<double> t = macula_acquisition_shifts(moved_p).lateral_px;
     const double um = moved.meta.scale_x_mm * 1000.0;
-    const auto n = static_cast<Eigen::Index>(t.size());
-    Eigen::MatrixXd X(n, reg.smooth_modes);
-    Eigen::VectorXd d(n);
-    for (Eigen::Index b = 0; b < n; ++b) {
-        for (int k = 0; k < reg.smooth_modes; ++k) {
-            X(b, k) = std::cos(M_PI * k * (static_cast<double>(b) + 0.5) / static_cast<double>(n));
-        }
-        d(b) = reg.shift_um[static_cast<std::size_t>(b)] - t[static_cast<std::size_t>(b)] * um;
-    }
-    const Eigen::VectorXd res = d - X * X.colPivHouseholderQr().solve(d);
-    EXPECT_LT(std::sqrt(res.squaredNorm() / static_cast<double>(n)), 0.25 * um);
+    EXPECT_LT(test::identifiable_lateral_error_um(reg, macula_acquisition_shifts(moved_p).lateral_px, um),
+              0.25 * um);
     const CubeResult on = analyse_macula(reg_scan);
     const CubeResult off = analyse_macula(moved);
     const auto pct = [](double v, double r) { return 100.0 * std::fabs(v / r - 1.0); };

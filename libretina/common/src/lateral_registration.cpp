@@ -448,14 +448,7 @@ nlohmann::ordered_json lateral_registration_json(const LateralRegistration& l) {
     lat["values_used"] = l.values_used;
     lat["values_rejected"] = l.values_rejected;
     lat["bscans_not_estimated"] = l.bscans_not_estimated;
-    nlohmann::ordered_json shifts = nlohmann::ordered_json::array();
-    nlohmann::ordered_json est = nlohmann::ordered_json::array();
-    for (std::size_t b = 0; b < l.shift_um.size(); ++b) {
-        shifts.push_back(l.shift_um[b]);
-        est.push_back(b < l.estimated.size() && l.estimated[b]);
-    }
-    lat["shift_um"] = std::move(shifts);
-    lat["estimated"] = std::move(est);
+    put_shifts(lat, l.shift_um, l.estimated);
     return lat;
 }
 

@@ -103,18 +103,6 @@ J radial_json(const OnhResult& r) {
     return rad;
 }
 
-// The per-B-scan arrays of a registration: shift_um[] and estimated[] (index = B-scan, from 0).
-void put_shifts(J& j, const std::vector<double>& shift_um, const std::vector<bool>& estimated) {
-    J shifts = J::array();
-    J est = J::array();
-    for (std::size_t b = 0; b < shift_um.size(); ++b) {
-        shifts.push_back(shift_um[b]);
-        est.push_back(b < estimated.size() && estimated[b]);
-    }
-    j["shift_um"] = std::move(shifts);
-    j["estimated"] = std::move(est);
-}
-
 }  // namespace
 
 J onh_json(const OnhResult& r, const J& options) {
