@@ -170,63 +170,6 @@ int phantoms(const MaculaPhantomParams& base, const std::vector<double>& jitters
 
 // ---- real cubes ----
 
-double median(std::vector<double> v) {
-    if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-    std::nth_element(v.begin(), mid, v.end());
-    return *mid;
-}
-
-// A line of B-scan b at the fractional A-scan x (linear; NaN outside or next to a missing value).
-double line_at(const std::vector<float>& l, double x) {
-    const auto n = static_cast<int>(l.size());
-    if (!(x >= 0.0) || x > n - 1) return std::numeric_limits<double>::quiet_NaN();
-    const int a0 = std::min(static_cast<int>(std::floor(x)), n - 1);
-    const int a1 = std::min(a0 + 1, n - 1);
-    if (!io::is_valid(l[static_cast<std::size_t>(a0)]) || !io::is_valid(l[static_cast<std::size_t>(a1)])) {
-        return std::numeric_limits<double>::quiet_NaN();
-    }
-    const double f = x - a0;
-    return (1.0 - f) * l[static_cast<std::size_t>(a0)] + f * l[static_cast<std::size_t>(a1)];
-}
-
-// Roughness of line k across B-scans (px): the mean absolute second difference across B-scans at
-// the shifted positions (B-scan b read at a + s_b A-scans), each triple's median over its A-scans
-// removed (the axial motion adds a constant per triple), values beyond 8 px (faults) left out.
-// A mean, not a median: the device lines of the real cubes are whole pixel rows, and the median
-// of their second differences is a whole number. Only A-scans 10 % inside each edge.
-double roughness_px(const io::Scan& scan, int k, const std::vector<double>& shift_px) {
-    const int nb = scan.num_bscans();
-    const int nx = scan.meta.size_x;
-    std::vector<double> all;
-    for (int b = 1; b + 1 < nb; ++b) {
-        std::vector<double> r;
-        bool have = true;
-        for (int j = -1; j <= 1; ++j) {
-            const auto& bs = scan.bscans[static_cast<std::size_t>(b + j)];
-            have = have && static_cast<int>(bs.seg.size()) > k && bs.seg[static_cast<std::size_t>(k)].size() == static_cast<std::size_t>(nx);
-        }
-        if (!have) continue;
-        for (int a = nx / 10; a < nx - nx / 10; ++a) {
-            double v[3];
-            bool ok = true;
-            for (int j = -1; j <= 1 && ok; ++j) {
-                const auto bi = static_cast<std::size_t>(b + j);
-                v[j + 1] = line_at(scan.bscans[bi].seg[static_cast<std::size_t>(k)], a + shift_px[bi]);
-                ok = std::isfinite(v[j + 1]);
-            }
-            if (ok) r.push_back(v[0] - 2.0 * v[1] + v[2]);
-        }
-        if (r.size() < 10) continue;
-        const double m = median(r);
-        for (double x : r) {
-            if (std::fabs(x - m) < 8.0) all.push_back(std::fabs(x - m));
-        }
-    }
-    if (all.empty()) return std::numeric_limits<double>::quiet_NaN();
-    return std::accumulate(all.begin(), all.end(), 0.0) / static_cast<double>(all.size());
-}
-
 std::vector<double> to_px(const std::vector<double>& um, double um_per_ascan) {
     std::vector<double> out(um.size());
     for (std::size_t i = 0; i < um.size(); ++i) out[i] = um[i] / um_per_ascan;
@@ -248,7 +191,7 @@ std::vector<double> fovea_track(const io::Scan& scan, int centre_b, int centre_a
             int n = 0;
             for (int d = -3; d <= 3; ++d) {
                 const double x = a + d + shift_px[static_cast<std::size_t>(b)];
-                const double t = line_at(bs.seg[1], x) - line_at(bs.seg[0], x);
+                const double t = octshape::test::line_at(bs.seg[1], x) - octshape::test::line_at(bs.seg[0], x);
                 if (std::isfinite(t)) { sum += t; ++n; }
             }
             if (n == 7 && sum < best) { best = sum; at = a; }
@@ -294,11 +237,11 @@ int real_files(const std::vector<std::string>& files, double smoothing) {
         int nlines = 0;
         for (const auto& bs : scan.bscans) nlines = std::max(nlines, static_cast<int>(bs.seg.size()));
         for (int k = 0; k < nlines; ++k) {
-            const double r0 = roughness_px(scan, k, zero);
+            const double r0 = octshape::test::lateral_roughness_px(scan, k, zero);
             if (!std::isfinite(r0)) continue;
             std::printf("    %-10s %6.3f %6.3f %6.3f %6.3f %6.3f%s\n", scan.line_name(k).c_str(), r0,
-                        roughness_px(scan, k, s_both), roughness_px(scan, k, s_ilm),
-                        roughness_px(scan, k, s_bm), roughness_px(scan, k, s_perm),
+                        octshape::test::lateral_roughness_px(scan, k, s_both), octshape::test::lateral_roughness_px(scan, k, s_ilm),
+                        octshape::test::lateral_roughness_px(scan, k, s_bm), octshape::test::lateral_roughness_px(scan, k, s_perm),
                         k == 0 ? "  (ILM: in the estimate except BM-alone)" : k == 1 ? "  (BM: in the estimate except ILM-alone)" : "  (held out)");
         }
         // Calibration: the held-out lines' mean roughness with the shifts scaled (a right
@@ -310,7 +253,7 @@ int real_files(const std::vector<std::string>& files, double smoothing) {
             double sum = 0.0;
             int n = 0;
             for (int k = 2; k < nlines; ++k) {
-                const double r = roughness_px(scan, k, sc);
+                const double r = octshape::test::lateral_roughness_px(scan, k, sc);
                 if (std::isfinite(r)) { sum += r; ++n; }
             }
             std::printf(" %.2f:%.4f", fac, n ? sum / n : 0.0);
