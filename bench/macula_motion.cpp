@@ -23,7 +23,8 @@
 // Usage: macula_motion [--bscans N] [--ascans N] [--jitter 0,10,30] [--noise 0,1]
 //                      [--motion 0,30] [--seeds N] [--wavelength 0.75] [--scheibe] [--flat]
 //                      [--fovea-dx MM] [--fovea-dy MM] [--dx-mm MM] [--dy-mm MM]
-//                      [--smooth 0,4 (default: the macula's, 4)] [--whole-jitter] [--file F]
+//                      [--smooth 0,4 (default: the macula's, 4)] [--whole-jitter]
+//                      [--wavelength-bscans B (default: the macula's, 8; 0 = off)] [--file F]
 
 #include <algorithm>
 #include <cmath>
@@ -49,6 +50,9 @@ namespace {
 
 using namespace octshape::retina;
 namespace io = octshape::io;
+
+// --wavelength-bscans (default: the macula analysis's cap, CubeParams).
+double g_wavelength_bscans = CubeParams{}.lateral_registration.smooth_wavelength_bscans;
 
 std::vector<double> split(const std::string& s) {
     std::vector<double> out;
@@ -127,7 +131,8 @@ int phantoms(const MaculaPhantomParams& base, const std::vector<double>& jitters
                         } else {
                             moved = make_macula_phantom(p).scan;
                         }
-                        LateralRegistrationParams lp;
+                        LateralRegistrationParams lp = CubeParams{}.lateral_registration;
+                        lp.smooth_wavelength_bscans = g_wavelength_bscans;
                         lp.smooth_wavelength_mm = wl;
                         lp.line_smoothing_ascans = sm;
                         const LateralRegistration still_reg = estimate_lateral_motion(still, lp);
@@ -210,9 +215,11 @@ double rms_jump(const std::vector<double>& t) {
     return n ? std::sqrt(s / n) : 0.0;
 }
 
-int real_files(const std::vector<std::string>& files, double smoothing) {
-    LateralRegistrationParams lp;
+int real_files(const std::vector<std::string>& files, double smoothing, double wavelength) {
+    LateralRegistrationParams lp = CubeParams{}.lateral_registration;
+    lp.smooth_wavelength_bscans = g_wavelength_bscans;
     lp.line_smoothing_ascans = smoothing;
+    lp.smooth_wavelength_mm = wavelength;
     for (const std::string& f : files) {
         const io::Scan scan = io::read_scan(f);
         const std::string name = f.substr(f.find_last_of('/') + 1);
@@ -332,6 +339,7 @@ int main(int argc, char** argv) {
             else if (a == "--seeds" && more) seeds = std::stoi(argv[++i]);
             else if (a == "--smooth" && more) smoothings = split(argv[++i]);
             else if (a == "--whole-jitter") whole_jitter = true;
+            else if (a == "--wavelength-bscans" && more) g_wavelength_bscans = std::stod(argv[++i]);
             else if (a == "--dx-mm" && more) p.scale_x_mm = std::stod(argv[++i]);
             else if (a == "--dy-mm" && more) p.distance_mm = std::stod(argv[++i]);
             else if (a == "--scheibe") p.family = MaculaFamily::kScheibe;
@@ -341,7 +349,7 @@ int main(int argc, char** argv) {
             else if (a == "--file" && more) files.push_back(argv[++i]);
             else throw std::runtime_error("unknown argument " + a);
         }
-        if (!files.empty()) return real_files(files, smoothings.front());
+        if (!files.empty()) return real_files(files, smoothings.front(), wavelengths.front());
         return phantoms(p, jitters, noises, motions, seeds, wavelengths, smoothings, whole_jitter);
     } catch (const std::exception& ex) {
         std::fprintf(stderr, "macula_motion: %s\n", ex.what());

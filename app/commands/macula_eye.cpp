@@ -36,6 +36,7 @@ std::string macula_options_text(const MaculaEyeOptions& o) {
       << " local_fit_min_noise_um=" << p.local_fit_min_noise_um
       << " lateral_registration=" << (p.lateral_registration.enabled ? "true" : "false")
       << " lateral_registration_wavelength_mm=" << p.lateral_registration.smooth_wavelength_mm
+      << " lateral_registration_wavelength_bscans=" << p.lateral_registration.smooth_wavelength_bscans
       << " lateral_registration_line_smoothing_ascans="
       << p.lateral_registration.line_smoothing_ascans << " centre_mm=";
     if (p.centre_mm) {

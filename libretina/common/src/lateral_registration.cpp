@@ -252,6 +252,9 @@ void LateralRegistrationParams::validate() const {
     require(std::isfinite(min_rms_um) && min_rms_um >= 0.0, "min_rms_um", "must be >= 0");
     require(min_line_fraction > 0.0 && min_line_fraction < 1.0, "min_line_fraction",
             "must be in (0, 1)");
+    require(std::isfinite(smooth_wavelength_bscans) &&
+                (smooth_wavelength_bscans == 0.0 || smooth_wavelength_bscans >= 4.0),
+            "smooth_wavelength_bscans", "must be 0 (off) or at least 4");
     require(std::isfinite(line_smoothing_ascans) && line_smoothing_ascans >= 0.0 &&
                 line_smoothing_ascans <= 16.0,
             "line_smoothing_ascans", "must be in [0, 16]");
@@ -311,7 +314,14 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
     }
     // Cosine modes across the B-scans with a wavelength above smooth_wavelength_mm: the eye's.
     const double extent_mm = (nb - 1) * scan.meta.distance_mm;
-    R.smooth_modes = std::max(2, static_cast<int>(std::ceil(2.0 * extent_mm / params.smooth_wavelength_mm)));
+    // Capped at smooth_wavelength_bscans B-scans (when set): on dense B-scans a shift just above
+    // a cut-off of many B-scans barely changes a second difference, and the noise lands there.
+    double wavelength = params.smooth_wavelength_mm;
+    if (params.smooth_wavelength_bscans > 0.0) {
+        wavelength = std::min(wavelength, params.smooth_wavelength_bscans * scan.meta.distance_mm);
+    }
+    R.smooth_wavelength_mm = wavelength;
+    R.smooth_modes = std::max(2, static_cast<int>(std::ceil(2.0 * extent_mm / wavelength)));
     if (2 * R.smooth_modes > nb) {
         R.qc_flags.push_back("lateral motion not estimated (B-scans too far apart)");
         R.notes.push_back("lateral registration: the B-scans are " +

@@ -27,6 +27,10 @@ namespace octshape::retina {
 struct LateralRegistrationParams {
     bool enabled = true;
     double smooth_wavelength_mm = 0.75;  // shifts varying slower across B-scans: the eye's
+    // The cut-off at most this many B-scans (0 = off): for dense volumes, whose modes just above a
+    // cut-off of many B-scans are hardly estimable (docs/algorithms/cube.md "Lateral registration
+    // (measured)"). The result's smooth_wavelength_mm is the cut-off used.
+    double smooth_wavelength_bscans = 0.0;
     double min_rms_um = 5.0;         // below this RMS nothing is moved (a still eye's floor)
     double large_motion_um = 15.0;   // flag when the RMS of the shifts exceeds this
     double max_shift_se_um = 5.0;    // not estimable (nothing applied) above this median SE
@@ -53,7 +57,7 @@ struct LateralRegistration {
     int values_rejected = 0;        // outliers (Tukey weight 0)
     int iterations = 0;
     int smooth_modes = 0;           // cosines across B-scans given to the eye
-    double smooth_wavelength_mm = 0.0;  // the parameter they come from
+    double smooth_wavelength_mm = 0.0;  // the cut-off they come from (after smooth_wavelength_bscans)
     std::vector<std::string> qc_flags;
     std::vector<std::string> notes;
 };
