@@ -38,7 +38,9 @@ std::string macula_options_text(const MaculaEyeOptions& o) {
       << " lateral_registration_wavelength_mm=" << p.lateral_registration.smooth_wavelength_mm
       << " lateral_registration_wavelength_bscans=" << p.lateral_registration.smooth_wavelength_bscans
       << " lateral_registration_line_smoothing_ascans="
-      << p.lateral_registration.line_smoothing_ascans << " centre_mm=";
+      << p.lateral_registration.line_smoothing_ascans
+      << " lateral_registration_whole_ascans="
+      << (p.lateral_registration.whole_ascans ? "true" : "false") << " centre_mm=";
     if (p.centre_mm) {
       s << p.centre_mm->x() << "," << p.centre_mm->y();
     } else {

@@ -265,6 +265,7 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
     params.validate();
     LateralRegistration R;
     R.enabled = params.enabled;
+    R.whole_ascans = params.whole_ascans;
     R.smooth_wavelength_mm = params.smooth_wavelength_mm;
     const int nb = scan.num_bscans();
     const int nx = scan.meta.size_x;
@@ -409,9 +410,11 @@ void apply_lateral_registration(io::Scan& scan, const LateralRegistration& regis
     if (!registration.applied) return;
     const double um_per_ascan = scan.meta.scale_x_mm * 1000.0;
     for (int b = 0; b < scan.num_bscans(); ++b) {
-        const double dx = -registration.shift_um[static_cast<std::size_t>(b)] / um_per_ascan;
+        const double raw = -registration.shift_um[static_cast<std::size_t>(b)] / um_per_ascan;
+        const double dx = registration.whole_ascans ? std::round(raw) : raw;
         io::BScan& bs = scan.bscans[static_cast<std::size_t>(b)];
-        // The lines by the shift itself (below 1e-3 A-scans numerically zero).
+        // The lines by the shift itself, or by whole A-scans (whole_ascans); below 1e-3 A-scans
+        // nothing moves.
         if (std::fabs(dx) >= 1e-3) {
             std::vector<float> pixels;
             pixels.swap(bs.pixels);

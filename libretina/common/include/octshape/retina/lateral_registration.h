@@ -38,6 +38,10 @@ struct LateralRegistrationParams {
     // The lines smoothed along their A-scans by a Gaussian of this SD (A-scans) before the fit;
     // 0 = as read.
     double line_smoothing_ascans = 0.0;
+    // The lines moved by the shift rounded to whole A-scans too (as the pixels always are): each
+    // B-scan keeps the device's own values and their noise (false: the fractional shift,
+    // linear between samples).
+    bool whole_ascans = false;
 
     void validate() const;  // throws UsageError naming the field
 };
@@ -58,6 +62,7 @@ struct LateralRegistration {
     int iterations = 0;
     int smooth_modes = 0;           // cosines across B-scans given to the eye
     double smooth_wavelength_mm = 0.0;  // the cut-off they come from (after smooth_wavelength_bscans)
+    bool whole_ascans = false;          // the lines too were moved by whole A-scans (params)
     std::vector<std::string> qc_flags;
     std::vector<std::string> notes;
 };

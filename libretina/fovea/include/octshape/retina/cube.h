@@ -111,8 +111,12 @@ struct CubeParams {
     // and favours fractional shifts (measured: bench macula_motion).
     // The cut-off is at most 8 B-scans (0.38 mm on a 128-B-scan 6 mm cube; 0.75 mm from 94 um
     // apart on): on dense cubes it halves the false shifts of a noisy still eye.
+    // The lines are moved by whole A-scans: a fractional shift blends two device values, which
+    // changes the map's noise estimate (and with it the rim crest's tolerance) in the moved
+    // B-scans; on the real Topcon cube 2.1 -> 0.7 um.
     LateralRegistrationParams lateral_registration{.smooth_wavelength_bscans = 8.0,
-                                                   .line_smoothing_ascans = 4.0};
+                                                   .line_smoothing_ascans = 4.0,
+                                                   .whole_ascans = true};
     // Forces the centre (grid mm) instead of searching: validation from a known centre.
     std::optional<Eigen::Vector2d> centre_mm;
     // Throws UsageError naming the bad field.
