@@ -171,7 +171,19 @@ MaculaEye analyse_macula_eye(const std::string& file,
     retina::CubeResult r =
         with_file_named(file, [&] { return retina::analyse_macula(scan, o.params); });
     r.lateral_registration = lateral;
-    r.qc_flags.insert(r.qc_flags.begin(), lateral.qc_flags.begin(), lateral.qc_flags.end());
+    // A volume whose shifts cannot be estimated at all (B-scans too far apart: the 19- and
+    // 25-line protocols) is a note, not a QC flag, in the macula: jitter moves its parameters
+    // by about 1 % (docs/algorithms/cube.md, step 1), and a flag on every sparse volume would
+    // hide the flags that need a look. Large motion and too little slope stay flags.
+    std::vector<std::string> lateral_flags;
+    for (const std::string& f : lateral.qc_flags) {
+        if (f.rfind("lateral motion not estimated", 0) == 0) {
+            r.notes.insert(r.notes.begin(), f);
+        } else {
+            lateral_flags.push_back(f);
+        }
+    }
+    r.qc_flags.insert(r.qc_flags.begin(), lateral_flags.begin(), lateral_flags.end());
     r.notes.insert(r.notes.begin(), lateral.notes.begin(), lateral.notes.end());
     const retina::EtdrsReport etdrs = with_file_named(
         file, [&] { return retina::etdrs_report(scan, r, o.etdrs, upper, lower); });
