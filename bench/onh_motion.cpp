@@ -41,6 +41,7 @@
 #include "octshape/retina/lateral_registration.h"
 #include "octshape/retina/onh.h"
 #include "octshape/retina/phantom_onh.h"
+#include "fixtures/lateral_shifts.h"
 
 namespace {
 
@@ -56,24 +57,6 @@ std::vector<std::string> split(const std::string& s) {
 }
 
 double pct(double v, double t) { return 100.0 * (v - t) / t; }
-
-// RMS of (estimated - identifiable true) lateral shifts, um: the true ones without their first
-// smooth_modes cosines across the B-scans (what a smooth eye cannot tell from smooth motion,
-// docs/algorithms/onh.md "Lateral registration").
-double lateral_error_um(const LateralRegistration& reg, const std::vector<double>& true_px,
-                        double um_per_ascan) {
-    const auto n = static_cast<Eigen::Index>(true_px.size());
-    if (n < 2 || reg.shift_um.size() != true_px.size()) return 0.0;
-    const int K = std::max(1, reg.smooth_modes);
-    Eigen::MatrixXd X(n, K);
-    Eigen::VectorXd d(n);
-    for (Eigen::Index b = 0; b < n; ++b) {
-        for (int k = 0; k < K; ++k) X(b, k) = std::cos(M_PI * k * (static_cast<double>(b) + 0.5) / static_cast<double>(n));
-        d(b) = reg.shift_um[static_cast<std::size_t>(b)] - true_px[static_cast<std::size_t>(b)] * um_per_ascan;
-    }
-    const Eigen::VectorXd r = d - X * X.colPivHouseholderQr().solve(d);
-    return std::sqrt(r.squaredNorm() / static_cast<double>(n));
-}
 
 // RMS of (estimated - identifiable true) shifts, um.
 double shift_error_um(const AxialRegistration& reg, const std::vector<double>& true_px,
@@ -117,18 +100,6 @@ int real_files(const std::vector<std::string>& files) {
             }
             alone[keep] = estimate_lateral_motion(one).shift_um;
         }
-        const auto corr = [](const std::vector<double>& x, const std::vector<double>& y) {
-            const auto n = static_cast<double>(x.size());
-            double mx = 0.0, my = 0.0;
-            for (std::size_t i = 0; i < x.size(); ++i) { mx += x[i] / n; my += y[i] / n; }
-            double sxy = 0.0, sxx = 0.0, syy = 0.0;
-            for (std::size_t i = 0; i < x.size(); ++i) {
-                sxy += (x[i] - mx) * (y[i] - my);
-                sxx += (x[i] - mx) * (x[i] - mx);
-                syy += (y[i] - my) * (y[i] - my);
-            }
-            return sxx > 0.0 && syy > 0.0 ? sxy / std::sqrt(sxx * syy) : 0.0;
-        };
         std::string flags;
         for (const auto& q : lat.qc_flags) flags += "[" + q + "] ";
         const std::string name = f.substr(f.find_last_of('/') + 1);
@@ -137,7 +108,7 @@ int real_files(const std::vector<std::string>& files) {
                     lat.applied ? "yes" : "no", lat.rms_shift_um, lat.max_abs_shift_um,
                     lat.shift_se_um, lat.residual_rms_um, flags.c_str());
         std::printf("  ILM alone vs BM alone: correlation %.3f; ILM alone vs both %.3f\n",
-                    corr(alone[0], alone[1]), corr(alone[0], lat.shift_um));
+                    octshape::test::correlation(alone[0], alone[1]), octshape::test::correlation(alone[0], lat.shift_um));
     }
     return 0;
 }
@@ -275,7 +246,7 @@ int main(int argc, char** argv) {
                         for (const auto& f : reg.qc_flags) flags += "[" + f + "] ";
                         for (const auto& f : r.qc_flags) flags += "[" + f + "] ";
                         const double err = shift_error_um(reg, true_shifts, scan.meta.scale_z_mm * 1000.0, p.radial);
-                        const double lat_err = lateral_error_um(lat, true_lateral, scan.meta.scale_x_mm * 1000.0);
+                        const double lat_err = octshape::test::identifiable_lateral_error_um(lat, true_lateral, scan.meta.scale_x_mm * 1000.0);
                         std::printf("%-7s %6s %5s %-8s %-4s %+8.2f %+8.1f %+8.2f %+8.2f %+8.2f %+8.2f %+7.1f "
                                     "%+8.2f %+8.2f %+8.1f %9.2f %7.2f %7.2f %6.2f %7.3f %7.2f  %s\n",
                                     pattern.c_str(), m.c_str(), jit.c_str(), ilm_name.c_str(), mode == 2 ? "true" : reg_on ? "on" : "off",

@@ -21,6 +21,9 @@ while read -r bench; do
     # the same with the jitter in whole A-scans (no A-scans blended by the phantom).
     onh_motion) runs=("" "--pattern volume --motion 0,30 --jitter 0,10,30 --oracle"
                       "--pattern volume --motion 0 --jitter 10,30 --oracle --whole-jitter") ;;
+    # The macula's lateral registration (docs/algorithms/cube.md "Lateral registration
+    # (measured)"): noise-free and noisy whole-A-scan jitter; the real cubes: --file F.
+    macula_motion) runs=("" "--whole-jitter --seeds 3 --noise 1,2 --motion 0 --jitter 30") ;;
     *) runs=("") ;;
   esac
   for run in "${runs[@]}"; do

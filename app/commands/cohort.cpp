@@ -367,8 +367,13 @@ void add_cohort_options(CLI::App* cmd, CohortOptions& o) {
                     "Stop an eye still running after this many seconds and record it in "
                     "failures.csv (exit code 69); 0: no limit")
         ->capture_default_str();
-    add_macula_analysis_options(cmd, o.eye);
+    add_macula_analysis_options(cmd, o.eye, /*lateral_flag=*/false);
     add_onh_analysis_options(cmd, o.onh, /*per_eye_files=*/false);
+    // One --no-lateral-registration for both analyses (the ONH options add it): the macula's
+    // follows it once the command line is parsed.
+    cmd->parse_complete_callback([&o] {
+        o.eye.params.lateral_registration.enabled = o.onh.params.lateral_registration.enabled;
+    });
     add_subject_options(cmd, o.subjects);
 }
 

@@ -33,7 +33,14 @@ std::string macula_options_text(const MaculaEyeOptions& o) {
       << " centre_fit_radius_mm=" << p.centre_fit_radius_mm << " max_rounds=" << p.max_rounds
       << " energy_tolerance=" << p.energy_tolerance << " rim_point=" << o.rim_point
       << " rmse_warning_um=" << p.rmse_warning_um
-      << " local_fit_min_noise_um=" << p.local_fit_min_noise_um << " centre_mm=";
+      << " local_fit_min_noise_um=" << p.local_fit_min_noise_um
+      << " lateral_registration=" << (p.lateral_registration.enabled ? "true" : "false")
+      << " lateral_registration_wavelength_mm=" << p.lateral_registration.smooth_wavelength_mm
+      << " lateral_registration_wavelength_bscans=" << p.lateral_registration.smooth_wavelength_bscans
+      << " lateral_registration_line_smoothing_ascans="
+      << p.lateral_registration.line_smoothing_ascans
+      << " lateral_registration_whole_ascans="
+      << (p.lateral_registration.whole_ascans ? "true" : "false") << " centre_mm=";
     if (p.centre_mm) {
       s << p.centre_mm->x() << "," << p.centre_mm->y();
     } else {
@@ -61,7 +68,7 @@ retina::CubeParams effective_params(const MaculaEyeOptions& o) {
     return p;
 }
 
-void add_macula_analysis_options(CLI::App* cmd, MaculaEyeOptions& o) {
+void add_macula_analysis_options(CLI::App* cmd, MaculaEyeOptions& o, bool lateral_flag) {
     auto& p = o.params;
     cmd->add_option("--half-lines", p.num_half_lines, "Number of radial half-lines n (even)")
         ->capture_default_str();
@@ -83,6 +90,12 @@ void add_macula_analysis_options(CLI::App* cmd, MaculaEyeOptions& o) {
                     "SDs of the maximum) or maximum (the maximum sample, as in the thesis)")
         ->check(CLI::IsMember({"crest", "maximum"}))
         ->capture_default_str();
+    if (lateral_flag) {
+        cmd->add_flag_callback(
+            "--no-lateral-registration", [&p] { p.lateral_registration.enabled = false; },
+            "Do not remove the lateral shifts of a volume's B-scans (estimated from the ILM and "
+            "BM lines and reported either way; docs/algorithms/cube.md)");
+    }
     cmd->add_option("--etdrs-layers", o.etdrs_layers,
                     "ETDRS sector thickness between these two lines, UPPER,LOWER (names as "
                     "`octshape info` lists them, e.g. ILM,RNFL)")
@@ -133,19 +146,45 @@ MaculaEye analyse_macula_eye(const std::string& file,
                              MaculaEyeOptions o,
                              const SubjectSource& subjects) {
     Provenance prov("macula");
-    const io::Scan& scan = input.scan;
     const std::string& sha = input.sha256;
     o.params = effective_params(o);
     if (o.check_scan_type) {
-        const auto type = retina::classify_scan(scan);
+        const auto type = retina::classify_scan(input.scan);
         if (type.type == retina::ScanType::kOnh) {
             throw AnalysisError(file + ": an optic nerve head scan, not a macula scan (" +
                                 type.reason + "); --no-type-check analyses it anyway");
         }
     }
     const auto [upper, lower] = etdrs_layer_names(o.etdrs_layers);
+    // Lateral registration of a volume's B-scans before the thickness map (docs/algorithms/
+    // cube.md, step 1): the scan is copied only when something moves; a still scan is analysed
+    // as read.
+    const retina::LateralRegistration lateral = with_file_named(
+        file, [&] { return retina::estimate_lateral_motion(input.scan, o.params.lateral_registration); });
+    io::Scan registered;
+    if (lateral.applied) {
+        registered = input.scan;
+        retina::apply_lateral_registration(registered, lateral);
+    }
+    const io::Scan& scan = lateral.applied ? registered : input.scan;
+    prov.mark("lateral_registration");
     retina::CubeResult r =
         with_file_named(file, [&] { return retina::analyse_macula(scan, o.params); });
+    r.lateral_registration = lateral;
+    // A volume whose shifts cannot be estimated at all (B-scans too far apart: the 19- and
+    // 25-line protocols) is a note, not a QC flag, in the macula: jitter moves its parameters
+    // by about 1 % (docs/algorithms/cube.md, step 1), and a flag on every sparse volume would
+    // hide the flags that need a look. Large motion and too little slope stay flags.
+    std::vector<std::string> lateral_flags;
+    for (const std::string& f : lateral.qc_flags) {
+        if (f.rfind("lateral motion not estimated", 0) == 0) {
+            r.notes.insert(r.notes.begin(), f);
+        } else {
+            lateral_flags.push_back(f);
+        }
+    }
+    r.qc_flags.insert(r.qc_flags.begin(), lateral_flags.begin(), lateral_flags.end());
+    r.notes.insert(r.notes.begin(), lateral.notes.begin(), lateral.notes.end());
     const retina::EtdrsReport etdrs = with_file_named(
         file, [&] { return retina::etdrs_report(scan, r, o.etdrs, upper, lower); });
     // The device comparison's flags are the eye's: in the JSON's and the CSV's qc_flags.

@@ -62,6 +62,9 @@ using MaculaEye = EyeResult;
 [[nodiscard]] nlohmann::ordered_json macula_options(const MaculaEyeOptions& options);
 
 // Adds the CuBe options (--half-lines, --radius-mm, ...) to a command.
-void add_macula_analysis_options(CLI::App* cmd, MaculaEyeOptions& options);
+// `lateral_flag` false: no --no-lateral-registration of its own (cohort: one flag for both
+// analyses, add_cohort_options).
+void add_macula_analysis_options(CLI::App* cmd, MaculaEyeOptions& options,
+                                 bool lateral_flag = true);
 
 }  // namespace octshape::app

@@ -36,6 +36,19 @@ std::string printf_number(const char* format, double value) {
     return b;
 }
 
+std::string registration_title(double up_um, double left_um) {
+    const double up = std::fabs(up_um) < 0.5 ? 0.0 : up_um;
+    const double left = std::fabs(left_um) < 0.5 ? 0.0 : left_um;
+    std::string t;
+    if (up != 0.0) t = printf_number(up > 0.0 ? ", moved %.0f um up" : ", moved %.0f um down", std::fabs(up));
+    if (left != 0.0) {
+        t += printf_number(t.empty() ? (left > 0.0 ? ", moved %.0f um left" : ", moved %.0f um right")
+                                     : (left > 0.0 ? ", %.0f um left" : ", %.0f um right"),
+                           std::fabs(left));
+    }
+    return t;
+}
+
 void outlined_text(cv::Mat& img, const std::string& s, cv::Point p, double scale, cv::Scalar c) {
     cv::putText(img, s, p, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(0, 0, 0), 3, cv::LINE_AA);
     cv::putText(img, s, p, cv::FONT_HERSHEY_SIMPLEX, scale, c, 1, cv::LINE_AA);

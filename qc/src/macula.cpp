@@ -407,6 +407,15 @@ cv::Mat macula_radial_thickness_picture(const retina::CubeResult& r, const io::S
     return stack({title_strip(W + bar_w, 34, title), body, legend});
 }
 
+// What the lateral registration did to B-scan b, as the ONH pictures say it (draw.h): the shift
+// it moved the lines by (rounded to whole A-scans of um_per_ascan when whole_ascans).
+static std::string lateral_title(const retina::LateralRegistration& l, int b, double um_per_ascan) {
+    if (!l.applied || b < 0 || static_cast<std::size_t>(b) >= l.shift_um.size()) return "";
+    double moved = l.shift_um[static_cast<std::size_t>(b)];
+    if (l.whole_ascans && um_per_ascan > 0.0) moved = std::round(moved / um_per_ascan) * um_per_ascan;
+    return registration_title(0.0, moved);
+}
+
 cv::Mat macula_bscan_picture(const retina::CubeResult& r, const io::Scan& scan,
                              const std::string& title, int* bscan_out) {
     const int nb = scan.num_bscans();
@@ -496,7 +505,8 @@ cv::Mat macula_bscan_picture(const retina::CubeResult& r, const io::Scan& scan,
                       (pixels ? ""
                               : scan.meta.format == io::SourceFormat::kIowaSurfaces
                                     ? "; a segmentation file has no pixels"
-                                    : "; the export has no pixels"),
+                                    : "; the export has no pixels") +
+                      lateral_title(r.lateral_registration, b, scan.meta.scale_x_mm * 1000.0),
                   {10, 24}, 0.55, palette::kWhite);
     scale_bar(img, {14, H - 14}, W / (w * scan.meta.scale_x_mm), palette::kWhite);
 

@@ -3,11 +3,13 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "fixtures/lateral_shifts.h"
 #include "octshape/io/sha256.h"
 #include "octshape/io/vol.h"
 #include "octshape/retina/phantom_macula.h"
@@ -43,6 +45,9 @@ TEST(MaculaCli, BezierSampleMatchesItsTruth) {
     EXPECT_EQ(slurp(dir / "eye.json").find("FAKE-PHANTOM"), std::string::npos);  // no identifiers
     EXPECT_NE(j["orientation"].get<std::string>().find("0 deg nasal"), std::string::npos);
     EXPECT_EQ(j["centre"]["source"], "device thickness grid");
+    // A still eye: the lateral registration estimates and moves nothing (the scan as read).
+    EXPECT_EQ(j["lateral_registration"]["estimable"], true);
+    EXPECT_EQ(j["lateral_registration"]["applied"], false);
     ASSERT_EQ(j["half_lines"].size(), 24U);
     EXPECT_EQ(j["half_lines"][0]["interior_control_points_mm"].size(), 4U);
     // One list of options (issue 33): the JSON's are the provenance's, under the command
@@ -126,6 +131,47 @@ TEST(MaculaCli, BezierSampleMatchesItsTruth) {
             EXPECT_NE(rv[i], "NA") << hv[i];
         }
     }
+}
+
+// Lateral registration of a macular volume (docs/algorithms/cube.md, step 1): on by default,
+// recorded in the options and the provenance; off, the shifts are still estimated and reported
+// and the large-motion flag says they were not removed. The JSON's shifts follow the truth
+// file's: 49 B-scans over 7.5 mm leave the 20 smoothest cosines to the eye, so for white jitter
+// an exact estimate of the rest correlates sqrt(29 / 49) = 0.77 with the truth; a floor of 0.7
+// (the estimate's own error, ~1 um against 30 um, costs < 0.01). The RMS of that part,
+// 30 x 0.77 = 23 um, is above the 15 um flag.
+TEST(MaculaCli, LateralRegistrationIsOnByDefaultAndRecorded) {
+    test::TempDir dir;
+    const auto vol = dir / "jitter.vol";
+    ASSERT_EQ(test::run_octshape("phantom macula --bscans 49 --ascans 256 --jitter-um 30 -o " +
+                                 vol.string())
+                  .exit_code,
+              0);
+    const json truth = json::parse(slurp(dir / "jitter.truth.json"));
+    const auto on = test::run_octshape("macula " + vol.string() + " -o " + (dir / "on.json").string());
+    ASSERT_EQ(on.exit_code, 0) << on.err;
+    const auto off = test::run_octshape("macula " + vol.string() + " --no-lateral-registration -o " +
+                                        (dir / "off.json").string());
+    ASSERT_EQ(off.exit_code, 0) << off.err;
+    const json a = json::parse(slurp(dir / "on.json"));
+    const json b = json::parse(slurp(dir / "off.json"));
+    EXPECT_EQ(a["options"]["lateral_registration"], true);
+    EXPECT_EQ(b["options"]["lateral_registration"], false);
+    EXPECT_EQ(a["provenance"]["options"]["lateral_registration"], true);
+    EXPECT_EQ(a["options"]["lateral_registration_wavelength_mm"], 0.75);
+    EXPECT_EQ(a["options"]["lateral_registration_line_smoothing_ascans"], 4);
+    EXPECT_EQ(a["options"]["lateral_registration_wavelength_bscans"], 8);
+    EXPECT_EQ(a["options"]["lateral_registration_whole_ascans"], true);
+    EXPECT_EQ(a["lateral_registration"]["applied"], true);
+    EXPECT_EQ(a["lateral_registration"]["smooth_modes"], 20);
+    EXPECT_EQ(b["lateral_registration"]["applied"], false);
+    const auto& t = truth["acquisition"]["lateral_shift_um"];
+    const auto& e = a["lateral_registration"]["shift_um"];
+    ASSERT_EQ(e.size(), t.size());
+    EXPECT_EQ(b["lateral_registration"]["shift_um"], e);  // estimated either way
+    EXPECT_GT(test::correlation(e.get<std::vector<double>>(), t.get<std::vector<double>>()), 0.7);
+    EXPECT_TRUE(test::has_qc_flag(a, "large lateral motion between B-scans (registered)"));
+    EXPECT_TRUE(test::has_qc_flag(b, "large lateral motion between B-scans (not registered)"));
 }
 
 TEST(MaculaCli, LineScanOmitsTheThreeDimensionalParameters) {

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "fixtures/lateral_shifts.h"
 #include "octshape/io/mesh_io.h"
 #include "octshape/io/sha256.h"
 #include "octshape/io/scan_reader.h"
@@ -115,28 +116,9 @@ TEST(OnhCli, LateralRegistrationIsOnByDefaultAndRecorded) {
     const auto& e = a["lateral_registration"]["shift_um"];
     ASSERT_EQ(e.size(), t.size());
     EXPECT_EQ(b["lateral_registration"]["shift_um"], e);  // estimated either way
-    double me = 0.0, mt = 0.0;
-    for (std::size_t k = 0; k < t.size(); ++k) {
-        me += e[k].get<double>() / static_cast<double>(t.size());
-        mt += t[k].get<double>() / static_cast<double>(t.size());
-    }
-    double see = 0.0, stt = 0.0, set = 0.0;
-    for (std::size_t k = 0; k < t.size(); ++k) {
-        const double de = e[k].get<double>() - me;
-        const double dt = t[k].get<double>() - mt;
-        see += de * de;
-        stt += dt * dt;
-        set += de * dt;
-    }
-    EXPECT_GT(set / std::sqrt(see * stt), 0.8);
-    auto has = [](const json& j, const std::string& flag) {
-        for (const auto& f : j["qc_flags"]) {
-            if (f.get<std::string>() == flag) return true;
-        }
-        return false;
-    };
-    EXPECT_TRUE(has(a, "large lateral motion between B-scans (registered)"));
-    EXPECT_TRUE(has(b, "large lateral motion between B-scans (not registered)"));
+    EXPECT_GT(test::correlation(e.get<std::vector<double>>(), t.get<std::vector<double>>()), 0.8);
+    EXPECT_TRUE(test::has_qc_flag(a, "large lateral motion between B-scans (registered)"));
+    EXPECT_TRUE(test::has_qc_flag(b, "large lateral motion between B-scans (not registered)"));
 }
 
 TEST(OnhCli, JsonCsvQcAndMeshesOfAPhantom) {

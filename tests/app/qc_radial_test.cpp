@@ -93,7 +93,9 @@ TEST(OnhQc, RegistrationTitleSaysBothShifts) {
     EXPECT_EQ(qc::registration_title(r, 3), "");
     EXPECT_EQ(qc::registration_title(r, 4), "");  // beyond the shifts
     r.lateral_registration.applied = false;  // estimated, not removed: not said
-    EXPECT_EQ(qc::registration_title(r, 0), ", moved 12 um up");
+    EXPECT_EQ(qc::registration_title(r, 0), ", moved 12 um up");    // The macula's B-scan picture says its lateral shift the same way (one function, draw.h).
+    EXPECT_EQ(qc::registration_title(0.0, 9.0), ", moved 9 um left");
+    EXPECT_EQ(qc::registration_title(0.0, -0.4), "");
 }
 
 TEST(OnhRadialQc, EnfaceDrawsEachBmoPointOnItsLine) {

@@ -160,6 +160,7 @@ void CubeParams::validate() const {
     auto bad = [](const std::string& field, const std::string& why) {
         throw UsageError("macula parameter " + field + ": " + why);
     };
+    lateral_registration.validate();
     if (num_half_lines < 4 || num_half_lines % 2 != 0 || num_half_lines > 3600) {
         bad("num_half_lines", "must be even and in 4..3600");
     }

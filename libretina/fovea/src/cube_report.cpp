@@ -169,6 +169,8 @@ J cube_json(const CubeResult& r, const CubeParams& p, const J& options) {
         r.noise_adaptive_samples ? "local fit (CFT pass), sector bins (final fit)" : "bilinear";
     noise["centre_fit_radius_mm"] = num(r.centre_fit_radius_mm);
     j["noise"] = noise;
+    // What the lateral registration of the B-scans did before the map (docs/outputs.md).
+    j["lateral_registration"] = lateral_registration_json(r.lateral_registration);
     J hl = J::array();
     for (const auto& h : r.half_lines) {
         J e;

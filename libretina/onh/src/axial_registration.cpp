@@ -339,4 +339,16 @@ AxialRegistration register_axially(io::Scan& scan, const AxialRegistrationParams
     return r;
 }
 
+void register_bmo_points_laterally(std::vector<BmoPoint>& points, const io::Scan& scan,
+                                   const LateralRegistration& registration) {
+    if (!registration.applied || registration.shift_um.empty()) return;
+    const int nb = static_cast<int>(registration.shift_um.size());
+    for (BmoPoint& p : points) {
+        const int b = bscan_of_bmo_point(p, scan);
+        if (b < 0 || b >= nb) continue;
+        // The B-scan's content moves towards lower A-scans by its shift.
+        p.mm.x() -= registration.shift_um[static_cast<std::size_t>(b)] * 1e-3;
+    }
+}
+
 }  // namespace octshape::retina

@@ -103,18 +103,6 @@ J radial_json(const OnhResult& r) {
     return rad;
 }
 
-// The per-B-scan arrays of a registration: shift_um[] and estimated[] (index = B-scan, from 0).
-void put_shifts(J& j, const std::vector<double>& shift_um, const std::vector<bool>& estimated) {
-    J shifts = J::array();
-    J est = J::array();
-    for (std::size_t b = 0; b < shift_um.size(); ++b) {
-        shifts.push_back(shift_um[b]);
-        est.push_back(b < estimated.size() && estimated[b]);
-    }
-    j["shift_um"] = std::move(shifts);
-    j["estimated"] = std::move(est);
-}
-
 }  // namespace
 
 J onh_json(const OnhResult& r, const J& options) {
@@ -145,30 +133,7 @@ J onh_json(const OnhResult& r, const J& options) {
         put_shifts(reg, a.shift_um, a.estimated);
         j["axial_registration"] = std::move(reg);
     }
-    {
-        // Per B-scan (from 0): the lateral shift estimated (+ = the B-scan lay towards higher
-        // A-scans than the eye) and removed when applied.
-        const LateralRegistration& l = r.lateral_registration;
-        J lat;
-        lat["applied"] = l.applied;
-        lat["estimable"] = l.estimable;
-        lat["model"] =
-            "the device ILM and BM lines smoothest across B-scans: second differences across "
-            "B-scans of the shifted lines (robust least squares, per-B-scan depth offsets free); "
-            "shifts varying slower than smooth_wavelength_mm across B-scans belong to the eye "
-            "(docs/algorithms/onh.md)";
-        lat["smooth_wavelength_mm"] = l.smooth_wavelength_mm;
-        lat["smooth_modes"] = l.smooth_modes;
-        lat["rms_shift_um"] = l.rms_shift_um;
-        lat["max_abs_shift_um"] = l.max_abs_shift_um;
-        lat["shift_se_um"] = l.shift_se_um;
-        lat["residual_rms_um"] = l.residual_rms_um;
-        lat["values_used"] = l.values_used;
-        lat["values_rejected"] = l.values_rejected;
-        lat["bscans_not_estimated"] = l.bscans_not_estimated;
-        put_shifts(lat, l.shift_um, l.estimated);
-        j["lateral_registration"] = std::move(lat);
-    }
+    j["lateral_registration"] = lateral_registration_json(r.lateral_registration);
 
     J v;
     v["has_cup"] = r.has_cup;

@@ -39,6 +39,11 @@ void save_png(const cv::Mat& img, const std::string& path);
 // snprintf of one number, e.g. printf_number("CFT %.1f um", 231.4).
 [[nodiscard]] std::string printf_number(const char* format, double value);
 
+// What the registrations did to one B-scan, for its title: ", moved 12 um up" (axial, + = up),
+// ", moved 9 um left" (lateral, + = towards lower A-scans), both ", moved 12 um up, 9 um left";
+// a value under 0.5 um is left out, nothing moved gives "". The ONH and macula pictures alike.
+[[nodiscard]] std::string registration_title(double up_um, double left_um);
+
 // Text in colour `c` with a black outline, readable on any background.
 void outlined_text(cv::Mat& img, const std::string& s, cv::Point p, double scale, cv::Scalar c);
 

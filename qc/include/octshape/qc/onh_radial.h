@@ -35,19 +35,10 @@ inline const cv::Scalar& kMrw = palette::kPink;
 inline std::string registration_title(const retina::OnhResult& r, int b) {
     const auto moved = [b](bool applied, const std::vector<double>& s) {
         if (!applied || b < 0 || static_cast<std::size_t>(b) >= s.size()) return 0.0;
-        const double v = s[static_cast<std::size_t>(b)];
-        return std::fabs(v) < 0.5 ? 0.0 : v;
+        return s[static_cast<std::size_t>(b)];
     };
-    const double up = moved(r.axial_registration.applied, r.axial_registration.shift_um);
-    const double left = moved(r.lateral_registration.applied, r.lateral_registration.shift_um);
-    std::string t;
-    if (up != 0.0) t = printf_number(up > 0.0 ? ", moved %.0f um up" : ", moved %.0f um down", std::fabs(up));
-    if (left != 0.0) {
-        t += printf_number(t.empty() ? (left > 0.0 ? ", moved %.0f um left" : ", moved %.0f um right")
-                                     : (left > 0.0 ? ", %.0f um left" : ", %.0f um right"),
-                           std::fabs(left));
-    }
-    return t;
+    return registration_title(moved(r.axial_registration.applied, r.axial_registration.shift_um),
+                              moved(r.lateral_registration.applied, r.lateral_registration.shift_um));
 }
 
 // En-face picture: the (n - 1) x (n - 1) cells of the radial grid, `ppm` pixels per mm, inside

@@ -21,6 +21,7 @@
 
 #include "octshape/io/scan.h"
 #include "octshape/retina/bmo.h"
+#include "octshape/retina/lateral_registration.h"
 
 namespace octshape::retina {
 
@@ -65,6 +66,10 @@ void register_bmo_points(std::vector<BmoPoint>& points, const io::Scan& scan,
 // The B-scan a BMO point belongs to: its own, or (a point from an x_mm,y_mm,z_mm file) the
 // B-scan nearest its y; -1 when neither.
 [[nodiscard]] int bscan_of_bmo_point(const BmoPoint& point, const io::Scan& scan);
+// Moves BMO points given in the unregistered scan with the lateral registration (towards lower
+// A-scans by their B-scan's shift; lateral_registration.h). No-op unless applied.
+void register_bmo_points_laterally(std::vector<BmoPoint>& points, const io::Scan& scan,
+                                   const LateralRegistration& registration);
 // Both: estimate, then apply when params.enabled.
 [[nodiscard]] AxialRegistration register_axially(io::Scan& scan,
                                                  const AxialRegistrationParams& params = {});

@@ -1,6 +1,7 @@
 #pragma once
-// Lateral registration of the B-scans of a volume before any surface is built
-// (docs/algorithms/onh.md, "Lateral registration").
+// Lateral registration of the B-scans of a volume before any surface is built, for the ONH and
+// the macula analyses alike (docs/algorithms/onh.md, "Lateral registration";
+// docs/algorithms/cube.md for the macula).
 //
 // A tracking error moves a whole B-scan along its A-scans: B-scan b's content lies s_b A-scans
 // towards higher A-scans than the eye, while the header's positions are unchanged. The eye's
@@ -17,18 +18,30 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "octshape/io/scan.h"
-#include "octshape/retina/bmo.h"
 
 namespace octshape::retina {
 
 struct LateralRegistrationParams {
     bool enabled = true;
     double smooth_wavelength_mm = 0.75;  // shifts varying slower across B-scans: the eye's
+    // The cut-off at most this many B-scans (0 = off): for dense volumes, whose modes just above a
+    // cut-off of many B-scans are hardly estimable (docs/algorithms/cube.md "Lateral registration
+    // (measured)"). The result's smooth_wavelength_mm is the cut-off used.
+    double smooth_wavelength_bscans = 0.0;
     double min_rms_um = 5.0;         // below this RMS nothing is moved (a still eye's floor)
     double large_motion_um = 15.0;   // flag when the RMS of the shifts exceeds this
     double max_shift_se_um = 5.0;    // not estimable (nothing applied) above this median SE
     double min_line_fraction = 0.1;  // a B-scan with fewer valid ILM+BM values is not estimated
+    // The lines smoothed along their A-scans by a Gaussian of this SD (A-scans) before the fit;
+    // 0 = as read.
+    double line_smoothing_ascans = 0.0;
+    // The lines moved by the shift rounded to whole A-scans too (as the pixels always are): each
+    // B-scan keeps the device's own values and their noise (false: the fractional shift,
+    // linear between samples).
+    bool whole_ascans = false;
 
     void validate() const;  // throws UsageError naming the field
 };
@@ -48,7 +61,8 @@ struct LateralRegistration {
     int values_rejected = 0;        // outliers (Tukey weight 0)
     int iterations = 0;
     int smooth_modes = 0;           // cosines across B-scans given to the eye
-    double smooth_wavelength_mm = 0.0;  // the parameter they come from
+    double smooth_wavelength_mm = 0.0;  // the cut-off they come from (after smooth_wavelength_bscans)
+    bool whole_ascans = false;          // the lines too were moved by whole A-scans (params)
     std::vector<std::string> qc_flags;
     std::vector<std::string> notes;
 };
@@ -59,12 +73,12 @@ struct LateralRegistration {
     const io::Scan& scan, const LateralRegistrationParams& params = {});
 // Removes the estimated shifts from every B-scan (pixels and lines). No-op unless applied.
 void apply_lateral_registration(io::Scan& scan, const LateralRegistration& registration);
-// Moves BMO points given in the unregistered scan with it (a point of an x_mm,y_mm,z_mm file:
-// the B-scan nearest its y).
-void register_bmo_points_laterally(std::vector<BmoPoint>& points, const io::Scan& scan,
-                                   const LateralRegistration& registration);
+// (The BMO points of a --bmo file move with their B-scan: register_bmo_points_laterally,
+// axial_registration.h.)
 // Both: estimate, then apply when params.enabled.
 [[nodiscard]] LateralRegistration register_laterally(
     io::Scan& scan, const LateralRegistrationParams& params = {});
+// The per-eye JSON's "lateral_registration" object (docs/outputs.md), the same for both analyses.
+[[nodiscard]] nlohmann::ordered_json lateral_registration_json(const LateralRegistration& l);
 
 }  // namespace octshape::retina

@@ -10,7 +10,6 @@
 #include <Eigen/Dense>
 
 #include "octshape/error.h"
-#include "octshape/retina/axial_registration.h"
 #include "octshape/retina/radial_geometry.h"
 #include "octshape/retina/report_util.h"
 
@@ -203,6 +202,46 @@ Eigen::VectorXd solve_step(Pass& p, int nb, int smooth_modes, Eigen::VectorXd* s
     return ldlt.solve(p.rhs);
 }
 
+// The model lines of `scan` alone (no pixels), each smoothed along its A-scans by a Gaussian of
+// SD `sd` A-scans (normalised over the present values within 3 SD; a missing value stays
+// missing). A smoothing along the A-scans commutes with a shift along them, so the shifts are
+// unchanged; what it removes is the noise of single values, which otherwise (a) makes the
+// slopes, the Jacobian, mostly noise where the surface is flat and (b) favours fractional
+// shifts, because a linear interpolation between two noisy values halves their variance at half
+// an A-scan (docs/algorithms/onh.md, "Lateral registration").
+io::Scan smoothed_lines(const io::Scan& scan, const std::vector<int>& lines, double sd) {
+    io::Scan out;
+    out.meta = scan.meta;
+    out.bscans.resize(scan.bscans.size());
+    const int nx = scan.meta.size_x;
+    const int half = static_cast<int>(std::ceil(3.0 * sd));
+    std::vector<double> w(static_cast<std::size_t>(half + 1));
+    for (int d = 0; d <= half; ++d) w[static_cast<std::size_t>(d)] = std::exp(-0.5 * d * d / (sd * sd));
+    for (std::size_t b = 0; b < scan.bscans.size(); ++b) {
+        for (int k : lines) {
+            const std::vector<float>* l = line_of(scan, static_cast<int>(b), k);
+            if (!l) continue;
+            auto& seg = out.bscans[b].seg;
+            if (static_cast<int>(seg.size()) <= k) seg.resize(static_cast<std::size_t>(k + 1));
+            std::vector<float> sm(l->size(), std::numeric_limits<float>::quiet_NaN());
+            for (int a = 0; a < nx; ++a) {
+                if (!io::is_valid((*l)[static_cast<std::size_t>(a)])) continue;
+                double sw = 0.0, sv = 0.0;
+                for (int d = -half; d <= half; ++d) {
+                    const int x = a + d;
+                    if (x < 0 || x >= nx || !io::is_valid((*l)[static_cast<std::size_t>(x)])) continue;
+                    const double wd = w[static_cast<std::size_t>(std::abs(d))];
+                    sw += wd;
+                    sv += wd * (*l)[static_cast<std::size_t>(x)];
+                }
+                sm[static_cast<std::size_t>(a)] = static_cast<float>(sv / sw);
+            }
+            seg[static_cast<std::size_t>(k)] = std::move(sm);
+        }
+    }
+    return out;
+}
+
 double median_of(std::vector<double> v) {
     if (v.empty()) return 0.0;
     const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
@@ -225,6 +264,12 @@ void LateralRegistrationParams::validate() const {
     require(std::isfinite(min_rms_um) && min_rms_um >= 0.0, "min_rms_um", "must be >= 0");
     require(min_line_fraction > 0.0 && min_line_fraction < 1.0, "min_line_fraction",
             "must be in (0, 1)");
+    require(std::isfinite(smooth_wavelength_bscans) &&
+                (smooth_wavelength_bscans == 0.0 || smooth_wavelength_bscans >= 4.0),
+            "smooth_wavelength_bscans", "must be 0 (off) or at least 4");
+    require(std::isfinite(line_smoothing_ascans) && line_smoothing_ascans >= 0.0 &&
+                line_smoothing_ascans <= 16.0,
+            "line_smoothing_ascans", "must be in [0, 16]");
 }
 
 LateralRegistration estimate_lateral_motion(const io::Scan& scan,
@@ -232,6 +277,7 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
     params.validate();
     LateralRegistration R;
     R.enabled = params.enabled;
+    R.whole_ascans = params.whole_ascans;
     R.smooth_wavelength_mm = params.smooth_wavelength_mm;
     const int nb = scan.num_bscans();
     const int nx = scan.meta.size_x;
@@ -241,6 +287,10 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
     const double um_per_px = scan.meta.scale_z_mm * 1000.0;
     if (is_radial_scan(scan)) {
         R.notes.push_back("lateral registration: not estimated on a radial scan");
+        return R;
+    }
+    if (nb < 2) {
+        R.notes.push_back("lateral registration: not estimated on a single B-scan");
         return R;
     }
     if (nb > kMaxBscans) {
@@ -277,7 +327,14 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
     }
     // Cosine modes across the B-scans with a wavelength above smooth_wavelength_mm: the eye's.
     const double extent_mm = (nb - 1) * scan.meta.distance_mm;
-    R.smooth_modes = std::max(2, static_cast<int>(std::ceil(2.0 * extent_mm / params.smooth_wavelength_mm)));
+    // Capped at smooth_wavelength_bscans B-scans (when set): on dense B-scans a shift just above
+    // a cut-off of many B-scans barely changes a second difference, and the noise lands there.
+    double wavelength = params.smooth_wavelength_mm;
+    if (params.smooth_wavelength_bscans > 0.0) {
+        wavelength = std::min(wavelength, params.smooth_wavelength_bscans * scan.meta.distance_mm);
+    }
+    R.smooth_wavelength_mm = wavelength;
+    R.smooth_modes = std::max(2, static_cast<int>(std::ceil(2.0 * extent_mm / wavelength)));
     if (2 * R.smooth_modes > nb) {
         R.qc_flags.push_back("lateral motion not estimated (B-scans too far apart)");
         R.notes.push_back("lateral registration: the B-scans are " +
@@ -288,6 +345,9 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
         return R;
     }
     const int smooth_modes = R.smooth_modes;
+    io::Scan smoothed;
+    if (params.line_smoothing_ascans > 0.0) smoothed = smoothed_lines(scan, lines, params.line_smoothing_ascans);
+    const io::Scan& fit = params.line_smoothing_ascans > 0.0 ? smoothed : scan;
     Eigen::VectorXd s = Eigen::VectorXd::Zero(nb);
     Eigen::VectorXd o = Eigen::VectorXd::Zero(nb);
     Eigen::VectorXd se_diag = Eigen::VectorXd::Zero(nb);
@@ -295,7 +355,7 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
     Pass last;
     constexpr int kMaxIterations = 20;
     for (int iter = 0; iter < kMaxIterations; ++iter) {
-        last = gauss_newton_pass(scan, lines, use, s, o, scale, 2);
+        last = gauss_newton_pass(fit, lines, use, s, o, scale, 2);
         R.iterations = iter + 1;
         if (last.inliers < 3.0 * nb) break;
         const Eigen::VectorXd d = solve_step(last, nb, smooth_modes, nullptr);
@@ -310,7 +370,7 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
         if (iter >= 4 && f * big < 1e-4) break;
     }
     // The standard errors from the final weights (one more pass at the solution).
-    last = gauss_newton_pass(scan, lines, use, s, o, scale, 2);
+    last = gauss_newton_pass(fit, lines, use, s, o, scale, 2);
     if (last.inliers >= 3.0 * nb) (void)solve_step(last, nb, smooth_modes, &se_diag);
     const bool solved = s.allFinite() && se_diag.allFinite();
     if (!solved) {
@@ -362,9 +422,11 @@ void apply_lateral_registration(io::Scan& scan, const LateralRegistration& regis
     if (!registration.applied) return;
     const double um_per_ascan = scan.meta.scale_x_mm * 1000.0;
     for (int b = 0; b < scan.num_bscans(); ++b) {
-        const double dx = -registration.shift_um[static_cast<std::size_t>(b)] / um_per_ascan;
+        const double raw = -registration.shift_um[static_cast<std::size_t>(b)] / um_per_ascan;
+        const double dx = registration.whole_ascans ? std::round(raw) : raw;
         io::BScan& bs = scan.bscans[static_cast<std::size_t>(b)];
-        // The lines by the shift itself (below 1e-3 A-scans numerically zero).
+        // The lines by the shift itself, or by whole A-scans (whole_ascans); below 1e-3 A-scans
+        // nothing moves.
         if (std::fabs(dx) >= 1e-3) {
             std::vector<float> pixels;
             pixels.swap(bs.pixels);
@@ -385,22 +447,34 @@ void apply_lateral_registration(io::Scan& scan, const LateralRegistration& regis
     }
 }
 
-void register_bmo_points_laterally(std::vector<BmoPoint>& points, const io::Scan& scan,
-                                   const LateralRegistration& registration) {
-    if (!registration.applied || registration.shift_um.empty()) return;
-    const int nb = static_cast<int>(registration.shift_um.size());
-    for (BmoPoint& p : points) {
-        const int b = bscan_of_bmo_point(p, scan);
-        if (b < 0 || b >= nb) continue;
-        // The B-scan's content moves towards lower A-scans by its shift.
-        p.mm.x() -= registration.shift_um[static_cast<std::size_t>(b)] * 1e-3;
-    }
-}
-
 LateralRegistration register_laterally(io::Scan& scan, const LateralRegistrationParams& params) {
     LateralRegistration r = estimate_lateral_motion(scan, params);
     apply_lateral_registration(scan, r);
     return r;
+}
+
+nlohmann::ordered_json lateral_registration_json(const LateralRegistration& l) {
+    // Per B-scan (from 0): the lateral shift estimated (+ = the B-scan lay towards higher
+    // A-scans than the eye) and removed when applied.
+    nlohmann::ordered_json lat;
+    lat["applied"] = l.applied;
+    lat["estimable"] = l.estimable;
+    lat["model"] =
+        "the device ILM and BM lines smoothest across B-scans: second differences across "
+        "B-scans of the shifted lines (robust least squares, per-B-scan depth offsets free); "
+        "shifts varying slower than smooth_wavelength_mm across B-scans belong to the eye "
+        "(docs/algorithms/onh.md)";
+    lat["smooth_wavelength_mm"] = l.smooth_wavelength_mm;
+    lat["smooth_modes"] = l.smooth_modes;
+    lat["rms_shift_um"] = l.rms_shift_um;
+    lat["max_abs_shift_um"] = l.max_abs_shift_um;
+    lat["shift_se_um"] = l.shift_se_um;
+    lat["residual_rms_um"] = l.residual_rms_um;
+    lat["values_used"] = l.values_used;
+    lat["values_rejected"] = l.values_rejected;
+    lat["bscans_not_estimated"] = l.bscans_not_estimated;
+    put_shifts(lat, l.shift_um, l.estimated);
+    return lat;
 }
 
 }  // namespace octshape::retina
