@@ -17,11 +17,14 @@
 // disc instead of the cupped one; --lines N: radial lines; --on-only: the registered rows alone;
 // --residual-only: the still eye's pixels with every line moved by the fractional part of the
 // true shift (what the axial registration's whole-row pixel shift leaves between pixels and
-// lines, without the phantom's blending of rows), registration off.
+// lines, without the phantom's blending of rows), registration off. Level-set variants (volumes,
+// for locating an error; docs/algorithms/levelset.md "Overhang volumes"): --ls-window-means
+// (classic Chan-Vese window means), --ls-raw (the mesh before RoFi).
 // Usage: onh_motion [--motion 0,30,60,100] [--ilm device,levelset] [--pattern volume,radial]
 //                   [--shape cupped|overhang] [--lines N] [--on-only] [--residual-only]
 //                   [--no-shadows] [--seed N] [--jitter 0,10,30] [--bscans N] [--ascans N]
 //                   [--oracle] [--whole-jitter] [--spectralis-speckle] [--file F]
+//                   [--ls-window-means] [--ls-raw]
 
 #include <chrono>
 #include <cmath>
@@ -38,6 +41,7 @@
 
 #include "octshape/io/scan_reader.h"
 #include "octshape/retina/axial_registration.h"
+#include "octshape/retina/levelset.h"
 #include "octshape/retina/lateral_registration.h"
 #include "octshape/retina/onh.h"
 #include "octshape/retina/phantom_onh.h"
@@ -131,6 +135,8 @@ int main(int argc, char** argv) {
         bool whole_jitter = false;
         bool on_only = false;
         bool residual_only = false;
+        bool ls_window = false;  // --ls-window-means: classic Chan-Vese window means
+        bool ls_raw = false;     // --ls-raw: the level-set mesh before RoFi
         std::uint64_t seed = 1;
         std::vector<std::string> files;
         for (int i = 1; i < argc; ++i) {
@@ -151,6 +157,8 @@ int main(int argc, char** argv) {
             else if (a == "--whole-jitter") whole_jitter = true;
             else if (a == "--on-only") on_only = true;
             else if (a == "--residual-only") residual_only = true;
+            else if (a == "--ls-window-means") ls_window = true;
+            else if (a == "--ls-raw") ls_raw = true;
             else if (a == "--seed" && more) seed = std::stoull(argv[++i]);
             else throw std::runtime_error("unknown argument " + a);
         }
@@ -238,7 +246,19 @@ int main(int argc, char** argv) {
                         apply_lateral_registration(scan, lat);
                         const AxialRegistration reg = register_axially(scan, rp);
                         const double reg_s = std::chrono::duration<double>(Clock::now() - t0).count();
-                        const IlmSurface ilm = build_ilm_surface(scan, ilm_source_from_string(ilm_name));
+                        IlmSurface ilm;
+                        if ((ls_window || ls_raw) && ilm_name == "levelset" && !p.radial) {
+                            // A level-set variant for locating an error (volumes only): its
+                            // mesh alone, without the flags and notes build_ilm_surface adds.
+                            LevelSetParams lsp;
+                            if (ls_window) lsp.region_means = LevelSetParams::RegionMeans::kWindow;
+                            const LevelSetResult ls = levelset_ilm(scan, lsp);
+                            ilm.V = ls_raw ? ls.V_raw : ls.V;
+                            ilm.F = ls.F;
+                            ilm.source = "levelset";
+                        } else {
+                            ilm = build_ilm_surface(scan, ilm_source_from_string(ilm_name));
+                        }
                         OnhResult r = analyse_onh(scan, ilm);
                         const double total_s = std::chrono::duration<double>(Clock::now() - t0).count();
                         std::string flags;
