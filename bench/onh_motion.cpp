@@ -12,7 +12,8 @@
 // phantom's true shifts applied as the registration applies its own, --whole-jitter rounds the
 // jitter to whole A-scans and moves the still phantom's B-scans by them (the comparison made for
 // the earlier phantom, which blended A-scans; the phantom now renders the moved eye). --bscans/--ascans resize the
-// volume, --spectralis-speckle gives it real Spectralis speckle. --file F (repeatable): the
+// volume, --lat-bscans N caps the lateral cut-off at N B-scans (0 = off), --lat-smoothing SD
+// smooths the lines for the lateral estimate (defaults: the ONH's), --spectralis-speckle gives it real Spectralis speckle. --file F (repeatable): the
 // lateral shifts estimated on a real scan instead (no truth). --shape overhang: the overhanging
 // disc instead of the cupped one; --lines N: radial lines; --on-only: the registered rows alone;
 // --residual-only: the still eye's pixels with every line moved by the fractional part of the
@@ -24,7 +25,7 @@
 //                   [--shape cupped|overhang] [--lines N] [--on-only] [--residual-only]
 //                   [--no-shadows] [--seed N] [--jitter 0,10,30] [--bscans N] [--ascans N]
 //                   [--oracle] [--whole-jitter] [--spectralis-speckle] [--file F]
-//                   [--ls-window-means] [--ls-raw]
+//                   [--ls-window-means] [--ls-raw] [--lat-bscans N] [--lat-smoothing SD]
 
 #include <chrono>
 #include <cmath>
@@ -138,6 +139,8 @@ int main(int argc, char** argv) {
         bool ls_window = false;  // --ls-window-means: classic Chan-Vese window means
         bool ls_raw = false;     // --ls-raw: the level-set mesh before RoFi
         std::uint64_t seed = 1;
+        double lat_bscans = -1.0;    // --lat-bscans N: the cut-off capped at N B-scans (0 = off)
+        double lat_smoothing = -1.0; // --lat-smoothing SD: the lines smoothed for the estimate
         std::vector<std::string> files;
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
@@ -160,6 +163,8 @@ int main(int argc, char** argv) {
             else if (a == "--ls-window-means") ls_window = true;
             else if (a == "--ls-raw") ls_raw = true;
             else if (a == "--seed" && more) seed = std::stoull(argv[++i]);
+            else if (a == "--lat-bscans" && more) lat_bscans = std::stod(argv[++i]);
+            else if (a == "--lat-smoothing" && more) lat_smoothing = std::stod(argv[++i]);
             else throw std::runtime_error("unknown argument " + a);
         }
         if (!files.empty()) return real_files(files);
@@ -232,7 +237,9 @@ int main(int argc, char** argv) {
                         const auto t0 = Clock::now();
                         AxialRegistrationParams rp;
                         rp.enabled = reg_on;
-                        LateralRegistrationParams lp;
+                        LateralRegistrationParams lp = OnhParams{}.lateral_registration;  // the ONH's
+                        if (lat_bscans >= 0.0) lp.smooth_wavelength_bscans = lat_bscans;
+                        if (lat_smoothing >= 0.0) lp.line_smoothing_ascans = lat_smoothing;
                         lp.enabled = reg_on;
                         LateralRegistration lat = estimate_lateral_motion(scan, lp);
                         if (mode == 2) {
@@ -261,7 +268,8 @@ int main(int argc, char** argv) {
                         }
                         OnhResult r = analyse_onh(scan, ilm);
                         const double total_s = std::chrono::duration<double>(Clock::now() - t0).count();
-                        std::string flags;
+                        std::string flags = "K=" + std::to_string(lat.smooth_modes) +
+                                            (lat.applied ? " lat-applied " : " ");
                         for (const auto& f : lat.qc_flags) flags += "[" + f + "] ";
                         for (const auto& f : reg.qc_flags) flags += "[" + f + "] ";
                         for (const auto& f : r.qc_flags) flags += "[" + f + "] ";

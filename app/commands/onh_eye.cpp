@@ -78,6 +78,7 @@ std::string onh_options_text(const OnhEyeOptions& o) {
       << " axial_registration_degree=" << p.axial_registration.surface_degree
       << " lateral_registration=" << p.lateral_registration.enabled
       << " lateral_registration_wavelength_mm=" << p.lateral_registration.smooth_wavelength_mm
+      << " lateral_registration_wavelength_bscans=" << p.lateral_registration.smooth_wavelength_bscans
       << " mesh=" << (o.mesh_dir.empty() ? std::string("none") : o.mesh_format);
     s << " levelset(lateral_radius_mm=" << ls.lateral_radius_mm << " margin_mm=" << ls.margin_mm
       << " despeckle_passes=" << ls.despeckle_passes << " mu_mm=" << ls.mu_mm

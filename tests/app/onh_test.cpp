@@ -110,6 +110,7 @@ TEST(OnhCli, LateralRegistrationIsOnByDefaultAndRecorded) {
     EXPECT_EQ(b["options"]["lateral_registration"], false);
     EXPECT_EQ(a["provenance"]["options"]["lateral_registration"], true);
     EXPECT_EQ(a["options"]["lateral_registration_wavelength_mm"], 0.75);
+    EXPECT_EQ(a["options"]["lateral_registration_wavelength_bscans"], 25);
     EXPECT_EQ(a["lateral_registration"]["applied"], true);
     EXPECT_EQ(b["lateral_registration"]["applied"], false);
     const auto& t = truth["acquisition"]["lateral_shift_um"];

@@ -168,6 +168,32 @@ TEST(LateralRegistration, WhatCannotBeEstimatedIsFlaggedAndNothingMoves) {
     EXPECT_TRUE(r.qc_flags.empty());
 }
 
+// A dense still volume (the overhanging disc, 289 B-scans 15 um apart, 128 A-scans; lines
+// only are used): with the 0.75 mm cut-off alone (K = 12 of 289 modes) the modes just above it
+// hardly change a second difference across B-scans (~w^2), so the disc's own shape and the
+// lines' sampling land there and a still eye reads 9.5 um RMS of shift, above the 5 um floor:
+// it would be moved. The ONH's cut-off of at most 25 B-scans (K = 24 here, the share of the
+// modes a full-size 145-B-scan volume has) leaves 1.5 um (measured), under the floor by more
+// than 3 um, so the still scan stays as read. Both estimates, so the test sees the cap.
+TEST(LateralRegistration, ADenseStillVolumeIsNotMoved) {
+    OnhPhantomParams p = onh_phantom_preset(OnhShape::kOverhang);
+    p.num_bscans = 289;
+    p.num_ascans = 128;
+    const io::Scan still = render_onh_scan(p);
+    const LateralRegistrationParams onh = OnhParams{}.lateral_registration;
+    const LateralRegistration r = estimate_lateral_motion(still, onh);
+    EXPECT_TRUE(r.estimable);
+    EXPECT_EQ(r.smooth_modes, 24);  // ceil(2 x 288 / 25)
+    EXPECT_FALSE(r.applied);
+    EXPECT_LT(r.rms_shift_um, onh.min_rms_um);
+    EXPECT_TRUE(r.qc_flags.empty());
+    LateralRegistrationParams uncapped = onh;
+    uncapped.smooth_wavelength_bscans = 0.0;
+    const LateralRegistration u = estimate_lateral_motion(still, uncapped);
+    EXPECT_EQ(u.smooth_modes, 12);
+    EXPECT_GT(u.rms_shift_um, onh.min_rms_um);  // what the cap prevents
+}
+
 // A real macular cube without tracking (the Topcon 512 x 128 cube of the test data; its device
 // contours: RETINA_1 = ILM, RETINA_4 = BM, RETINA_2 and RETINA_3 inner boundaries): evidence that
 // does not come from the estimate. The lines the estimate does not use become smoother across
