@@ -20,12 +20,20 @@
 // true shift (what the axial registration's whole-row pixel shift leaves between pixels and
 // lines, without the phantom's blending of rows), registration off. Level-set variants (volumes,
 // for locating an error; docs/algorithms/levelset.md "Overhang volumes"): --ls-window-means
-// (classic Chan-Vese window means), --ls-raw (the mesh before RoFi).
+// (classic Chan-Vese window means), --ls-raw (the mesh before RoFi). --eye OD|OS: the eye
+// (default OD; OS is the same eye mirrored). Axial oracles (volumes and radial; for locating an
+// error): --axial-true applies the phantom's true axial shifts (the whole motion, its cubic in
+// the B-scan position too) instead of the estimate; --axial-leave c0,c1,c2,c3 leaves the
+// polynomial sum c_j y^j (um, y = -1 at the first B-scan, +1 at the last) in the eye on top of
+// --axial-true (+ = deeper), to measure what a smooth motion left in does; --free-curvature:
+// the axial registration without its isotropic eye wall (every cubic in y left in the eye, the
+// registration before issue 32's curvature prior).
 // Usage: onh_motion [--motion 0,30,60,100] [--ilm device,levelset] [--pattern volume,radial]
 //                   [--shape cupped|overhang] [--lines N] [--on-only] [--residual-only]
 //                   [--no-shadows] [--seed N] [--jitter 0,10,30] [--bscans N] [--ascans N]
 //                   [--oracle] [--whole-jitter] [--spectralis-speckle] [--file F]
 //                   [--ls-window-means] [--ls-raw] [--lat-bscans N] [--lat-smoothing SD]
+//                   [--eye OD|OS] [--axial-true] [--axial-leave c0,c1,c2,c3] [--free-curvature]
 
 #include <chrono>
 #include <cmath>
@@ -82,6 +90,22 @@ double shift_error_um(const AxialRegistration& reg, const std::vector<double>& t
     const Eigen::VectorXd c = X.colPivHouseholderQr().solve(d);
     const Eigen::VectorXd r = d - X * c;
     return std::sqrt(r.squaredNorm() / static_cast<double>(n));
+}
+
+// The cubic in y (-1..1 over the B-scans) of true - estimated shifts, um: what a volume's
+// registration leaves in the eye.
+std::vector<double> left_cubic_um(const AxialRegistration& reg, const std::vector<double>& true_px,
+                                  double um_per_px) {
+    const auto n = static_cast<Eigen::Index>(true_px.size());
+    Eigen::MatrixXd X(n, 4);
+    Eigen::VectorXd d(n);
+    for (Eigen::Index b = 0; b < n; ++b) {
+        const double y = n > 1 ? -1.0 + 2.0 * static_cast<double>(b) / static_cast<double>(n - 1) : 0.0;
+        for (int j = 0; j < 4; ++j) X(b, j) = std::pow(y, j);
+        d(b) = true_px[static_cast<std::size_t>(b)] * um_per_px - reg.shift_um[static_cast<std::size_t>(b)];
+    }
+    const Eigen::VectorXd c = X.colPivHouseholderQr().solve(d);
+    return {c(0), c(1), c(2), c(3)};
 }
 
 // Real scans: the lateral shifts the registration estimates (no truth), and the agreement of
@@ -142,6 +166,10 @@ int main(int argc, char** argv) {
         double lat_bscans = -1.0;    // --lat-bscans N: the cut-off capped at N B-scans (0 = off)
         double lat_smoothing = -1.0; // --lat-smoothing SD: the lines smoothed for the estimate
         std::vector<std::string> files;
+        std::string eye = "OD";
+        bool axial_true = false;
+        bool free_curvature = false;  // --free-curvature: the registration before the isotropic prior
+        std::vector<double> axial_leave;  // um, coefficients of y^j
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
             const bool more = i + 1 < argc;
@@ -162,6 +190,13 @@ int main(int argc, char** argv) {
             else if (a == "--residual-only") residual_only = true;
             else if (a == "--ls-window-means") ls_window = true;
             else if (a == "--ls-raw") ls_raw = true;
+            else if (a == "--eye" && more) eye = argv[++i];
+            else if (a == "--axial-true") axial_true = true;
+            else if (a == "--free-curvature") free_curvature = true;
+            else if (a == "--axial-leave" && more) {
+                axial_true = true;
+                for (const std::string& c : split(argv[++i])) axial_leave.push_back(std::stod(c));
+            }
             else if (a == "--seed" && more) seed = std::stoull(argv[++i]);
             else if (a == "--lat-bscans" && more) lat_bscans = std::stod(argv[++i]);
             else if (a == "--lat-smoothing" && more) lat_smoothing = std::stod(argv[++i]);
@@ -181,6 +216,8 @@ int main(int argc, char** argv) {
             p.radial = pattern == "radial";
             if (lines > 0) p.radial_lines = lines;
             p.seed = seed;
+            if (eye == "OS") p.eye = octshape::io::Laterality::kOS;
+            else if (eye != "OD") throw std::runtime_error("unknown eye " + eye);
             if (bscans > 0) p.num_bscans = bscans;
             if (ascans > 0) p.num_ascans = ascans;
             if (grain) {
@@ -190,6 +227,25 @@ int main(int argc, char** argv) {
                 p.speckle_lateral_half_width_px = 1.6;
             }
             const OnhTruth truth = compute_onh_truth(p);
+            if (!axial_leave.empty() && !p.radial) {
+                // First order (the closest point's envelope): a depth field c(y) left in the eye
+                // (+ = deeper, i.e. height -c) moves the MRW at BMO point P, closest ILM point Q,
+                // by -v_z (c(y_Q) - c(y_P)), v the unit vector P -> Q.
+                const double height = p.field_mm;
+                auto c = [&](double y_mm) {
+                    const double y = 2.0 * y_mm / height - 1.0;
+                    double v = 0.0;
+                    for (std::size_t j = 0; j < axial_leave.size(); ++j) v += axial_leave[j] * std::pow(y, static_cast<double>(j));
+                    return v;
+                };
+                double sum = 0.0;
+                for (std::size_t i = 0; i < truth.mrw_points_mm.size(); ++i) {
+                    const Eigen::Vector3d v = (truth.mrw_points_mm[i] - truth.bmo_points_mm[i]).normalized();
+                    sum += -v.z() * (c(truth.mrw_points_mm[i].y()) - c(truth.bmo_points_mm[i].y()));
+                }
+                std::fprintf(stderr, "first-order MRW change of the polynomial left in: %+.2f um (mean of %zu points)\n",
+                             sum / static_cast<double>(truth.mrw_points_mm.size()), truth.mrw_points_mm.size());
+            }
             for (const std::string& m : motions) {
               for (const std::string& jit : jitters) {
                 OnhPhantomParams pm = p;
@@ -237,6 +293,7 @@ int main(int argc, char** argv) {
                         const auto t0 = Clock::now();
                         AxialRegistrationParams rp;
                         rp.enabled = reg_on;
+                        rp.isotropic_curvature = !free_curvature;
                         LateralRegistrationParams lp = OnhParams{}.lateral_registration;  // the ONH's
                         if (lat_bscans >= 0.0) lp.smooth_wavelength_bscans = lat_bscans;
                         if (lat_smoothing >= 0.0) lp.line_smoothing_ascans = lat_smoothing;
@@ -251,7 +308,22 @@ int main(int argc, char** argv) {
                             }
                         }
                         apply_lateral_registration(scan, lat);
-                        const AxialRegistration reg = register_axially(scan, rp);
+                        AxialRegistration reg;
+                        if (axial_true && reg_on) {
+                            // The oracle: the true shifts (minus what --axial-leave leaves).
+                            reg = estimate_axial_motion(scan, rp);
+                            const std::size_t n = reg.shift_um.size();
+                            for (std::size_t b = 0; b < n && b < true_shifts.size(); ++b) {
+                                const double y = n > 1 ? -1.0 + 2.0 * static_cast<double>(b) / static_cast<double>(n - 1) : 0.0;
+                                double left = 0.0;
+                                for (std::size_t j = 0; j < axial_leave.size(); ++j) left += axial_leave[j] * std::pow(y, static_cast<double>(j));
+                                reg.shift_um[b] = true_shifts[b] * scan.meta.scale_z_mm * 1000.0 - left;
+                            }
+                            reg.applied = true;
+                            apply_axial_registration(scan, reg);
+                        } else {
+                            reg = register_axially(scan, rp);
+                        }
                         const double reg_s = std::chrono::duration<double>(Clock::now() - t0).count();
                         IlmSurface ilm;
                         if ((ls_window || ls_raw) && ilm_name == "levelset" && !p.radial) {
@@ -274,6 +346,11 @@ int main(int argc, char** argv) {
                         for (const auto& f : reg.qc_flags) flags += "[" + f + "] ";
                         for (const auto& f : r.qc_flags) flags += "[" + f + "] ";
                         const double err = shift_error_um(reg, true_shifts, scan.meta.scale_z_mm * 1000.0, p.radial);
+                        if (!p.radial && reg_on) {
+                            // What the registration left in the eye: the cubic of true - estimated.
+                            const auto c = left_cubic_um(reg, true_shifts, scan.meta.scale_z_mm * 1000.0);
+                            std::fprintf(stderr, "left in the eye (um, y^0..y^3): %+.2f %+.2f %+.2f %+.2f; curvature to motion %+.2f um\n", c[0], c[1], c[2], c[3], reg.curvature_to_motion_um);
+                        }
                         const double lat_err = octshape::test::identifiable_lateral_error_um(lat, true_lateral, scan.meta.scale_x_mm * 1000.0);
                         std::printf("%-7s %6s %5s %-8s %-4s %+8.2f %+8.1f %+8.2f %+8.2f %+8.2f %+8.2f %+7.1f "
                                     "%+8.2f %+8.2f %+8.1f %9.2f %7.2f %7.2f %6.2f %7.3f %7.2f  %s\n",

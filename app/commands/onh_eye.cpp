@@ -76,6 +76,7 @@ std::string onh_options_text(const OnhEyeOptions& o) {
       << " local_features=" << p.local_features
       << " axial_registration=" << p.axial_registration.enabled
       << " axial_registration_degree=" << p.axial_registration.surface_degree
+      << " axial_registration_isotropic_curvature=" << p.axial_registration.isotropic_curvature
       << " lateral_registration=" << p.lateral_registration.enabled
       << " lateral_registration_wavelength_mm=" << p.lateral_registration.smooth_wavelength_mm
       << " lateral_registration_wavelength_bscans=" << p.lateral_registration.smooth_wavelength_bscans

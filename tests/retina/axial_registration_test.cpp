@@ -230,6 +230,7 @@ TEST(AxialRegistration, StillCurvedTiltedEyeIsNotFlattened) {
     ASSERT_EQ(r.shift_um.size(), 25U);
     EXPECT_LT(r.max_abs_shift_um, 0.01);
     EXPECT_LT(r.residual_rms_um, 0.01);
+    EXPECT_LT(std::fabs(r.curvature_to_motion_um), 0.01);  // the sphere's curvature is isotropic
     EXPECT_TRUE(r.qc_flags.empty());
     // Applied, the pixels stay as read byte for byte (every shift is far under half a row).
     io::Scan registered = scan;
@@ -252,6 +253,60 @@ TEST(AxialRegistration, RecoversTheMotionOfAVolume) {
     EXPECT_EQ(r.bscans_not_estimated, 0);
     ASSERT_EQ(r.qc_flags.size(), 1U);
     EXPECT_EQ(r.qc_flags[0], "large axial motion between B-scans (registered)");
+}
+
+// A motion curved across the B-scans (deeper by a y^2 at the field's first and last B-scan, y
+// from -1 to +1) is a smooth function of y like the eye wall's own curvature, so a free fit gives
+// it to the eye; left there it is a shear z + a y^2 of the eye, under which the 3-D MRW changes
+// by -v_z (c(y_Q) - c(y_P)) per point (v the unit vector from the BMO point P to its closest ILM
+// point Q, heights up, c a depth): +0.0203 um per um of a on the full-size disc (bench
+// onh_motion --axial-leave on 97 x 256, the truth's vectors to first order: -4.34 um for
+// a = -214 um, measured -4.3). The eye wall is taken as
+// isotropic: its curvature across the B-scans is its curvature along them, the BM's x^2 term.
+// The phantom's wall is a sphere (R = 12 mm) and its device BM the exact quadratic in float32,
+// so the prior is exact here: the curvature is removed with the motion to the lines' rounding
+// (0.01 um, as the still eye above), and the registered device lines are the still ones, so
+// the device-ILM 3-D MRW is the still scan's within 0.05 um (the lines' float32 rounding moved
+// through the surfaces; with the curvature left in the eye, as before the prior, it is +2.6 um).
+TEST(AxialRegistration, CurvedMotionAcrossBscansIsNotGivenToTheEye) {
+    const OnhPhantomParams p = moving(false, 0.0, 25, 96);
+    const io::Scan still = render_onh_scan(p);
+    const double a_um = 150.0;
+    const double um = p.scale_z_mm * 1000.0;
+    io::Scan scan = still;
+    const int nb = scan.num_bscans();
+    for (int b = 0; b < nb; ++b) {
+        const double y = -1.0 + 2.0 * b / (nb - 1.0);
+        io::BScan& bs = scan.bscans[static_cast<std::size_t>(b)];
+        std::vector<float> pixels;
+        pixels.swap(bs.pixels);  // the lines alone: the registration and the device ILM read them
+        io::shift_bscan(bs, scan.meta.size_x, scan.meta.size_z, a_um * y * y / um);
+        pixels.swap(bs.pixels);
+    }
+    const AxialRegistration r = register_axially(scan);
+    ASSERT_TRUE(r.applied);
+    EXPECT_NEAR(r.curvature_to_motion_um, a_um, 0.01);
+    // The shifts are the curvature up to the eye's 1, y, y^3 (a depth, a tilt and a cubic across
+    // the B-scans stay the eye's; weighted by each B-scan's BM count, which the disc makes
+    // uneven in y, the fit of those three moves a little of a y^2 into them: 0.4 um here).
+    Eigen::MatrixXd X(nb, 3);
+    Eigen::VectorXd d(nb);
+    for (int b = 0; b < nb; ++b) {
+        const double y = -1.0 + 2.0 * b / (nb - 1.0);
+        X.row(b) << 1.0, y, y * y * y;
+        d(b) = r.shift_um[static_cast<std::size_t>(b)] - a_um * y * y;
+    }
+    const Eigen::VectorXd off = d - X * X.colPivHouseholderQr().solve(d);
+    EXPECT_LT(off.cwiseAbs().maxCoeff(), 0.01);
+    const OnhResult got = analyse_onh(scan, device_ilm_surface(scan));
+    const OnhResult want = analyse_onh(still, device_ilm_surface(still));
+    EXPECT_NEAR(1e3 * got.mrw_mean_mm, 1e3 * want.mrw_mean_mm, 0.05);
+    // Without the prior (every cubic in y the eye's) nothing of the curvature is removed.
+    AxialRegistrationParams free;
+    free.isotropic_curvature = false;
+    const AxialRegistration f = estimate_axial_motion(scan, free);
+    EXPECT_LT(f.max_abs_shift_um, 0.01);
+    EXPECT_EQ(f.curvature_to_motion_um, 0.0);
 }
 
 // With segmentation noise of sigma = 1 px (3.9 um, independent per A-scan) on the BM line, each

@@ -119,26 +119,34 @@ std::vector<double> fit_offsets(const std::vector<BmSample>& s, const std::vecto
 }
 
 // The part of the offsets a polynomial of `degree` in y cannot explain (volumes), or the
-// offsets about their mean (radial scans); weighted by each B-scan's sample count.
+// offsets about their mean (radial scans); weighted by each B-scan's sample count. `fixed_y2`
+// (volumes, finite): the polynomial's y^2 coefficient is this value (the eye's curvature across
+// the B-scans taken from its curvature along them), the other coefficients are fitted.
 std::vector<double> motion_of(const std::vector<double>& offset, const std::vector<double>& y,
-                              const std::vector<double>& count, int degree, bool radial) {
+                              const std::vector<double>& count, int degree, bool radial,
+                              double fixed_y2, double* y2_out = nullptr) {
     const std::size_t nb = offset.size();
+    const bool fix = !radial && degree >= 2 && std::isfinite(fixed_y2);
     const int k = radial ? 1 : degree + 1;
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(k, k);
-    Eigen::VectorXd r = Eigen::VectorXd::Zero(k);
-    Eigen::VectorXd phi(k);
+    auto power = [&](double yb, int t) { return std::pow(yb, fix && t >= 2 ? t + 1 : t); };
+    const int kf = fix ? k - 1 : k;  // fitted: y^0, y^1, y^3, ... when y^2 is fixed
+    const double y2 = fix ? fixed_y2 : 0.0;
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(kf, kf);
+    Eigen::VectorXd r = Eigen::VectorXd::Zero(kf);
+    Eigen::VectorXd phi(kf);
     for (std::size_t b = 0; b < nb; ++b) {
         if (!std::isfinite(offset[b])) continue;
-        for (int t = 0; t < k; ++t) phi(t) = std::pow(y[b], t);
+        for (int t = 0; t < kf; ++t) phi(t) = power(y[b], t);
         A.noalias() += count[b] * phi * phi.transpose();
-        r += count[b] * offset[b] * phi;
+        r += count[b] * (offset[b] - y2 * y[b] * y[b]) * phi;
     }
     const Eigen::VectorXd c = A.completeOrthogonalDecomposition().solve(r);
+    if (y2_out != nullptr) *y2_out = fix ? y2 : (k > 2 ? c(2) : 0.0);
     std::vector<double> m(nb, std::numeric_limits<double>::quiet_NaN());
     for (std::size_t b = 0; b < nb; ++b) {
         if (!std::isfinite(offset[b])) continue;
-        for (int t = 0; t < k; ++t) phi(t) = std::pow(y[b], t);
-        m[b] = offset[b] - phi.dot(c);
+        for (int t = 0; t < kf; ++t) phi(t) = power(y[b], t);
+        m[b] = offset[b] - y2 * y[b] * y[b] - phi.dot(c);
     }
     return m;
 }
@@ -249,7 +257,25 @@ AxialRegistration estimate_axial_motion(const io::Scan& scan, const AxialRegistr
         }
     }
     R.residual_rms_um = sw > 0.0 ? std::sqrt(ss / sw) * um_per_px : 0.0;
-    std::vector<double> m = motion_of(offset, y, count, params.surface_degree, radial);
+    // The isotropic eye wall (volumes): the offsets' curvature across the B-scans is the
+    // motion's as well as the eye's and cannot be told apart from them, so the eye's is taken
+    // from its curvature along the B-scans, S's x^2 term (normalised units: x by the half width
+    // w, y by the half height h, so the same curvature is the x^2 coefficient times (h / w)^2).
+    double fixed_y2 = std::numeric_limits<double>::quiet_NaN();
+    if (!radial && params.isotropic_curvature && params.surface_degree >= 2) {
+        for (std::size_t t = 0; t < terms.size(); ++t) {
+            if (terms[t] == std::make_pair(2, 0)) fixed_y2 = beta(static_cast<Eigen::Index>(t));
+        }
+        const double half_w = 0.5 * std::max(1e-6, (nx - 1) * scan.meta.scale_x_mm);
+        const double half_h = 0.5 * std::max(1e-6, (nb - 1) * scan.meta.distance_mm);
+        fixed_y2 *= (half_h / half_w) * (half_h / half_w);
+        // What the prior gives to the motion: the free fit's y^2 coefficient minus the fixed one.
+        double free_y2 = 0.0;
+        (void)motion_of(offset, y, count, params.surface_degree, radial,
+                        std::numeric_limits<double>::quiet_NaN(), &free_y2);
+        R.curvature_to_motion_um = (free_y2 - fixed_y2) * um_per_px;
+    }
+    std::vector<double> m = motion_of(offset, y, count, params.surface_degree, radial, fixed_y2);
     for (int b = 0; b < nb; ++b) {
         const auto bi = static_cast<std::size_t>(b);
         R.estimated[bi] = std::isfinite(m[bi]);

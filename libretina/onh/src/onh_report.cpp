@@ -123,10 +123,12 @@ J onh_json(const OnhResult& r, const J& options) {
         reg["model"] =
             "BM depth = per-B-scan offset + smooth polynomial surface (robust least squares); "
             "the offsets a polynomial of the same degree across B-scans explains belong to the "
-            "eye (volumes), the rest is motion (docs/algorithms/onh.md)";
+            "eye (volumes; its curvature across B-scans taken equal to the BM's along them), "
+            "the rest is motion (docs/algorithms/onh.md)";
         reg["rms_shift_um"] = a.rms_shift_um;
         reg["max_abs_shift_um"] = a.max_abs_shift_um;
         reg["residual_rms_um"] = a.residual_rms_um;
+        reg["curvature_to_motion_um"] = a.curvature_to_motion_um;
         reg["bm_values_used"] = a.bm_values_used;
         reg["bm_values_rejected"] = a.bm_values_rejected;
         reg["bscans_not_estimated"] = a.bscans_not_estimated;

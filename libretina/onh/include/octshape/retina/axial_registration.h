@@ -31,6 +31,10 @@ struct AxialRegistrationParams {
     double large_motion_um = 20.0;    // flag when the RMS of the removed shifts exceeds this
     double max_residual_um = 15.0;    // flag when the BM is not one smooth surface
     double min_bm_fraction = 0.1;     // a B-scan with fewer BM values is not estimated
+    // Volumes: the eye wall's curvature across the B-scans is taken equal to its curvature along
+    // them (S's x^2 term), so that the offsets' curvature beyond it is motion; false: every
+    // polynomial of surface_degree in y belongs to the eye (a curved motion is left in it).
+    bool isotropic_curvature = true;
 
     void validate() const;  // throws UsageError naming the field
 };
@@ -47,6 +51,10 @@ struct AxialRegistration {
     int bm_values_used = 0;           // inliers of the robust fit
     int bm_values_rejected = 0;       // outliers (Tukey weight 0)
     int surface_degree = 0;
+    // Volumes with isotropic_curvature: the curvature across the B-scans (um at the field's
+    // first and last B-scan, against the middle) that the offsets held beyond the eye's, removed
+    // with the motion (+ = the B-scans at the field's edges lay deeper).
+    double curvature_to_motion_um = 0.0;
     std::vector<std::string> qc_flags;
     std::vector<std::string> notes;
 };
