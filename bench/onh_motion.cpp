@@ -25,7 +25,9 @@
 // error): --axial-true applies the phantom's true axial shifts (the whole motion, its cubic in
 // the B-scan position too) instead of the estimate; --axial-leave c0,c1,c2,c3 leaves the
 // polynomial sum c_j y^j (um, y = -1 at the first B-scan, +1 at the last) in the eye on top of
-// --axial-true (+ = deeper), to measure what a smooth motion left in does; --free-curvature:
+// --axial-true (+ = deeper), to measure what a smooth motion left in does; --circle-bm F: the
+// BM curvature difference k_xx - k_yy of a real circle scan (how far from isotropic the eye
+// wall is around the disc); --free-curvature:
 // the axial registration without its isotropic eye wall (every cubic in y left in the eye, the
 // registration before issue 32's curvature prior).
 // Usage: onh_motion [--motion 0,30,60,100] [--ilm device,levelset] [--pattern volume,radial]
@@ -34,6 +36,7 @@
 //                   [--oracle] [--whole-jitter] [--spectralis-speckle] [--file F]
 //                   [--ls-window-means] [--ls-raw] [--lat-bscans N] [--lat-smoothing SD]
 //                   [--eye OD|OS] [--axial-true] [--axial-leave c0,c1,c2,c3] [--free-curvature]
+//                   [--circle-bm F]
 
 #include <chrono>
 #include <cmath>
@@ -108,6 +111,44 @@ std::vector<double> left_cubic_um(const AxialRegistration& reg, const std::vecto
     return {c(0), c(1), c(2), c(3)};
 }
 
+// Real circle scans (--circle-bm F): how far from isotropic the eye wall is around the disc.
+// A BM depth (1/2) k_xx x^2 + k_xy xy + (1/2) k_yy y^2 on a circle of radius r is, in the angle
+// t from the horizontal, r^2 (k_xx + k_yy) / 4 + r^2 (k_xx - k_yy) / 4 cos 2t + r^2 k_xy / 2
+// sin 2t: the cos 2t amplitude gives k_xx - k_yy, what the axial registration's isotropic eye
+// wall takes as zero (a circle B-scan is one sweep: no motion between its A-scans).
+int circle_bm(const std::vector<std::string>& files) {
+    std::printf("%-28s %8s %9s %9s %9s %9s %12s %8s %8s\n", "file", "r_mm", "cos2t_um", "sin2t_um", "cos1t_um",
+                "sin1t_um", "kxx-kyy um/mm2", "range_um", "res_um");
+    for (const std::string& f : files) {
+        const octshape::io::Scan scan = octshape::io::read_scan(f);
+        const int n = scan.meta.size_x;
+        const double r = scan.meta.scale_x_mm * n / (2.0 * M_PI);
+        const int bm = static_cast<int>(octshape::io::Layer::kBM);
+        std::vector<double> t;
+        std::vector<double> d;
+        for (int a = 0; a < n; ++a) {
+            const float v = scan.depth_px(bm, 0, a);
+            if (!octshape::io::is_valid(v)) continue;
+            t.push_back(2.0 * M_PI * a / n);
+            d.push_back(v * scan.meta.scale_z_mm * 1000.0);
+        }
+        const auto m = static_cast<Eigen::Index>(t.size());
+        Eigen::MatrixXd X(m, 5);
+        Eigen::VectorXd y(m);
+        for (Eigen::Index i = 0; i < m; ++i) {
+            const double ti = t[static_cast<std::size_t>(i)];
+            X.row(i) << 1.0, std::cos(ti), std::sin(ti), std::cos(2 * ti), std::sin(2 * ti);
+            y(i) = d[static_cast<std::size_t>(i)];
+        }
+        const Eigen::VectorXd c = X.colPivHouseholderQr().solve(y);
+        const std::string name = f.substr(f.find_last_of('/') + 1);
+        const double res = std::sqrt((y - X * c).squaredNorm() / static_cast<double>(std::max<Eigen::Index>(1, m)));
+        std::printf("%-28s %8.3f %+9.2f %+9.2f %+9.2f %+9.2f %+12.2f %8.1f %8.1f\n", name.c_str(), r, c(3), c(4), c(1), c(2),
+                    4.0 * c(3) / (r * r), y.maxCoeff() - y.minCoeff(), res);
+    }
+    return 0;
+}
+
 // Real scans: the lateral shifts the registration estimates (no truth), and the agreement of
 // the ILM's and the BM's own estimates.
 int real_files(const std::vector<std::string>& files) {
@@ -166,6 +207,7 @@ int main(int argc, char** argv) {
         double lat_bscans = -1.0;    // --lat-bscans N: the cut-off capped at N B-scans (0 = off)
         double lat_smoothing = -1.0; // --lat-smoothing SD: the lines smoothed for the estimate
         std::vector<std::string> files;
+        std::vector<std::string> circle_files;
         std::string eye = "OD";
         bool axial_true = false;
         bool free_curvature = false;  // --free-curvature: the registration before the isotropic prior
@@ -183,6 +225,7 @@ int main(int argc, char** argv) {
             else if (a == "--shape" && more) shape = argv[++i];
             else if (a == "--no-shadows") shadows = false;
             else if (a == "--file" && more) files.push_back(argv[++i]);
+            else if (a == "--circle-bm" && more) circle_files.push_back(argv[++i]);
             else if (a == "--spectralis-speckle") grain = true;
             else if (a == "--oracle") oracle = true;
             else if (a == "--whole-jitter") whole_jitter = true;
@@ -202,6 +245,7 @@ int main(int argc, char** argv) {
             else if (a == "--lat-smoothing" && more) lat_smoothing = std::stod(argv[++i]);
             else throw std::runtime_error("unknown argument " + a);
         }
+        if (!circle_files.empty()) return circle_bm(circle_files);
         if (!files.empty()) return real_files(files);
         std::printf("# errors against the still eye's truth: volumes, MRW area, bending energy in %%; "
                     "CONHT, MRW (3-D, in-plane) in um; shift err = RMS of estimated - true "
