@@ -374,6 +374,16 @@ mesh::Vertices literal_run(const TestMesh& m, int iterations, double sigma_s, do
 TEST(Rofi, TwoIterationsMatchTheEquationsEvaluatedLiterally) {
     // A closed and an open surface; two iterations also check λ_I ← 0.6 λ_I. Ω_i stays the
     // input's (connectivity-based disks built once); the weights use the current geometry.
+    //
+    // The pair weights are stored as float (relative rounding u = 2^-24): the literal
+    // reference rounds them the same way (1e-12 below), and against the equations in double
+    // throughout the difference stays within the rounding's bound: with the Tukey cut-off
+    // every term a_j w_ij n_j of a row has n_j · n_i ≥ κ = 1 − σ_s²/2, so |Σ| ≥ κ Σ a_j w_ij
+    // and the rounding turns ñ_i by at most ε = u / κ; the vertex step moves v_i by ≤ (4/3) ε l
+    // (its face terms, |c_k − v_i| ≤ 2/3 of the longest edge l) + 2 λ_I ε l (the tangential
+    // projection): per iteration b = (4/3 + 2 λ_I) ε l. Two iterations, the second's input
+    // moved by the first: 2 × 2 b (the step is a mean of projections, Lipschitz ~1 in the
+    // positions). Measured: 1.3e−3 b (cube, 1.3e−10) and 2.8e−3 b (plane, 9.2e−11).
     for (const auto& m : {with_noise(cube(5), 0.03), with_noise(plane_grid(10), 0.02)}) {
         auto p = params(2);
         p.sigma_s = 0.6;
@@ -385,23 +395,7 @@ TEST(Rofi, TwoIterationsMatchTheEquationsEvaluatedLiterally) {
         // coordinates of size 1).
         EXPECT_LT((r.V - twice).cwiseAbs().maxCoeff(), 1e-12) << m.name;
         EXPECT_GT((once - twice).cwiseAbs().maxCoeff(), 1e-6) << m.name;  // not a no-op
-    }
-}
 
-TEST(Rofi, FloatPairWeightsMoveVerticesByLessThanTheirRoundingBound) {
-    // The pair weights are stored as float (relative rounding u = 2^-24). Against the
-    // equations in double throughout: with the Tukey cut-off every term a_j w_ij n_j of a
-    // row has n_j · n_i ≥ κ = 1 − σ_s²/2, so |Σ| ≥ κ Σ a_j w_ij and the rounding turns ñ_i by
-    // at most ε = u / κ; the vertex step moves v_i by ≤ (4/3) ε l (its face terms, |c_k − v_i|
-    // ≤ 2/3 of the longest edge l) + 2 λ_I ε l (the tangential projection): per iteration
-    // b = (4/3 + 2 λ_I) ε l. Two iterations, the second's input moved by the first: 2 × 2 b
-    // (the step is a mean of projections, Lipschitz ~1 in the positions). Measured: 1.3e−3 b
-    // (cube, 1.3e−10) and 2.8e−3 b (plane, 9.2e−11).
-    for (const auto& m : {with_noise(cube(5), 0.03), with_noise(plane_grid(10), 0.02)}) {
-        auto p = params(2);
-        p.sigma_s = 0.6;
-        p.lambda_i = 0.3;
-        const auto r = mesh::rofi_denoise(m.V, m.F, p);
         const auto exact = literal_run(m, 2, 0.6, 0.3, false);
         double l = 0.0;
         for (Eigen::Index f = 0; f < m.F.rows(); ++f) {
