@@ -227,7 +227,7 @@ struct PairKernel {
     const int* first;                 // PairTable
     const int* second;
     const int* slot_pair;
-    double* pair_weight;              // f g per pair of the table
+    float* pair_weight;               // f g per pair of the table, rounded to float
     const detail::FaceState* rec;     // current normal, area, centroid
     detail::FaceState* out;           // filtered normal ñ_i, area, centroid
     double inv_s2;                    // 1 / σ_s²
@@ -275,7 +275,8 @@ struct PairKernel {
         detail::V4d v{};
         for (int k = b0 * kPairBlock; k < b1 * kPairBlock; k += kPairBlock) {
             weights4<kTukey, kWide>(first + k, second + k, v);
-            std::memcpy(pair_weight + k, &v, sizeof v);
+            const detail::V4f f = __builtin_convertvector(v, detail::V4f);
+            std::memcpy(pair_weight + k, &f, sizeof f);
         }
     }
 
@@ -288,30 +289,35 @@ struct PairKernel {
         detail::V8d v{};
         for (; k + 8 <= e; k += 8) {
             weights8<kTukey>(first + k, second + k, v);
-            std::memcpy(pair_weight + k, &v, sizeof v);
+            const detail::V8f f = __builtin_convertvector(v, detail::V8f);
+            std::memcpy(pair_weight + k, &f, sizeof f);
         }
         detail::V4d u{};
         for (; k < e; k += kPairBlock) {
             weights4<kTukey, true>(first + k, second + k, u);
-            std::memcpy(pair_weight + k, &u, sizeof u);
+            const detail::V4f f = __builtin_convertvector(u, detail::V4f);
+            std::memcpy(pair_weight + k, &f, sizeof f);
         }
     }
 
-    // The weights of row i's slots [p0, p1) into w[0 .. p1 − p0) (PairWeights::kPerRow).
+    // The weights of row i's slots [p0, p1) into w[0 .. p1 − p0) (PairWeights::kPerRow),
+    // rounded to float as the shared ones are.
     template <bool kTukey, bool kWide>
-    [[gnu::always_inline]] void row_weights(int i, int p0, int p1, double* w) const {
+    [[gnu::always_inline]] void row_weights(int i, int p0, int p1, float* w) const {
         const int centre[4] = {i, i, i, i};
         int p = p0;
         detail::V4d v{};
         for (; p + 4 <= p1; p += 4) {
             weights4<kTukey, kWide>(centre, items + p, v);
-            for (int l = 0; l < 4; ++l) w[p - p0 + l] = v[l];
+            const detail::V4f f = __builtin_convertvector(v, detail::V4f);
+            std::memcpy(w + (p - p0), &f, sizeof f);
         }
         if (p < p1) {  // the last 1–3 slots; the other lanes pair f_i with itself, unused
             int j[4] = {i, i, i, i};
             for (int l = 0; p + l < p1; ++l) j[l] = items[p + l];
             weights4<kTukey, kWide>(centre, j, v);
-            for (int l = 0; p + l < p1; ++l) w[p - p0 + l] = v[l];
+            const detail::V4f f = __builtin_convertvector(v, detail::V4f);
+            for (int l = 0; p + l < p1; ++l) w[p - p0 + l] = f[l];
         }
     }
 
@@ -393,7 +399,7 @@ struct PairKernel {
         Sum<kWide> s = sum_start<kWide>(i);
         const int e = off[i + 1];
         constexpr int kBlock = 64;
-        double block[kBlock];
+        float block[kBlock];
         for (int p0 = off[i] + 1; p0 < e; p0 += kBlock) {
             const int p1 = std::min(e, p0 + kBlock);
             row_weights<kTukey, kWide>(i, p0, p1, block);
@@ -755,7 +761,7 @@ struct RofiRun {
     bool shared;
     double table_seconds = 0;  // building `table` (DenoiseResult::phases.pair_table)
     PairTable table;
-    std::vector<double> pair_weight;
+    std::vector<float> pair_weight;
     int pair_blocks;
     PairKernel kernel{};
     bool tukey;

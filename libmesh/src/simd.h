@@ -22,6 +22,9 @@ using V4i = std::int64_t __attribute__((vector_size(32)));
 // 8 lanes: the AVX-512 copy of RoFi's pair weights (rofi.cpp) only.
 using V8d = double __attribute__((vector_size(64)));
 using V8i = std::int64_t __attribute__((vector_size(64)));
+// Single-precision lanes for stored pair weights (rofi.cpp): 4 and 8 floats.
+using V4f = float __attribute__((vector_size(16)));
+using V8f = float __attribute__((vector_size(32)));
 
 // s in every lane of a V (V4d or V8d).
 template <class V>
