@@ -67,11 +67,14 @@ struct LevelSetParams {
     RegionMeans region_means = RegionMeans::kBand;
     // Under a rim lip the tissue is dimmer than at the open surfaces that set the region means,
     // so the one decision level (c_v + c_t) / 2 lies inside that tissue and the cavity comes out
-    // too large. true: once the run has converged, the interface more than leak_depth_mm below
-    // its column's first tissue row (the cavity's ceiling, hidden wall and floor) is evolved
-    // again about the midpoint of the band means on either side of it in a box of ±band_layers
-    // voxels (±1 B-scan), where that box holds an edge (docs/algorithms/levelset.md "Overhang
-    // volumes"). A scan without such a cavity is unchanged.
+    // too large. true: once the main run has stopped, the interface more than leak_depth_mm
+    // below its column's first tissue row, in columns that hold vitreous that deep (a cavity
+    // under a lip) or lie within band_layers A-scans and one B-scan of one (the cavity's
+    // ceiling, hidden wall and floor), is evolved again (at most max_iterations / 4 more
+    // iterations) about the midpoint of the band means on either side of it in a box of
+    // ±band_layers voxels (±1 B-scan), where that box holds an edge
+    // (docs/algorithms/levelset.md "Refinement under lips"). A scan without such a cavity is
+    // unchanged.
     bool hidden_local_level = true;
 
     // --- Narrow band evolution ---
