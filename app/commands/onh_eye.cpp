@@ -85,6 +85,7 @@ std::string onh_options_text(const OnhEyeOptions& o) {
       << " despeckle_passes=" << ls.despeckle_passes << " mu_mm=" << ls.mu_mm
       << " lambda_vitreous=" << ls.lambda_vitreous << " lambda_tissue=" << ls.lambda_tissue
       << " region_means=" << static_cast<int>(ls.region_means)
+      << " hidden_local_level=" << ls.hidden_local_level
       << " band_layers=" << ls.band_layers << " reinit_interval=" << ls.reinit_interval
       << " cfl=" << ls.cfl << " max_iterations=" << ls.max_iterations
       << " tile_mm=" << ls.tile_mm << " patience=" << ls.patience

@@ -8,10 +8,12 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <limits>
 #include <vector>
 
 #include "octshape/error.h"
+#include "octshape/retina/phantom_onh.h"
 
 namespace octshape::retina::levelset_detail {
 namespace {
@@ -343,6 +345,84 @@ TEST(LevelSetStages, SmoothOffKeepsThePositions) {
     EXPECT_TRUE(res.V_raw == V);
     EXPECT_TRUE(res.F == F);
     EXPECT_EQ(res.rofi_iterations, 0);
+}
+
+// The cavity under the rim lip, in one B-scan through the overhanging disc: per A-scan that
+// meets the true ILM three times (lip top, lip underside, the wall or floor below), the
+// vertical length of the vitreous under the first tissue row, from the evolved φ (crossings
+// by linear interpolation, as marching cubes and marching squares place them) against the
+// phantom's own crossings. Returns the mean excess per hidden crossing (two per A-scan), px.
+struct CavityExcess {
+    double mean_px = 0.0;
+    int ascans = 0;
+};
+CavityExcess cavity_excess(const io::Scan& scan, const OnhPhantomGeometry& g, int b,
+                           const LevelSetParams& p) {
+    const int na = scan.meta.size_x;
+    const double hz = scan.meta.scale_z_mm;
+    DeviceIlm ilm = device_ilm_rows(scan, b, 1, {scan.meta.scale_x_mm, std::numeric_limits<double>::infinity(), hz});
+    EXPECT_TRUE(fill_missing(ilm.ilm, 1, na));
+    const Windows w = depth_windows(ilm, p);
+    const std::vector<float> image = despeckle(scan, w, p.despeckle_passes, p.despeckle_max_sigma_x_mm, ilm, b);
+    std::vector<float> phi = initial_phi(w, ilm);
+    LevelSetResult res;
+    evolve(w, phi, image, p, ilm.h, res);
+    EXPECT_TRUE(res.converged);
+    double sum = 0.0;
+    CavityExcess out;
+    for (int a = 0; a < na; ++a) {
+        const std::vector<double> h = g.ilm_heights(a * scan.meta.scale_x_mm, b * scan.meta.distance_mm);
+        if (h.size() < 3) continue;
+        double truth = 0.0;  // mm of vitreous under the first crossing
+        for (std::size_t k = 1; k + 1 < h.size(); k += 2) truth += h[k] - h[k + 1];
+        // Crossings of φ down the column (rows above the window vitreous, below it tissue).
+        const int lo = w.lo[static_cast<std::size_t>(a)];
+        const int len = w.len[static_cast<std::size_t>(a)];
+        const float* f = phi.data() + w.offset[static_cast<std::size_t>(a)];
+        std::vector<double> cross;
+        if (f[0] <= 0.0F) cross.push_back(lo);
+        for (int d = 0; d + 1 < len; ++d) {
+            if ((f[d] > 0.0F) != (f[d + 1] > 0.0F)) {
+                cross.push_back(lo + d + static_cast<double>(f[d]) / (static_cast<double>(f[d]) - f[d + 1]));
+            }
+        }
+        if (cross.size() % 2 == 0) cross.push_back(lo + len - 1);  // vitreous to the bottom
+        double cavity = 0.0;  // px
+        for (std::size_t k = 1; k + 1 < cross.size(); k += 2) cavity += cross[k + 1] - cross[k];
+        sum += cavity - truth / hz;
+        ++out.ascans;
+    }
+    out.mean_px = out.ascans > 0 ? sum / (2.0 * out.ascans) : 0.0;
+    return out;
+}
+
+// Under the lip the tissue is dimmer than at the open surfaces that set the band means
+// (the nerve fibres' reflectance decays below the first crossing), so one global decision
+// level lies inside that tissue and the cavity comes out too large: +0.19 to +0.30 px per
+// hidden crossing on this B-scan over speckle seeds 1-6 with hidden_local_level off. With each
+// hidden voxel's own level (the default) −0.10 to +0.08 px (SD 0.07 px). Asserted: the cavity
+// is not larger than the truth by more than 0.15 px per crossing (2 SD of the speckle draw),
+// the local level takes at least 0.1 px off the global one's excess (measured 0.20-0.31),
+// and the cavity is not smaller by more than a pixel (the open surfaces' own offset towards
+// the vitreous is 0.3-0.7 px, docs/algorithms/levelset.md "Where the zero level settles").
+// One B-scan of the full-size overhang phantom (the middle B-scan of a 5-B-scan volume,
+// through the disc), evolved as a radial line is (nb = 1).
+TEST(LevelSetStages, CavityUnderTheLipIsNotTooLarge) {
+    OnhPhantomParams pp = onh_phantom_preset(OnhShape::kOverhang);
+    pp.num_bscans = 5;
+    const io::Scan scan = render_onh_scan(pp);
+    const OnhPhantomGeometry g(pp);
+    LevelSetParams p;
+    const CavityExcess now = cavity_excess(scan, g, 2, p);
+    p.hidden_local_level = false;
+    const CavityExcess global = cavity_excess(scan, g, 2, p);
+    std::printf("cavity under the lip, %d A-scans: excess per hidden crossing %.3f px (global level %.3f px)\n",
+                now.ascans, now.mean_px, global.mean_px);
+    ASSERT_GE(now.ascans, 20);
+    ASSERT_EQ(global.ascans, now.ascans);
+    EXPECT_LE(now.mean_px, 0.15);
+    EXPECT_GE(global.mean_px - now.mean_px, 0.1);
+    EXPECT_GE(now.mean_px, -1.0);
 }
 
 }  // namespace

@@ -430,6 +430,15 @@ void levelset_both_eyes(OnhShape shape) {
         if (shape != OnhShape::kOverhang) {
             expect_inplane_near_device(
                 c.r, analyse_onh(c.ph.scan, device_ilm_surface(c.ph.scan)), name);
+        } else {
+            // Under the lip the level set follows the hidden wall as closely as an open one
+            // (the refinement under lips, docs/algorithms/levelset.md): the 3-D MRW within
+            // 2 um (the cupped disc's own error is -0.46 um, the open surfaces' offset 1-3 um)
+            // and the MRW area within 1 % (2 um of the ~0.3 mm MRW is 0.7 %). With one global
+            // decision level the cavity came out too large: -2.77 um and -1.67 %.
+            const OnhTruth& t = c.ph.truth;
+            EXPECT_NEAR(c.r.mrw_mean_mm, t.mrw_mean_mm, 0.002) << name;
+            EXPECT_NEAR(c.r.mrw_area_mm2, t.mrw_area_mm2, 0.01 * t.mrw_area_mm2) << name;
         }
     }
 }

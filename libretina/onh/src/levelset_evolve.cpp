@@ -167,21 +167,17 @@ public:
                     const bool s0 = f0 > 0.0F;
                     double inv2 = 0.0;
                     bool interface = false;
-                    for (int axis = 0; axis < 3; ++axis) {
-                        double t_min = 1e300;
-                        for (int dir = -1; dir <= 1; dir += 2) {
-                            int nb = b, na = a, nd = d;
-                            if (axis == 0) na += dir;
-                            if (axis == 1) nb += dir;
-                            if (axis == 2) nd += dir;
-                            if (na < 0 || na >= w_.na || nb < 0 || nb >= w_.nb) continue;
-                            const float f1 = value(nb, na, nd);
-                            if ((f1 > 0.0F) == s0) continue;
-                            interface = true;
-                            const double denom = static_cast<double>(f0) - f1;
-                            const double t = denom != 0.0 ? h_[axis] * f0 / denom : 0.0;
-                            t_min = std::min(t_min, std::abs(t));
-                        }
+                    std::array<double, 3> t_axis{1e300, 1e300, 1e300};
+                    for_each_scan_neighbour(b, a, d, [&](int axis, int nb, int na, int nd) {
+                        const float f1 = value(nb, na, nd);
+                        if ((f1 > 0.0F) == s0) return;
+                        interface = true;
+                        const double denom = static_cast<double>(f0) - f1;
+                        const double t = denom != 0.0 ? h_[axis] * f0 / denom : 0.0;
+                        auto& t_min = t_axis[static_cast<std::size_t>(axis)];
+                        t_min = std::min(t_min, std::abs(t));
+                    });
+                    for (const double t_min : t_axis) {
                         if (t_min < 1e300) {
                             if (t_min <= 0.0) {
                                 inv2 = 1e300;
@@ -227,7 +223,79 @@ public:
             layer_begin = layer_end;
         }
         if (p_.region_means == LevelSetParams::RegionMeans::kBand) band_means();
+        if (refining_) local_levels();
     }
+
+    // Starts the refinement under lips (docs/algorithms/levelset.md "Overhang volumes"): each
+    // column's top crossing (the first tissue row) is fixed from φ at the end of the main run.
+    // A column holds a cavity under a lip when it has vitreous more than leak_depth_mm below its
+    // top crossing; the voxels that deep in such columns and in those within band_layers
+    // A-scans and one B-scan of them are "hidden" (the cavity's ceiling and floor, and the
+    // hidden wall beyond the cavity's tip). A steep cup wall is not: no column under it holds
+    // vitreous below tissue. The tiles holding a hidden interface voxel are woken (the caller
+    // rebuilds the band over them). Returns the number of hidden interface voxels (0: nothing
+    // lies under a lip, the run is over and φ is unchanged).
+    std::int64_t begin_refinement(int iteration) {
+        hidden_rows_ = p_.leak_depth_mm / h_[2];
+        top_.assign(cols_.size(), 0);
+        std::vector<std::uint8_t> cavity(cols_.size(), 0);
+        bool any = false;
+        for (std::size_t c = 0; c < cols_.size(); ++c) {
+            const Column& col = cols_[c];
+            int top = col.hi;
+            for (int d = col.lo; d < col.hi; ++d) {
+                const bool vitreous = phi_[static_cast<std::size_t>(col.base + d)] > 0.0F;
+                if (top == col.hi) {
+                    if (!vitreous) top = d;
+                } else if (vitreous && static_cast<double>(d - top) > hidden_rows_) {
+                    cavity[c] = 1;
+                    any = true;
+                    break;
+                }
+            }
+            top_[c] = top;
+        }
+        if (!any) return 0;
+        lipped_.assign(cols_.size(), 0);
+        const int r = p_.band_layers;
+        const int rb = w_.nb > 1 ? 1 : 0;
+        for (int b = 0; b < w_.nb; ++b) {
+            for (int a = 0; a < w_.na; ++a) {
+                if (!cavity[static_cast<std::size_t>(w_.column(b, a))]) continue;
+                for (int nb = std::max(0, b - rb); nb <= std::min(w_.nb - 1, b + rb); ++nb) {
+                    for (int na = std::max(0, a - r); na <= std::min(w_.na - 1, a + r); ++na) {
+                        lipped_[static_cast<std::size_t>(w_.column(nb, na))] = 1;
+                    }
+                }
+            }
+        }
+        std::int64_t hidden = 0;
+        std::vector<std::uint8_t> woken(tile_last_change_.size(), 0);
+        for (int b = 0; b < w_.nb; ++b) {
+            for (int a = 0; a < w_.na; ++a) {
+                const Column& col = cols_[static_cast<std::size_t>(w_.column(b, a))];
+                for (int d = col.lo; d < col.hi; ++d) {
+                    if (!is_hidden(b, a, d)) continue;
+                    const bool s0 = phi_[static_cast<std::size_t>(col.base + d)] > 0.0F;
+                    bool interface = false;
+                    for_each_scan_neighbour(b, a, d, [&](int, int nb, int na, int nd) {
+                        if ((value(nb, na, nd) > 0.0F) != s0) interface = true;
+                    });
+                    if (!interface) continue;
+                    ++hidden;
+                    woken[static_cast<std::size_t>(tile_of(b, a))] = 1;
+                }
+            }
+        }
+        if (hidden == 0) return 0;
+        for (std::size_t t = 0; t < woken.size(); ++t) {
+            if (woken[t]) tile_last_change_[t] = iteration;
+        }
+        refining_ = true;
+        return hidden;
+    }
+    [[nodiscard]] double mean_local_level() const { return level_n_ > 0 ? level_sum_ / level_n_ : 0.0; }
+    [[nodiscard]] std::int64_t local_level_voxels() const { return level_n_; }
 
     // One explicit step (Eq. LS-3, LS-4) on the band voxels of active tiles, layers < W.
     // Returns the number of voxels that changed sign; `updated` counts the voxels updated.
@@ -237,13 +305,21 @@ public:
         const double contrast = std::max((ct - cv) * (ct - cv), 1e-12);
         active_.clear();
         next_.clear();
-        for (const Voxel& vx : band_) {
+        for (std::size_t k = 0; k < band_.size(); ++k) {
+            const Voxel& vx = band_[k];
             if (layer_[static_cast<std::size_t>(vx.index)] >= p_.band_layers) continue;
             const int b = vx.b;
             const int a = vx.a;
             if (!tile_active_[static_cast<std::size_t>(tile_of(b, a))]) continue;
             active_.push_back(vx);
-            next_.push_back(evolve(vx, b, a, cv, ct, contrast));
+            // Under a lip (refinement): the same speed, about this voxel's own decision level.
+            const float level = k < level_.size() ? level_[k] : std::numeric_limits<float>::quiet_NaN();
+            if (std::isnan(level)) {
+                next_.push_back(evolve(vx, b, a, cv, ct, contrast));
+            } else {
+                const double half = 0.5 * (ct - cv);
+                next_.push_back(evolve(vx, b, a, level - half, level + half, contrast));
+            }
         }
         std::int64_t changes = 0;
         for (std::size_t k = 0; k < active_.size(); ++k) {
@@ -281,6 +357,57 @@ public:
     }
 
 private:
+    // A voxel under a lip (refinement): more than leak_depth_mm below its column's top
+    // crossing, in a column that holds or lies beside a cavity under a lip.
+    [[nodiscard]] bool is_hidden(int b, int a, int d) const {
+        const auto c = static_cast<std::size_t>(w_.column(b, a));
+        return lipped_[c] != 0 && static_cast<double>(d - top_[c]) > hidden_rows_;
+    }
+
+    // The refinement's decision levels: for every updated band voxel under a lip, the midpoint
+    // of the means of the hidden band voxels on either side of the interface in a box of
+    // ±W A-scans, ±1 B-scan (volumes) and ±W rows around it — the midpoint of the local edge,
+    // whatever the tissue's brightness there. NaN (the global level) where a side has fewer
+    // than kMinSide voxels or the local contrast is below a quarter of the global one (no
+    // edge there: a shadow's tissue against a leak).
+    void local_levels() {
+        constexpr int kMinSide = 4;
+        level_.assign(band_.size(), std::numeric_limits<float>::quiet_NaN());
+        const int r = p_.band_layers;
+        const int rb = w_.nb > 1 ? 1 : 0;
+        const double global = c_tissue() - c_vitreous();
+        for (std::size_t k = 0; k < band_.size(); ++k) {
+            const Voxel& vx = band_[k];
+            if (layer_[static_cast<std::size_t>(vx.index)] >= p_.band_layers) continue;
+            if (!tile_active_[static_cast<std::size_t>(tile_of(vx.b, vx.a))]) continue;
+            if (!is_hidden(vx.b, vx.a, vx.depth)) continue;
+            double s_out = 0.0, s_in = 0.0;
+            int n_out = 0, n_in = 0;
+            for (int nb = std::max(0, vx.b - rb); nb <= std::min(w_.nb - 1, vx.b + rb); ++nb) {
+                for (int na = std::max(0, vx.a - r); na <= std::min(w_.na - 1, vx.a + r); ++na) {
+                    const Column& col = cols_[static_cast<std::size_t>(w_.column(nb, na))];
+                    for (int nd = std::max(col.lo, vx.depth - r); nd < std::min(col.hi, vx.depth + r + 1); ++nd) {
+                        const auto i = static_cast<std::size_t>(col.base + nd);
+                        if (layer_[i] > p_.band_layers || !is_hidden(nb, na, nd)) continue;
+                        if (phi_[i] > 0.0F) {
+                            s_out += image_[i];
+                            ++n_out;
+                        } else {
+                            s_in += image_[i];
+                            ++n_in;
+                        }
+                    }
+                }
+            }
+            if (n_out < kMinSide || n_in < kMinSide) continue;
+            const double m_out = s_out / n_out, m_in = s_in / n_in;
+            if (!(m_in - m_out >= 0.25 * global)) continue;
+            level_[k] = static_cast<float>(0.5 * (m_out + m_in));
+            level_sum_ += level_[k];
+            ++level_n_;
+        }
+    }
+
     // Region means over the band (LevelSetParams::RegionMeans::kBand), kept per tile: each
     // tile's sums restart from its band voxels on either side of the interface whenever the
     // tile's band is rebuilt (distances exact after the rebuild); a frozen tile keeps the sums
@@ -337,23 +464,31 @@ private:
     [[nodiscard]] bool in_region(int b, int a) const {
         return region_[static_cast<std::size_t>(tile_of(b, a))] != 0;
     }
-    // Calls f(neighbour) for each of the 6 face neighbours of vx that lie in an evolving tile
-    // and inside their column's window.
+    // Calls f(axis, b, a, d) for each of the 6 face neighbours of (b, a, d) inside the scan's
+    // columns (axis 0: A-scans, 1: B-scans, 2: rows; any row: value() answers outside a window).
     template <class F>
-    void for_each_neighbour(const Voxel& vx, F&& f) const {
+    void for_each_scan_neighbour(int b, int a, int d, F&& f) const {
         for (int axis = 0; axis < 3; ++axis) {
             for (int dir = -1; dir <= 1; dir += 2) {
-                int nb = vx.b, na = vx.a, nd = vx.depth;
+                int nb = b, na = a, nd = d;
                 if (axis == 0) na += dir;
                 if (axis == 1) nb += dir;
                 if (axis == 2) nd += dir;
                 if (na < 0 || na >= w_.na || nb < 0 || nb >= w_.nb) continue;
-                if (!in_region(nb, na)) continue;
-                const Column& col = cols_[static_cast<std::size_t>(w_.column(nb, na))];
-                if (nd < col.lo || nd >= col.hi) continue;
-                f(make_voxel(col.base + nd, nb, na, nd));
+                f(axis, nb, na, nd);
             }
         }
+    }
+    // Calls f(neighbour) for each of the 6 face neighbours of vx that lie in an evolving tile
+    // and inside their column's window.
+    template <class F>
+    void for_each_neighbour(const Voxel& vx, F&& f) const {
+        for_each_scan_neighbour(vx.b, vx.a, vx.depth, [&](int, int nb, int na, int nd) {
+            if (!in_region(nb, na)) return;
+            const Column& col = cols_[static_cast<std::size_t>(w_.column(nb, na))];
+            if (nd < col.lo || nd >= col.hi) return;
+            f(make_voxel(col.base + nd, nb, na, nd));
+        });
     }
     // φ at (b, a, d) inside the volume's columns; rows outside a window are vitreous above and
     // tissue below (±far).
@@ -526,6 +661,15 @@ private:
     double sum_in_ = 0.0, sum_out_ = 0.0;
     std::int64_t n_in_ = 0, n_out_ = 0;
     bool reached_edge_ = false;
+    // Refinement under lips (begin_refinement): each column's top crossing, the depth (rows)
+    // below it that counts as hidden, the local decision level of each band voxel (NaN: global).
+    bool refining_ = false;
+    std::vector<int> top_;
+    std::vector<std::uint8_t> lipped_;  // column holds, or lies beside, a cavity under a lip
+    double hidden_rows_ = 0.0;
+    std::vector<float> level_;
+    double level_sum_ = 0.0;  // over every local level set (a diagnostic)
+    std::int64_t level_n_ = 0;
 };
 
 }  // namespace
@@ -538,21 +682,35 @@ void evolve(const Windows& w, std::vector<float>& phi, const std::vector<float>&
     ev.rebuild();
     res.band_voxels = ev.band_size();
     int it = 0;
-    while (it < params.max_iterations) {
-        const int nact = ev.update_activity(it + 1);
-        if (nact == 0) {
-            res.converged = true;
-            break;
+    // Steps until every tile is frozen or `cap` iterations have been run in all; true if frozen.
+    auto run = [&](int cap) {
+        while (it < cap) {
+            if (ev.update_activity(it + 1) == 0) return true;
+            ++it;
+            if (it % params.reinit_interval == 0) ev.rebuild();
+            std::int64_t updated = 0;
+            const std::int64_t changes = ev.step(it, updated);
+            res.voxel_updates += updated;
+            res.last_updated_voxels = updated;
+            res.last_sign_changes = changes;
         }
-        ++it;
-        if (it % params.reinit_interval == 0) ev.rebuild();
-        std::int64_t updated = 0;
-        const std::int64_t changes = ev.step(it, updated);
-        res.voxel_updates += updated;
-        res.last_updated_voxels = updated;
-        res.last_sign_changes = changes;
+        return ev.update_activity(it + 1) == 0;
+    };
+    res.converged = run(params.max_iterations);
+    // Under a lip, each voxel's own decision level (docs/algorithms/levelset.md "Overhang
+    // volumes"): only once the global force has opened the cavity.
+    if (params.hidden_local_level && ev.begin_refinement(it) > 0) {
+        ev.update_activity(it + 1);
+        ev.rebuild();
+        const int start = it;
+        // The interface moves from one level to the other on the same edge (a pixel or two);
+        // a quarter of the main run's cap bounds the time where a leak keeps it moving.
+        const bool refined = run(it + std::max(1, params.max_iterations / 4));
+        res.converged = res.converged && refined;
+        res.refine_iterations = it - start;
+        res.local_level_voxels = ev.local_level_voxels();
+        res.mean_local_level = ev.mean_local_level();
     }
-    if (!res.converged && ev.update_activity(it + 1) == 0) res.converged = true;
     res.iterations = it;
     res.last_sign_change_fraction =
         res.last_updated_voxels > 0

@@ -65,6 +65,17 @@ struct LevelSetParams {
     // the edge (docs/algorithms/levelset.md, "Where the zero level settles").
     enum class RegionMeans { kBand, kWindow };
     RegionMeans region_means = RegionMeans::kBand;
+    // Under a rim lip the tissue is dimmer than at the open surfaces that set the region means,
+    // so the one decision level (c_v + c_t) / 2 lies inside that tissue and the cavity comes out
+    // too large. true: once the main run has stopped, the interface more than leak_depth_mm
+    // below its column's first tissue row, in columns that hold vitreous that deep (a cavity
+    // under a lip) or lie within band_layers A-scans and one B-scan of one (the cavity's
+    // ceiling, hidden wall and floor), is evolved again (at most max_iterations / 4 more
+    // iterations) about the midpoint of the band means on either side of it in a box of
+    // ±band_layers voxels (±1 B-scan), where that box holds an edge
+    // (docs/algorithms/levelset.md "Refinement under lips"). A scan without such a cavity is
+    // unchanged.
+    bool hidden_local_level = true;
 
     // --- Narrow band evolution ---
     // W: band = voxels ≤ W 6-neighbour steps from the interface; layers < W are updated, layer
@@ -125,6 +136,12 @@ struct LevelSetResult {
     double c_vitreous = 0.0;             // final region means (display units; see region_means)
     double c_tissue = 0.0;
     bool front_reached_window_edge = false;  // interface touched a window's top or bottom row
+    // The refinement under lips (LevelSetParams::hidden_local_level): its iterations (included
+    // in `iterations`; 0 when nothing lay under a lip), the band voxels that took a local level
+    // (summed over its rebuilds) and their mean level (display units).
+    int refine_iterations = 0;
+    std::int64_t local_level_voxels = 0;
+    double mean_local_level = 0.0;
     int missing_ilm_columns = 0;         // device ILM missing: filled from neighbours, clipped
     int invalid_pixel_columns = 0;       // columns without pixel data: clipped
 
