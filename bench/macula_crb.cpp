@@ -638,14 +638,14 @@ Eigen::VectorXd joint_fit(const Eigen::VectorXd& th0,
 }
 
 // `centre`: the centre's offset on the noise-free phantoms against the half-side of the window
-// whose quadratic vertex places it (under noise it widens as sigma^(1/3): 0.178 / 0.2 / 0.252 /
-// 0.317 mm at 0.5 / 0.7 / 1 / 2 px per surface), on 61, 97 and 193 B-scans: a deterministic
+// whose quadratic vertex places it (under noise it widens as sigma^(1/3): 0.178 / 0.224 / 0.283
+// mm at 0.5 / 1 / 2 px per surface), on 61, 97 and 193 B-scans: a deterministic
 // offset that grows with the window on every grid is the pit's own asymmetry, not the noise
 // and not the B-scans' spacing (docs/algorithms/cube.md, session 45).
 int centre_table() {
-    std::printf("centre error (um, grid x / y) and V_IR error (%%) of the noise-free Bezier "
-                "phantom against the centre window's half-side R\n%-8s", "R (mm)");
-    const std::vector<double> radii{0.06, 0.1, 0.15, 0.178, 0.2, 0.252, 0.317};
+    std::printf("centre error (um, grid x / y) of the noise-free Bezier phantom against the "
+                "centre window's half-side R\n%-8s", "R (mm)");
+    const std::vector<double> radii{0.06, 0.1, 0.15, 0.178, 0.224, 0.283, 0.35};
     for (const double r : radii) std::printf(" %15.3f", r);
     std::printf("\n");
     for (const int nb : {61, 97, 193}) {
