@@ -28,8 +28,10 @@
 // estimator's RMS, seeds 7, 8, ... as bench/macula_accuracy; 0 = the bound only. FIT_SEEDS
 // default 0: a joint least-squares fit of the model itself on that many seeds, ~1 s each at 193
 // B-scans, to see whether the bound is attained.)
-//        macula_crb bias [REALISATIONS [PX...]] [--bscans=N]   (the bias table at 61 B-scans, or
-// N, 0.5 / 1 / 2 px per surface unless PX are given; see bias_table)
+//        macula_crb bias [REALISATIONS [PX...]] [--bscans=N] [--true-centre] [--diagnose]
+// (the bias table at 61 B-scans, or N, 0.5 / 1 / 2 px per surface unless PX are given; see
+// bias_table; the oracle and the noise terms' diagnosis: NoiseTermProbe)
+//        macula_crb centre   (the noise-free centre offset against the centre window; centre_table)
 
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
@@ -215,6 +217,89 @@ std::vector<double> derived(const Eigen::VectorXd& th, const Model& m) {
 
 double value(double v) { return v; }
 double value(const std::optional<double>& v) { return *v; }
+
+// Per half-line, the Hessian of kParams[k] (this bench's own formulas) in the half-line's
+// x = (alpha, beta, r_rim, h_rim) at theta (CFT and the other half-lines held), by central
+// differences with the analysis's step (2 um): the second-order noise term of a plug-in
+// parameter is sum_i tr(H_i Cov_i) / 2 (docs/algorithms/cube.md, "V_p: the plug-in volume's
+// noise term").
+std::vector<Eigen::Matrix4d> line_hessians(const Eigen::VectorXd& th, const Model& m,
+                                           std::size_t k) {
+    constexpr double kStep = 2e-3;
+    const std::array<int, 4> ix{kAlpha, kBeta, kRimR, kRimH};
+    std::vector<Eigen::Matrix4d> out;
+    for (int i = 0; i < m.n; ++i) {
+        Eigen::Matrix4d h;
+        for (int a = 0; a < 4; ++a) {
+            for (int b = a; b < 4; ++b) {
+                auto at = [&](double sa, double sb) {
+                    Eigen::VectorXd y = th;
+                    y(m.line(i, ix[static_cast<std::size_t>(a)])) += sa * kStep;
+                    y(m.line(i, ix[static_cast<std::size_t>(b)])) += sb * kStep;
+                    return derived(y, m)[k];
+                };
+                h(a, b) = h(b, a) =
+                    (at(1, 1) - at(1, -1) - at(-1, 1) + at(-1, -1)) / (4.0 * kStep * kStep);
+            }
+        }
+        out.push_back(h);
+    }
+    return out;
+}
+
+// `bias --diagnose`: where a plug-in volume's bias under noise comes from. Over the
+// realisations whose every half-line was fitted: the plug-in V_p (Eq. 7.29 without its noise
+// term), the analysis's term, and the term sum_i tr(H_i C_i) / 2 with C_i the fits' own mean
+// covariance (what the analysis uses) or the realisations' covariance of the fitted
+// (alpha, beta, r_rim, h_rim) (what the delta method needs); V_IR's term likewise.
+struct NoiseTermProbe {
+    std::vector<Eigen::Vector4d> sum = std::vector<Eigen::Vector4d>(24, Eigen::Vector4d::Zero());
+    std::vector<Eigen::Matrix4d> sq = std::vector<Eigen::Matrix4d>(24, Eigen::Matrix4d::Zero());
+    std::vector<Eigen::Matrix4d> fit = std::vector<Eigen::Matrix4d>(24, Eigen::Matrix4d::Zero());
+    int n = 0;
+    double plug = 0.0;  // sum of plug-in V_p errors
+    double term = 0.0;  // sum of the analysis's V_p terms
+    void add(const CubeResult& r, double vp_true) {
+        if (r.half_lines.size() != sum.size() || !std::isfinite(r.pit_volume_mm3)) return;
+        for (const auto& h : r.half_lines) {
+            if (!h.valid || !h.interior_cov.allFinite()) return;
+        }
+        ++n;
+        const double p = r.rim.area_mm2 * r.rim_height_mm - r.rim_volume_mm3;
+        plug += p - vp_true;
+        term += p - r.pit_volume_mm3;
+        for (std::size_t i = 0; i < sum.size(); ++i) {
+            const Ctrl& q = r.half_lines[i].interior.control;
+            const Eigen::Vector4d x(q[1].x() - q[0].x(), q[3].x() - q[2].x(), q[3].x(), q[3].y());
+            sum[i] += x;
+            sq[i] += x * x.transpose();
+            fit[i] += r.half_lines[i].interior_cov;
+        }
+    }
+    void print(const std::vector<Eigen::Matrix4d>& h_vp, const std::vector<Eigen::Matrix4d>& h_vir,
+               double crb_vp, double crb_vir) const {
+        if (n < 2) return;
+        double t_fit = 0.0, t_emp = 0.0, t_vir = 0.0;
+        Eigen::Vector4d ratio = Eigen::Vector4d::Zero();
+        for (std::size_t i = 0; i < sum.size(); ++i) {
+            const Eigen::Vector4d mu = sum[i] / n;
+            const Eigen::Matrix4d emp = (sq[i] / n - mu * mu.transpose()) * n / (n - 1.0);
+            const Eigen::Matrix4d f = fit[i] / n;
+            t_fit += 0.5 * h_vp[i].cwiseProduct(f).sum();
+            t_emp += 0.5 * h_vp[i].cwiseProduct(emp).sum();
+            t_vir += 0.5 * h_vir[i].cwiseProduct(emp).sum();
+            ratio += emp.diagonal().cwiseQuotient(f.diagonal()) / static_cast<double>(sum.size());
+        }
+        std::printf(
+            "diagnose (%d eyes), in CRB: V_p plug-in bias %+.2f, the analysis's term %+.2f; the "
+            "term with the fits' mean covariance %+.2f, with the realisations' covariance %+.2f; "
+            "realisations' variance / fit covariance (mean over half-lines): alpha %.2f beta %.2f "
+            "r_rim %.2f h_rim %.2f; V_IR's term (realisations' covariance) %+.3f\n",
+            n, plug / n / crb_vp, term / n / crb_vp, t_fit / crb_vp, t_emp / crb_vp, ratio(0),
+            ratio(1), ratio(2), ratio(3), t_vir / crb_vir);
+    }
+};
+
 
 // kParams' values from the phantom's truth (MaculaTruth) or the analysis (CubeResult): the
 // same field names in both.
@@ -552,13 +637,42 @@ Eigen::VectorXd joint_fit(const Eigen::VectorXd& th0,
     return th;
 }
 
+// `centre`: the centre's offset on the noise-free phantoms against the half-side of the window
+// whose quadratic vertex places it (under noise it widens as sigma^(1/3): 0.178 / 0.224 / 0.283
+// mm at 0.5 / 1 / 2 px per surface), on 61, 97 and 193 B-scans: a deterministic
+// offset that grows with the window on every grid is the pit's own asymmetry, not the noise
+// and not the B-scans' spacing (docs/algorithms/cube.md, session 45).
+int centre_table() {
+    std::printf("centre error (um, grid x / y) of the noise-free Bezier phantom against the "
+                "centre window's half-side R\n%-8s", "R (mm)");
+    const std::vector<double> radii{0.06, 0.1, 0.15, 0.178, 0.224, 0.283, 0.35};
+    for (const double r : radii) std::printf(" %15.3f", r);
+    std::printf("\n");
+    for (const int nb : {61, 97, 193}) {
+        const MaculaPhantomParams p = phantom_params(nb);
+        const MaculaTruthOptions topt;
+        const MaculaPhantom ph = make_macula_phantom(p, topt);
+        std::printf("%3d B-sc", nb);
+        for (const double r : radii) {
+            CubeParams cp;
+            cp.centre_fit_radius_mm = r;
+            const CubeResult res = analyse_macula(ph.scan, cp);
+            const V2 e = 1e3 * (res.centre_mm - ph.centre_mm);
+            std::printf("   %+5.1f / %+5.1f", e.x(), e.y());
+        }
+        std::printf("\n");
+    }
+    return 0;
+}
+
 // `macula_crb bias [REALISATIONS]`: the bias and RMS of every parameter of analyse_macula on
 // the 61-B-scan Bezier phantom against its CRB (centre estimated, as the analysis estimates
 // it), at 0.5, 1 and 2 axial pixels of segmentation noise on ILM and on BM each (node SD
 // sqrt(2) x that). The CRB scales linearly with the node SD. Seeds 1001, 1002, ... at every
 // noise level (common random numbers). The bias's standard error is SD / sqrt(REALISATIONS):
 // <= 0.1 CRB needs REALISATIONS >= 100 (SD / CRB)^2, i.e. ~300 for SD up to 1.7 CRB.
-int bias_table(int realisations, std::vector<double> levels, int nb) {
+int bias_table(int realisations, std::vector<double> levels, int nb, bool true_centre,
+               bool diagnose) {
     const MaculaPhantomParams p = phantom_params(nb);
     const MaculaTruthOptions topt;
     const MaculaTruth truth = macula_truth(p, topt);
@@ -568,10 +682,16 @@ int bias_table(int realisations, std::vector<double> levels, int nb) {
     const std::vector<double> tv = parameter_values(truth);
     const double h = 1e-6;
     const Crb c = crb(fisher(th, m, p, layout, h), th, m, h);
+    std::vector<Eigen::Matrix4d> h_vp;
+    std::vector<Eigen::Matrix4d> h_vir;
+    if (diagnose) {
+        h_vp = line_hessians(th, m, 12);
+        h_vir = line_hessians(th, m, 11);
+    }
     std::printf(
         "CuBe bias and RMS against the CRB (centre estimated): Bezier phantom, %d B-scans, %d "
-        "realisations per noise level (seeds 1001...), noise per surface (ILM and BM each)\n",
-        nb, realisations);
+        "realisations per noise level (seeds 1001...), noise per surface (ILM and BM each)%s\n",
+        nb, realisations, true_centre ? "; ORACLE: the analysis given the true centre" : "");
     {
         // Noise-free: what the sampling alone leaves, with the noise-adaptive samples (the path
         // every noisy eye takes) forced on, and with the bilinear samples (the default here).
@@ -597,14 +717,18 @@ int bias_table(int realisations, std::vector<double> levels, int nb) {
         std::vector<std::vector<double>> err(kParams.size());
         double cpu_s = 0.0;
         double cx = 0.0, cy = 0.0;
+        NoiseTermProbe probe;
         for (int s = 0; s < realisations; ++s) {
             MaculaPhantomParams q = p;
             q.noise_um = surface_um;
             q.seed = static_cast<std::uint64_t>(1001 + s);
             const MaculaPhantom ph = make_macula_phantom(q, topt);
             const auto t0 = std::chrono::steady_clock::now();
-            const CubeResult r = analyse_macula(ph.scan);
+            CubeParams cp;
+            if (true_centre) cp.centre_mm = ph.centre_mm;
+            const CubeResult r = analyse_macula(ph.scan, cp);
             cpu_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+            if (diagnose) probe.add(r, tv[12]);
             const std::vector<double> rv = parameter_values(r);
             cx += (r.centre_mm - ph.centre_mm).x() / realisations;
             cy += (r.centre_mm - ph.centre_mm).y() / realisations;
@@ -622,6 +746,10 @@ int bias_table(int realisations, std::vector<double> levels, int nb) {
         // The centre's mean error (estimated minus true, grid x and y): a deterministic offset
         // moves every parameter measured about it (V_IR most: docs/algorithms/cube.md).
         std::printf("mean centre error %+.2f %+.2f um (grid x, y)\n", 1e3 * cx, 1e3 * cy);
+        if (diagnose) {
+            probe.print(h_vp, h_vir, c.sd_free[12] * node_um / kSigmaUm,
+                        c.sd_free[11] * node_um / kSigmaUm);
+        }
         for (std::size_t k = 0; k < kParams.size(); ++k) {
             const double crb_sd = c.sd_free[k] * node_um / kSigmaUm;
             double sum = 0.0;
@@ -655,21 +783,31 @@ int main(int argc, char** argv) {
         // Further arguments: other noise levels (px per surface), e.g. 0.1 to see the part of
         // a bias that does not shrink with the noise.
         // "--bscans=N": another phantom than the 61-B-scan one (e.g. 193).
+        // "--true-centre": the analysis given the phantom's centre (an oracle: what the
+        // centre's own error costs). "--diagnose": the plug-in volumes' noise terms
+        // (NoiseTermProbe).
         std::vector<double> levels;
         int nb = 61;
         int realisations = 300;
+        bool true_centre = false;
+        bool diagnose = false;
         for (int a = 2; a < argc; ++a) {
             const std::string arg = argv[a];
             if (arg.rfind("--bscans=", 0) == 0) {
                 nb = std::max(3, std::atoi(arg.c_str() + 9));
+            } else if (arg == "--true-centre") {
+                true_centre = true;
+            } else if (arg == "--diagnose") {
+                diagnose = true;
             } else if (a == 2) {
                 realisations = std::max(2, std::atoi(argv[a]));
             } else {
                 levels.push_back(std::atof(argv[a]));
             }
         }
-        return bias_table(realisations, levels, nb);
+        return bias_table(realisations, levels, nb, true_centre, diagnose);
     }
+    if (argc > 1 && std::string(argv[1]) == "centre") return centre_table();
     const int seeds = argc > 1 ? std::max(0, std::atoi(argv[1])) : 36;
     const int fit_seeds = argc > 2 ? std::max(0, std::atoi(argv[2])) : 0;
     std::printf(

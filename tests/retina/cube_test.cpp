@@ -627,6 +627,33 @@ SLOW_TEST(CubePhantom, SegmentationNoiseGivesRmseOfTheNoiseLevel) {
     }
 }
 
+TEST(CubePhantom, AGivenCentreUnderNoiseIsAnalysedAsTheSearchedOne) {
+    // A given centre (CubeParams::centre_mm, the validation path) must change the centre
+    // alone: under noise it gets the same pit floor and CFT-pass centre sample as a searched
+    // centre (docs/algorithms/cube.md "Centre"). Given exactly the searched centre, every
+    // parameter is then the searched analysis's, to the last bit but for rounding in the
+    // summation order (none: the same code runs on the same numbers). Before, a given centre
+    // took the bilinear pit floor and centre sample (CFT +0.9 um biased at 61 B-scans, the
+    // bias a true-centre oracle then misattributes to the centre).
+    MaculaPhantomParams p = volume_params(MaculaFamily::kBezier, 61);
+    p.noise_um = 3.8717;  // 1 axial pixel per surface
+    p.seed = 2101;
+    const MaculaPhantom ph = make_macula_phantom(p);
+    const CubeResult searched = analyse_macula(ph.scan);
+    ASSERT_TRUE(searched.noise_adaptive_samples);
+    CubeParams cp;
+    cp.centre_mm = searched.centre_mm;
+    const CubeResult given = analyse_macula(ph.scan, cp);
+    EXPECT_EQ(given.centre_source, "given");
+    EXPECT_DOUBLE_EQ(given.cft_mm, searched.cft_mm);
+    EXPECT_DOUBLE_EQ(given.pit_depth_mm, searched.pit_depth_mm);
+    EXPECT_DOUBLE_EQ(given.alpha_mean_mm, searched.alpha_mean_mm);
+    EXPECT_DOUBLE_EQ(given.pit_flat_diameter_mm, searched.pit_flat_diameter_mm);
+    EXPECT_DOUBLE_EQ(given.rim.diameter_mm, searched.rim.diameter_mm);
+    EXPECT_DOUBLE_EQ(given.inner_rim_volume_mm3, searched.inner_rim_volume_mm3);
+    EXPECT_DOUBLE_EQ(given.pit_volume_mm3, searched.pit_volume_mm3);
+}
+
 TEST(CubePhantom, BiasUnderOnePixelOfNoiseIsWithinAThirdOfTheBound) {
     // Issue 32, item 5: |bias| <= 0.3 CRB at 1 axial pixel of segmentation noise on ILM and on
     // BM each (3.87 um; thickness node SD 5.48 um) on 61 B-scans. The CRB SDs below are the

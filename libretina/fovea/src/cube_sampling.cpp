@@ -213,6 +213,27 @@ double noisy_centre_fit_radius_mm(double sd_mm) {
     return kNoisyCentreFitRadiusMm * std::cbrt(sd_mm / kOnePixelNoiseMm);
 }
 
+// Under noise, about out.centre_mm (searched or given; fit_r the centre window's half-side):
+// the pit floor for the radial samples the local fits cannot give, the smallest window centred
+// on the centre that holds 3 A-scans and 3 B-scans (a quadratic in both directions), at least
+// the noise-free centre window; and the CFT pass's centre sample, the height at the centre of
+// the quadratic surface over half the centre window (at least the floor's). The centre window's
+// vertex height is biased by the pit's higher-order terms, which grow with the window; the
+// floor's own window removes more of that bias but adds noise (docs/algorithms/cube.md, session
+// 44). Either left unset when its fit fails (the sample then stays the vertex height, if any).
+void pit_floor_and_centre_sample(const ThicknessMap& m, const CubeParams& params, double fit_r,
+                                 Centre& out) {
+    const double fx = std::max(params.centre_fit_radius_mm, kFloorNodeSpans * m.dx_mm);
+    const double fy = std::max(params.centre_fit_radius_mm, kFloorNodeSpans * m.dy_mm);
+    if (const auto k = quadratic_surface(m, out.centre_mm, fx, fy)) {
+        out.floor = PitFloor{.origin = out.centre_mm, .k = *k, .half_x_mm = fx, .half_y_mm = fy};
+    }
+    const double sw = kCentreSampleWindowFraction * fit_r;
+    if (const auto k = quadratic_surface(m, out.centre_mm, std::max(fx, sw), std::max(fy, sw))) {
+        out.sample_mm = (*k)(0);
+    }
+}
+
 // ---- radial samples under noise (docs/algorithms/cube.md "Radial samples under noise") ------
 // Window of one radial sample (r_k on half-line i): the valid nodes p with |(|p - c| - r_k)| <=
 // radial_half_mm, on the half-line's side of the centre (p - c) . d_i > 0, and either inside
@@ -539,6 +560,13 @@ Centre find_centre(const CentreInput& in) {
         out.cft_mm = m.sample(out.centre_mm.x(), out.centre_mm.y());
         out.num_tied_minima = 0;
         if (std::isnan(out.cft_mm)) throw AnalysisError("no valid thickness at the given centre");
+        // Under noise the same pit floor and centre sample as about a searched centre, so that
+        // a given centre changes the centre alone (validation: docs/algorithms/cube.md).
+        if (noisy && params.centre_fit_radius_mm > 0.0) {
+            pit_floor_and_centre_sample(
+                m, params,
+                std::max(params.centre_fit_radius_mm, noisy_centre_fit_radius_mm(noise_sd_mm)), out);
+        }
     } else {
         const double rs = params.search_radius_mm;
         // The node box around the search circle; values: M smoothed for the search (the
@@ -598,27 +626,7 @@ Centre find_centre(const CentreInput& in) {
                 out.centre_mm = *v;
                 if (noisy) out.sample_mm = vertex_mm;
             }
-            if (noisy) {
-                // The pit floor for the radial samples the local fits cannot give: the
-                // smallest window centred on the centre that holds 3 A-scans and 3 B-scans (a
-                // quadratic in both directions), at least the noise-free centre window.
-                const double fx = std::max(params.centre_fit_radius_mm, kFloorNodeSpans * m.dx_mm);
-                const double fy = std::max(params.centre_fit_radius_mm, kFloorNodeSpans * m.dy_mm);
-                if (const auto k = quadratic_surface(m, out.centre_mm, fx, fy)) {
-                    out.floor = PitFloor{.origin = out.centre_mm, .k = *k, .half_x_mm = fx,
-                                         .half_y_mm = fy};
-                }
-                // The CFT pass's centre sample: the height at the centre of the quadratic
-                // surface over half the centre window (at least the floor's). The centre
-                // window's vertex height is biased by the pit's higher-order terms, which grow
-                // with the window; the floor's own window removes more of that bias but adds
-                // noise (docs/algorithms/cube.md, session 44). Without it: the vertex height.
-                const double sw = kCentreSampleWindowFraction * fit_r;
-                if (const auto k = quadratic_surface(m, out.centre_mm, std::max(fx, sw),
-                                                     std::max(fy, sw))) {
-                    out.sample_mm = (*k)(0);
-                }
-            }
+            if (noisy) pit_floor_and_centre_sample(m, params, fit_r, out);
         }
         double cv = m.sample(out.centre_mm.x(), out.centre_mm.y());
         if (std::isnan(cv) && out.centre_mm != node_centre) {

@@ -117,7 +117,9 @@ struct CubeParams {
     LateralRegistrationParams lateral_registration{.smooth_wavelength_bscans = 8.0,
                                                    .line_smoothing_ascans = 4.0,
                                                    .whole_ascans = true};
-    // Forces the centre (grid mm) instead of searching: validation from a known centre.
+    // Forces the centre (grid mm) instead of searching: validation from a known centre. Under
+    // noise the pit floor and the CFT pass's centre sample are built about it as about a
+    // searched centre, so that only the centre changes (docs/algorithms/cube.md "Centre").
     std::optional<Eigen::Vector2d> centre_mm;
     // Throws UsageError naming the bad field.
     void validate() const;
