@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
 
 #include <Eigen/Dense>
 
@@ -92,17 +93,6 @@ struct Pass {
     int rejected = 0;
 };
 
-// Coefficients of the difference of order m across B-scans: (-1)^(m-j) binom(m, j).
-std::vector<double> difference_coefficients(int m) {
-    std::vector<double> c(static_cast<std::size_t>(m + 1), 0.0);
-    double binom = 1.0;
-    for (int j = 0; j <= m; ++j) {
-        c[static_cast<std::size_t>(j)] = ((m - j) % 2 == 0 ? 1.0 : -1.0) * binom;
-        binom = binom * (m - j) / (j + 1);
-    }
-    return c;
-}
-
 // Value, slope and validity (sample()) of every used B-scan's model lines at the current shifts,
 // once per pass: each B-scan's samples serve up to three second differences. Indexed
 // [(b * lines + line) * nx + a]; a B-scan not used or a line it lacks: not valid.
@@ -111,15 +101,15 @@ struct Samples {
     std::vector<char> ok;
 };
 
-Samples sample_lines(const io::Scan& scan, const std::vector<int>& lines,
-                     const std::vector<char>& use, const Eigen::VectorXd& s) {
+// (`out`'s buffers are reused from pass to pass.)
+void sample_lines(const io::Scan& scan, const std::vector<int>& lines,
+                  const std::vector<char>& use, const Eigen::VectorXd& s, Samples& out) {
     const int nb = scan.num_bscans();
     const int nx = scan.meta.size_x;
     const auto nl = lines.size();
     const std::size_t n = static_cast<std::size_t>(nb) * nl * static_cast<std::size_t>(nx);
-    Samples out;
-    out.v.assign(n, 0.0);
-    out.g.assign(n, 0.0);
+    out.v.resize(n);
+    out.g.resize(n);
     out.ok.assign(n, 0);
     for (int b = 0; b < nb; ++b) {
         if (!use[static_cast<std::size_t>(b)]) continue;
@@ -133,7 +123,6 @@ Samples sample_lines(const io::Scan& scan, const std::vector<int>& lines,
             }
         }
     }
-    return out;
 }
 
 // The order of the differences across B-scans (second: a smooth surface's curvature).
@@ -141,7 +130,7 @@ constexpr int kOrder = 2;
 
 Pass gauss_newton_pass(const io::Scan& scan, const std::vector<int>& lines,
                        const std::vector<char>& use, const Eigen::VectorXd& s,
-                       const Eigen::VectorXd& o, double scale) {
+                       const Eigen::VectorXd& o, double scale, Samples& smp) {
     const int nb = scan.num_bscans();
     const int nx = scan.meta.size_x;
     constexpr int m = kOrder;
@@ -152,10 +141,10 @@ Pass gauss_newton_pass(const io::Scan& scan, const std::vector<int>& lines,
     p.N = Eigen::MatrixXd::Zero(2 * nb, 2 * nb);
     p.rhs = Eigen::VectorXd::Zero(2 * nb);
     p.abs_res.reserve(static_cast<std::size_t>(nb) * nl * static_cast<std::size_t>(nx));
-    const Samples smp = sample_lines(scan, lines, use, s);
-    const std::vector<double> cv = difference_coefficients(m);
-    std::array<double, m1> c{};
-    std::copy(cv.begin(), cv.end(), c.begin());
+    sample_lines(scan, lines, use, s, smp);
+    // The coefficients of the second difference, (-1)^(m-j) binom(m, j), as constants: the
+    // products with them fold.
+    constexpr std::array<double, m1> c{1.0, -2.0, 1.0};
     std::array<std::size_t, m1> base{};
     std::array<double, m1> v{};
     std::array<double, m1> g{};
@@ -413,9 +402,10 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
     Eigen::VectorXd se_diag = Eigen::VectorXd::Zero(nb);
     double scale = 0.0;  // the first passes unweighted: the shifts are not known yet
     Pass last;
+    Samples samples;
     constexpr int kMaxIterations = 20;
     for (int iter = 0; iter < kMaxIterations; ++iter) {
-        last = gauss_newton_pass(fit, lines, use, s, o, scale);
+        last = gauss_newton_pass(fit, lines, use, s, o, scale, samples);
         R.iterations = iter + 1;
         if (last.inliers < 3.0 * nb) break;
         const Eigen::VectorXd d = solve_step(last, nb, smooth_modes, nullptr);
@@ -426,11 +416,11 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
         o += f * d.tail(nb);
         // Tukey from the third pass on, the scale from the median absolute residual (floor
         // 0.5 px: the lines are quantised near a pixel).
-        if (iter >= 2) scale = 4.685 * std::max(0.5, 1.4826 * median_of(last.abs_res));
+        if (iter >= 2) scale = 4.685 * std::max(0.5, 1.4826 * median_of(std::move(last.abs_res)));
         if (iter >= 4 && f * big < 1e-4) break;
     }
     // The standard errors from the final weights (one more pass at the solution).
-    last = gauss_newton_pass(fit, lines, use, s, o, scale);
+    last = gauss_newton_pass(fit, lines, use, s, o, scale, samples);
     if (last.inliers >= 3.0 * nb) (void)solve_step(last, nb, smooth_modes, &se_diag);
     const bool solved = s.allFinite() && se_diag.allFinite();
     if (!solved) {
