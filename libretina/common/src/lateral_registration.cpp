@@ -319,6 +319,9 @@ void LateralRegistrationParams::validate() const {
     require(std::isfinite(line_smoothing_ascans) && line_smoothing_ascans >= 0.0 &&
                 line_smoothing_ascans <= 16.0,
             "line_smoothing_ascans", "must be in [0, 16]");
+    require(std::isfinite(step_tolerance_ascans) && step_tolerance_ascans > 0.0 &&
+                step_tolerance_ascans <= 0.1,
+            "step_tolerance_ascans", "must be in (0, 0.1]");
 }
 
 LateralRegistration estimate_lateral_motion(const io::Scan& scan,
@@ -417,7 +420,7 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
         // Tukey from the third pass on, the scale from the median absolute residual (floor
         // 0.5 px: the lines are quantised near a pixel).
         if (iter >= 2) scale = 4.685 * std::max(0.5, 1.4826 * median_of(std::move(last.abs_res)));
-        if (iter >= 4 && f * big < 1e-4) break;
+        if (iter >= 4 && f * big < params.step_tolerance_ascans) break;
     }
     // The standard errors from the final weights (one more pass at the solution).
     last = gauss_newton_pass(fit, lines, use, s, o, scale, samples);
