@@ -40,7 +40,9 @@ std::string macula_options_text(const MaculaEyeOptions& o) {
       << " lateral_registration_line_smoothing_ascans="
       << p.lateral_registration.line_smoothing_ascans
       << " lateral_registration_whole_ascans="
-      << (p.lateral_registration.whole_ascans ? "true" : "false") << " centre_mm=";
+      << (p.lateral_registration.whole_ascans ? "true" : "false")
+      << " lateral_registration_step_ascans=" << p.lateral_registration.step_tolerance_ascans
+      << " centre_mm=";
     if (p.centre_mm) {
       s << p.centre_mm->x() << "," << p.centre_mm->y();
     } else {

@@ -162,6 +162,7 @@ TEST(MaculaCli, LateralRegistrationIsOnByDefaultAndRecorded) {
     EXPECT_EQ(a["options"]["lateral_registration_line_smoothing_ascans"], 4);
     EXPECT_EQ(a["options"]["lateral_registration_wavelength_bscans"], 8);
     EXPECT_EQ(a["options"]["lateral_registration_whole_ascans"], true);
+    EXPECT_EQ(a["options"]["lateral_registration_step_ascans"], 0.01);
     EXPECT_EQ(a["lateral_registration"]["applied"], true);
     EXPECT_EQ(a["lateral_registration"]["smooth_modes"], 20);
     EXPECT_EQ(b["lateral_registration"]["applied"], false);

@@ -12,6 +12,7 @@
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
 
+#include "octshape/retina/cube.h"
 #include "octshape/retina/onh.h"
 #include "octshape/retina/phantom_onh.h"
 #include "fixtures/lateral_shifts.h"
@@ -206,9 +207,9 @@ TEST(LateralRegistration, ADenseStillVolumeIsNotMoved) {
 TEST(LateralRegistration, RealCubeHeldOutLinesAreSmootherAfterRegistration) {
     SKIP_UNLESS_SHARED("realdata/topcon_ukb_example_min.fda");
     const io::Scan scan = io::read_scan(test::realdata("topcon_ukb_example_min.fda").string());
-    LateralRegistrationParams lp;
-    lp.line_smoothing_ascans = 4.0;      // the macula's (CubeParams)
-    lp.smooth_wavelength_bscans = 8.0;   // the macula's: K = 32 here
+    // The macula's settings (lines smoothed by SD 4 A-scans, K = 32 here, passes stopped at
+    // 0.01 A-scans).
+    const LateralRegistrationParams lp = CubeParams{}.lateral_registration;
     const LateralRegistration reg = estimate_lateral_motion(scan, lp);
     ASSERT_TRUE(reg.estimable);
     ASSERT_TRUE(reg.applied);
@@ -226,6 +227,29 @@ TEST(LateralRegistration, RealCubeHeldOutLinesAreSmootherAfterRegistration) {
         EXPECT_LT(test::lateral_roughness_px(scan, *k, s), 0.9 * before);
         EXPECT_GT(test::lateral_roughness_px(scan, *k, permuted), before);
     }
+}
+
+// The macula stops its passes at a step of 0.01 A-scans (the ONH at 1e-4). From the sixth pass
+// on the steps shrink by a factor of about 0.65 a pass, so what a stop at a step d leaves is
+// about d x 0.65 / (1 - 0.65) = 1.9 d: 0.02 A-scans, 0.23 um at 11.7 um per A-scan (measured
+// 0.15 um). Bound 0.25 um; and the stop must save passes (measured 13 against 20).
+TEST(LateralRegistration, TheMaculasEarlierStopMovesTheRealCubesShiftsByAFractionOfTheirError) {
+    SKIP_UNLESS_SHARED("realdata/topcon_ukb_example_min.fda");
+    const io::Scan scan = io::read_scan(test::realdata("topcon_ukb_example_min.fda").string());
+    const LateralRegistrationParams macula = CubeParams{}.lateral_registration;
+    LateralRegistrationParams fine = macula;
+    fine.step_tolerance_ascans = 1e-4;
+    const LateralRegistration a = estimate_lateral_motion(scan, macula);
+    const LateralRegistration b = estimate_lateral_motion(scan, fine);
+    ASSERT_TRUE(a.estimable && b.estimable);
+    EXPECT_LE(a.iterations, 15);
+    EXPECT_EQ(b.iterations, 20);
+    double largest = 0.0;
+    for (std::size_t i = 0; i < a.shift_um.size(); ++i) {
+        largest = std::max(largest, std::fabs(a.shift_um[i] - b.shift_um[i]));
+    }
+    EXPECT_LE(largest, 0.25);
+    EXPECT_LT(largest, 0.3 * b.shift_se_um);  // a fraction of one B-scan's standard error
 }
 
 }  // namespace

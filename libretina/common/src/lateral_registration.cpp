@@ -3,9 +3,11 @@
 #include "octshape/retina/lateral_registration.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
 
 #include <Eigen/Dense>
 
@@ -22,10 +24,11 @@ constexpr int kMaxBscans = 512;
 
 // A device line at a fractional A-scan (linear between two valid values; NaN outside the
 // B-scan or next to a missing value).
-double line_at(const std::vector<float>& line, double x) {
+inline double line_at(const std::vector<float>& line, double x) {
     const auto n = static_cast<int>(line.size());
     if (!(x >= 0.0) || x > n - 1) return kNaN;
-    const int a0 = std::min(static_cast<int>(std::floor(x)), n - 1);
+    // x >= 0: the truncation is the floor (and cheaper than the library's).
+    const int a0 = std::min(static_cast<int>(x), n - 1);
     const int a1 = std::min(a0 + 1, n - 1);
     const float v0 = line[static_cast<std::size_t>(a0)];
     const float v1 = line[static_cast<std::size_t>(a1)];
@@ -46,7 +49,7 @@ constexpr double kMaxBendPx = 8.0;
 
 // Value and slope (central difference over +-1 A-scan) of a line at x; false if missing or
 // bent beyond kMaxBendPx.
-bool sample(const std::vector<float>& line, double x, double& v, double& g) {
+inline bool sample(const std::vector<float>& line, double x, double& v, double& g) {
     v = line_at(line, x);
     const double lo = line_at(line, x - 1.0);
     const double hi = line_at(line, x + 1.0);
@@ -90,55 +93,102 @@ struct Pass {
     int rejected = 0;
 };
 
-// Coefficients of the difference of order m across B-scans: (-1)^(m-j) binom(m, j).
-std::vector<double> difference_coefficients(int m) {
-    std::vector<double> c(static_cast<std::size_t>(m + 1), 0.0);
-    double binom = 1.0;
-    for (int j = 0; j <= m; ++j) {
-        c[static_cast<std::size_t>(j)] = ((m - j) % 2 == 0 ? 1.0 : -1.0) * binom;
-        binom = binom * (m - j) / (j + 1);
+// Value, slope and validity (sample()) of every used B-scan's model lines at the current shifts,
+// once per pass: each B-scan's samples serve up to three second differences. Indexed
+// [(b * lines + line) * nx + a]; a B-scan not used or a line it lacks: not valid.
+struct Samples {
+    std::vector<double> v, g;
+    std::vector<char> ok;
+};
+
+// (`out`'s buffers are reused from pass to pass.)
+void sample_lines(const io::Scan& scan, const std::vector<int>& lines,
+                  const std::vector<char>& use, const Eigen::VectorXd& s, Samples& out) {
+    const int nb = scan.num_bscans();
+    const int nx = scan.meta.size_x;
+    const auto nl = lines.size();
+    const std::size_t n = static_cast<std::size_t>(nb) * nl * static_cast<std::size_t>(nx);
+    out.v.resize(n);
+    out.g.resize(n);
+    out.ok.assign(n, 0);
+    for (int b = 0; b < nb; ++b) {
+        if (!use[static_cast<std::size_t>(b)]) continue;
+        for (std::size_t li = 0; li < nl; ++li) {
+            const std::vector<float>* L = line_of(scan, b, lines[li]);
+            if (!L) continue;
+            const std::size_t base = (static_cast<std::size_t>(b) * nl + li) * static_cast<std::size_t>(nx);
+            for (int a = 0; a < nx; ++a) {
+                const std::size_t i = base + static_cast<std::size_t>(a);
+                out.ok[i] = sample(*L, a + s(b), out.v[i], out.g[i]) ? 1 : 0;
+            }
+        }
     }
-    return c;
 }
+
+// The order of the differences across B-scans (second: a smooth surface's curvature).
+constexpr int kOrder = 2;
 
 Pass gauss_newton_pass(const io::Scan& scan, const std::vector<int>& lines,
                        const std::vector<char>& use, const Eigen::VectorXd& s,
-                       const Eigen::VectorXd& o, double scale, int order) {
+                       const Eigen::VectorXd& o, double scale, Samples& smp) {
     const int nb = scan.num_bscans();
     const int nx = scan.meta.size_x;
-    const int m = order;
+    constexpr int m = kOrder;
+    constexpr std::size_t m1 = m + 1;
+    constexpr std::size_t nj = 2 * m1;
+    const auto nl = lines.size();
     Pass p;
     p.N = Eigen::MatrixXd::Zero(2 * nb, 2 * nb);
     p.rhs = Eigen::VectorXd::Zero(2 * nb);
-    const std::vector<double> c = difference_coefficients(m);
-    std::vector<const std::vector<float>*> L(static_cast<std::size_t>(m + 1));
-    std::vector<double> v(static_cast<std::size_t>(m + 1));
-    std::vector<double> g(static_cast<std::size_t>(m + 1));
-    std::vector<int> idx(static_cast<std::size_t>(2 * (m + 1)));
-    std::vector<double> jac(static_cast<std::size_t>(2 * (m + 1)));
+    p.abs_res.reserve(static_cast<std::size_t>(nb) * nl * static_cast<std::size_t>(nx));
+    sample_lines(scan, lines, use, s, smp);
+    // The coefficients of the second difference, (-1)^(m-j) binom(m, j), as constants: the
+    // products with them fold.
+    constexpr std::array<double, m1> c{1.0, -2.0, 1.0};
+    std::array<std::size_t, m1> base{};
+    std::array<double, m1> v{};
+    std::array<double, m1> g{};
+    std::array<double, m1> off{};
+    std::array<int, nj> idx{};
+    std::array<double, nj> jac{};
+    // d r / d o_{b0+j} = -c_j: constant.
+    for (std::size_t j = 0; j < m1; ++j) jac[j + m1] = -c[j];
+    // The triple's block of the normal equations, accumulated locally: every entry receives the
+    // same additions in the same order as in N itself (loaded before, stored after), so the
+    // result is N's to the bit.
+    std::array<double, nj * nj> Nl{};
+    std::array<double, nj> rl{};
     for (int b0 = 0; b0 + m < nb; ++b0) {
         bool all = true;
         for (int j = 0; j <= m; ++j) all = all && use[static_cast<std::size_t>(b0 + j)];
         if (!all) continue;
-        for (int k : lines) {
+        for (std::size_t j = 0; j < m1; ++j) {
+            idx[j] = b0 + static_cast<int>(j);
+            idx[j + m1] = nb + b0 + static_cast<int>(j);
+            off[j] = o(b0 + static_cast<int>(j));
+        }
+        for (std::size_t i = 0; i < nj; ++i) {
+            rl[i] = p.rhs(idx[i]);
+            for (std::size_t j = 0; j < nj; ++j) Nl[i * nj + j] = p.N(idx[i], idx[j]);
+        }
+        for (std::size_t li = 0; li < nl; ++li) {
             bool have = true;
-            for (int j = 0; j <= m; ++j) {
-                L[static_cast<std::size_t>(j)] = line_of(scan, b0 + j, k);
-                have = have && L[static_cast<std::size_t>(j)] != nullptr;
-            }
+            for (int j = 0; j <= m; ++j) have = have && line_of(scan, b0 + j, lines[li]) != nullptr;
             if (!have) continue;
+            for (std::size_t j = 0; j < m1; ++j) {
+                base[j] = ((static_cast<std::size_t>(b0) + j) * nl + li) * static_cast<std::size_t>(nx);
+            }
             for (int a = 0; a < nx; ++a) {
                 bool ok = true;
-                for (int j = 0; j <= m && ok; ++j) {
-                    const auto ju = static_cast<std::size_t>(j);
-                    ok = sample(*L[ju], a + s(b0 + j), v[ju], g[ju]);
+                for (std::size_t j = 0; j < m1; ++j) {
+                    const std::size_t i = base[j] + static_cast<std::size_t>(a);
+                    ok = ok && smp.ok[i] != 0;
+                    v[j] = smp.v[i];
+                    g[j] = smp.g[i];
                 }
                 if (!ok) continue;
                 double r = 0.0;
-                for (int j = 0; j <= m; ++j) {
-                    const auto ju = static_cast<std::size_t>(j);
-                    r += c[ju] * (v[ju] - o(b0 + j));
-                }
+                for (std::size_t j = 0; j < m1; ++j) r += c[j] * (v[j] - off[j]);
                 p.abs_res.push_back(std::fabs(r));
                 double w = 1.0;
                 if (scale > 0.0) {
@@ -151,19 +201,18 @@ Pass gauss_newton_pass(const io::Scan& scan, const std::vector<int>& lines,
                 }
                 p.ss += r * r;
                 p.inliers += 1.0;
-                // d r / d s_{b0+j} = c_j g_j; d r / d o_{b0+j} = -c_j.
-                for (int j = 0; j <= m; ++j) {
-                    const auto ju = static_cast<std::size_t>(j);
-                    idx[ju] = b0 + j;
-                    jac[ju] = c[ju] * g[ju];
-                    idx[ju + static_cast<std::size_t>(m + 1)] = nb + b0 + j;
-                    jac[ju + static_cast<std::size_t>(m + 1)] = -c[ju];
-                }
-                for (std::size_t i = 0; i < idx.size(); ++i) {
-                    p.rhs(idx[i]) -= w * jac[i] * r;
-                    for (std::size_t j = 0; j < idx.size(); ++j) p.N(idx[i], idx[j]) += w * jac[i] * jac[j];
+                // d r / d s_{b0+j} = c_j g_j.
+                for (std::size_t j = 0; j < m1; ++j) jac[j] = c[j] * g[j];
+                for (std::size_t i = 0; i < nj; ++i) {
+                    const double wi = w * jac[i];
+                    rl[i] -= wi * r;
+                    for (std::size_t j = 0; j < nj; ++j) Nl[i * nj + j] += wi * jac[j];
                 }
             }
+        }
+        for (std::size_t i = 0; i < nj; ++i) {
+            p.rhs(idx[i]) = rl[i];
+            for (std::size_t j = 0; j < nj; ++j) p.N(idx[i], idx[j]) = Nl[i * nj + j];
         }
     }
     return p;
@@ -270,6 +319,9 @@ void LateralRegistrationParams::validate() const {
     require(std::isfinite(line_smoothing_ascans) && line_smoothing_ascans >= 0.0 &&
                 line_smoothing_ascans <= 16.0,
             "line_smoothing_ascans", "must be in [0, 16]");
+    require(std::isfinite(step_tolerance_ascans) && step_tolerance_ascans > 0.0 &&
+                step_tolerance_ascans <= 0.1,
+            "step_tolerance_ascans", "must be in (0, 0.1]");
 }
 
 LateralRegistration estimate_lateral_motion(const io::Scan& scan,
@@ -353,9 +405,10 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
     Eigen::VectorXd se_diag = Eigen::VectorXd::Zero(nb);
     double scale = 0.0;  // the first passes unweighted: the shifts are not known yet
     Pass last;
+    Samples samples;
     constexpr int kMaxIterations = 20;
     for (int iter = 0; iter < kMaxIterations; ++iter) {
-        last = gauss_newton_pass(fit, lines, use, s, o, scale, 2);
+        last = gauss_newton_pass(fit, lines, use, s, o, scale, samples);
         R.iterations = iter + 1;
         if (last.inliers < 3.0 * nb) break;
         const Eigen::VectorXd d = solve_step(last, nb, smooth_modes, nullptr);
@@ -366,11 +419,11 @@ LateralRegistration estimate_lateral_motion(const io::Scan& scan,
         o += f * d.tail(nb);
         // Tukey from the third pass on, the scale from the median absolute residual (floor
         // 0.5 px: the lines are quantised near a pixel).
-        if (iter >= 2) scale = 4.685 * std::max(0.5, 1.4826 * median_of(last.abs_res));
-        if (iter >= 4 && f * big < 1e-4) break;
+        if (iter >= 2) scale = 4.685 * std::max(0.5, 1.4826 * median_of(std::move(last.abs_res)));
+        if (iter >= 4 && f * big < params.step_tolerance_ascans) break;
     }
     // The standard errors from the final weights (one more pass at the solution).
-    last = gauss_newton_pass(fit, lines, use, s, o, scale, 2);
+    last = gauss_newton_pass(fit, lines, use, s, o, scale, samples);
     if (last.inliers >= 3.0 * nb) (void)solve_step(last, nb, smooth_modes, &se_diag);
     const bool solved = s.allFinite() && se_diag.allFinite();
     if (!solved) {

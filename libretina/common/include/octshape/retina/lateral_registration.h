@@ -42,6 +42,9 @@ struct LateralRegistrationParams {
     // B-scan keeps the device's own values and their noise (false: the fractional shift,
     // linear between samples).
     bool whole_ascans = false;
+    // The Gauss-Newton passes stop when the largest step falls below this (A-scans; after at
+    // least 5 passes, at most 20). Lines moved by whole A-scans need far less than the default.
+    double step_tolerance_ascans = 1e-4;
 
     void validate() const;  // throws UsageError naming the field
 };
