@@ -9,6 +9,11 @@
 // 3. Scale: subdivided meshes from 10⁴ to 5·10⁶ faces (`--scale`), each in a fresh process
 //    (its peak resident memory is its own): set-up, time per iteration, peak memory.
 //
+// The subdivided meshes (tables 1–3) are the issue's: the shared pair's Noisy.obj, each level
+// splitting every face 1-to-4 at its edge midpoints in place (face f -> faces 4f .. 4f+3), then
+// all vertices renumbered in order of first appearance when the faces are read in order, corner
+// by corner (load() below; docs/algorithms/rofi.md, "Issue 35 (session 20)").
+//
 // Usage: rofi_speed [--quick] [--rounds N] [--scale MAX_FACES] [--scale-iterations P]
 //                   [--write-subdivided MESH_NAME LEVELS OUT] [SHARED_MESHES_DIR]
 //        rofi_speed --phases MESH_NAME LEVELS ITERATIONS THREADS [SHARED_MESHES_DIR]
