@@ -29,6 +29,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -37,6 +38,7 @@
 #include <vector>
 
 #include "octshape/io/mesh_io.h"
+#include "octshape/mesh/components.h"
 #include "octshape/mesh/mesh.h"
 #include "octshape/mesh/rofi.h"
 #include "octshape/mesh/simd_exp.h"
@@ -73,8 +75,7 @@ struct Mesh {
 
 // One level of 1-to-4 midpoint subdivision: face f becomes faces 4f .. 4f+3, (a, ab, ca),
 // (b, bc, ab), (c, ca, bc), (ab, bc, ca), where ab is the midpoint of edge (a, b), created
-// once and shared by the two faces of the edge. Vertex numbering is fixed afterwards, by
-// renumber_by_first_appearance().
+// once and shared by the two faces of the edge. Vertex numbering is fixed afterwards, in load().
 void subdivide(Mesh& m) {
     std::unordered_map<long long, int> mid;
     mid.reserve(static_cast<std::size_t>(m.F.rows()) * 2);
@@ -111,45 +112,23 @@ void subdivide(Mesh& m) {
     m.F = std::move(out);
 }
 
-// Renumbers the vertices in order of first appearance when the faces are read in order, corner
-// by corner (F(0,0), F(0,1), F(0,2), F(1,0), ...); a vertex used by no face keeps its relative
-// place after all used ones. The faces keep their order and their corners' order; the vertex
-// order follows them.
-void renumber_by_first_appearance(Mesh& m) {
-    const auto n = m.V.rows();
-    std::vector<int> new_id(static_cast<std::size_t>(n), -1);
-    std::vector<Eigen::Index> old_of;  // old index of each new one
-    old_of.reserve(static_cast<std::size_t>(n));
-    for (Eigen::Index f = 0; f < m.F.rows(); ++f) {
-        for (int k = 0; k < 3; ++k) {
-            int& id = new_id[static_cast<std::size_t>(m.F(f, k))];
-            if (id < 0) {
-                id = static_cast<int>(old_of.size());
-                old_of.push_back(m.F(f, k));
-            }
-            m.F(f, k) = id;
-        }
-    }
-    for (Eigen::Index i = 0; i < n; ++i) {
-        if (new_id[static_cast<std::size_t>(i)] < 0) old_of.push_back(i);
-    }
-    om::Vertices v(n, 3);
-    for (Eigen::Index i = 0; i < n; ++i) v.row(i) = m.V.row(old_of[static_cast<std::size_t>(i)]);
-    m.V = std::move(v);
-}
-
 // The meshes: the shared pair's Noisy.obj as it is for 0 subdivisions; otherwise
 // `subdivisions` levels of subdivide() (each face split in place into four, so the faces stay
 // in the order the splits produce: the input's order refined), then all vertices renumbered
-// in order of first appearance in that face list. (Renumbering after each level instead gives
-// the same mesh: the order of first appearance depends on the face list only.) Before session
-// 20 the subdivided meshes kept the input's vertices first and appended each level's midpoints,
-// so vertex order swept the surface once per level.
+// in order of first appearance when the faces are read in order, corner by corner
+// (compact_faces keeping every face; a vertex no face uses would be dropped: the shared meshes
+// have none). Renumbering after each level instead gives the same mesh: the order of first
+// appearance depends on the face list only. Before session 20 the subdivided meshes kept the
+// input's vertices first and appended each level's midpoints, so vertex order swept the
+// surface once per level.
 Mesh load(const std::filesystem::path& dir, const std::string& name, int subdivisions) {
     const auto data = octshape::io::read_mesh(dir / name / "Noisy.obj");
     Mesh m{data.V, data.F};
     for (int s = 0; s < subdivisions; ++s) subdivide(m);
-    if (subdivisions > 0) renumber_by_first_appearance(m);
+    if (subdivisions > 0) {
+        const std::vector<std::uint8_t> all(static_cast<std::size_t>(m.F.rows()), 1);
+        om::compact_faces(m.V, m.F, all);
+    }
     return m;
 }
 
