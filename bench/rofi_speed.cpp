@@ -9,6 +9,11 @@
 // 3. Scale: subdivided meshes from 10⁴ to 5·10⁶ faces (`--scale`), each in a fresh process
 //    (its peak resident memory is its own): set-up, time per iteration, peak memory.
 //
+// The subdivided meshes (tables 1–3) are the issue's: the shared pair's Noisy.obj, each level
+// splitting every face 1-to-4 at its edge midpoints in place (face f -> faces 4f .. 4f+3), then
+// all vertices renumbered in order of first appearance when the faces are read in order, corner
+// by corner (load() below; docs/algorithms/rofi.md, "Issue 35 (session 20)").
+//
 // Usage: rofi_speed [--quick] [--rounds N] [--scale MAX_FACES] [--scale-iterations P]
 //                   [--write-subdivided MESH_NAME LEVELS OUT] [SHARED_MESHES_DIR]
 //        rofi_speed --phases MESH_NAME LEVELS ITERATIONS THREADS [SHARED_MESHES_DIR]
@@ -24,6 +29,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -32,6 +38,7 @@
 #include <vector>
 
 #include "octshape/io/mesh_io.h"
+#include "octshape/mesh/components.h"
 #include "octshape/mesh/mesh.h"
 #include "octshape/mesh/rofi.h"
 #include "octshape/mesh/simd_exp.h"
@@ -66,13 +73,14 @@ struct Mesh {
     om::Faces F;
 };
 
-// 1-to-4 midpoint subdivision: every triangle split at its edge midpoints, new vertices in
-// order of first appearance (the issue's meshes).
+// One level of 1-to-4 midpoint subdivision: face f becomes faces 4f .. 4f+3, (a, ab, ca),
+// (b, bc, ab), (c, ca, bc), (ab, bc, ca), where ab is the midpoint of edge (a, b), created
+// once and shared by the two faces of the edge. Vertex numbering is fixed afterwards, in load().
 void subdivide(Mesh& m) {
     std::unordered_map<long long, int> mid;
     mid.reserve(static_cast<std::size_t>(m.F.rows()) * 2);
     std::vector<double> v(m.V.data(), m.V.data() + m.V.size());
-    // m.V is column-major (Eigen default): rewrite as row-major triples.
+    // Copied as row-major triples (the vector grows as midpoints are appended).
     for (Eigen::Index i = 0; i < m.V.rows(); ++i) {
         for (int k = 0; k < 3; ++k) v[static_cast<std::size_t>(3 * i + k)] = m.V(i, k);
     }
@@ -104,10 +112,23 @@ void subdivide(Mesh& m) {
     m.F = std::move(out);
 }
 
+// The issue's meshes: the shared pair's Noisy.obj as it is for 0 subdivisions; otherwise
+// `subdivisions` levels of subdivide() (each face split in place into four, so the faces stay
+// in the order the splits produce: the input's order refined), then all vertices renumbered
+// in order of first appearance when the faces are read in order, corner by corner
+// (compact_faces keeping every face; a vertex no face uses would be dropped: the shared meshes
+// have none). Renumbering after each level instead gives the same mesh: the order of first
+// appearance depends on the face list only. Before session 20 the subdivided meshes kept the
+// input's vertices first and appended each level's midpoints, so vertex order swept the
+// surface once per level.
 Mesh load(const std::filesystem::path& dir, const std::string& name, int subdivisions) {
     const auto data = octshape::io::read_mesh(dir / name / "Noisy.obj");
     Mesh m{data.V, data.F};
     for (int s = 0; s < subdivisions; ++s) subdivide(m);
+    if (subdivisions > 0) {
+        const std::vector<std::uint8_t> all(static_cast<std::size_t>(m.F.rows()), 1);
+        om::compact_faces(m.V, m.F, all);
+    }
     return m;
 }
 
