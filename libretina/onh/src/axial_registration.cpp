@@ -184,6 +184,8 @@ void AxialRegistrationParams::validate() const {
     require(std::isfinite(max_residual_um) && max_residual_um > 0.0, "max_residual_um",
             "must be positive");
     require(min_bm_fraction > 0.0 && min_bm_fraction < 1.0, "min_bm_fraction", "must be in (0, 1)");
+    require(std::isfinite(max_curvature_mrw_um) && max_curvature_mrw_um > 0.0,
+            "max_curvature_mrw_um", "must be positive");
 }
 
 AxialRegistration estimate_axial_motion(const io::Scan& scan, const AxialRegistrationParams& params) {
@@ -274,6 +276,7 @@ AxialRegistration estimate_axial_motion(const io::Scan& scan, const AxialRegistr
         (void)motion_of(offset, y, count, params.surface_degree, radial,
                         std::numeric_limits<double>::quiet_NaN(), &free_y2);
         R.curvature_to_motion_um = (free_y2 - fixed_y2) * um_per_px;
+        R.curvature_mrw_effect_um = kMrwUmPerCurvatureUm * std::fabs(R.curvature_to_motion_um);
     }
     std::vector<double> m = motion_of(offset, y, count, params.surface_degree, radial, fixed_y2);
     for (int b = 0; b < nb; ++b) {
@@ -308,6 +311,15 @@ AxialRegistration estimate_axial_motion(const io::Scan& scan, const AxialRegistr
     }
     if (R.residual_rms_um > params.max_residual_um) {
         R.qc_flags.push_back("BM is not one smooth surface: axial registration uncertain");
+    }
+    // A wall curved differently across the B-scans than along them (a staphyloma, a tilted
+    // disc) looks to the BM exactly like a curved motion; beyond what a moving eye leaves
+    // (docs/algorithms/onh.md: <= 214 um at 100 um SD of motion, 4.3 um of MRW) say so.
+    if (R.curvature_mrw_effect_um > params.max_curvature_mrw_um) {
+        R.qc_flags.push_back(
+            "eye wall curves differently across and along the B-scans: curvature removed as "
+            "motion may be the eye's (3-D MRW uncertain by about " +
+            fixed_number(R.curvature_mrw_effect_um, 0) + " um)");
     }
     return R;
 }

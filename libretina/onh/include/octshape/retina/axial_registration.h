@@ -25,6 +25,11 @@
 
 namespace octshape::retina {
 
+// The mean 3-D MRW's change per um of y^2 depth (at the field's first and last B-scan) left in
+// the eye: 0.0203 um/um, measured on the full-size phantom disc and predicted to first order
+// from its BMO-to-ILM vectors (docs/algorithms/onh.md, "Curved motion across B-scans").
+inline constexpr double kMrwUmPerCurvatureUm = 0.0203;
+
 struct AxialRegistrationParams {
     bool enabled = true;
     int surface_degree = 3;           // polynomial degree of the smooth BM surface (1..4)
@@ -35,6 +40,9 @@ struct AxialRegistrationParams {
     // them (S's x^2 term), so that the offsets' curvature beyond it is motion; false: every
     // polynomial of surface_degree in y belongs to the eye (a curved motion is left in it).
     bool isotropic_curvature = true;
+    // Flag when the curvature removed as motion, were it the eye wall's instead, would move the
+    // mean 3-D MRW by more than this (um; the effect is kMrwUmPerCurvatureUm per um of it).
+    double max_curvature_mrw_um = 5.0;
 
     void validate() const;  // throws UsageError naming the field
 };
@@ -55,6 +63,9 @@ struct AxialRegistration {
     // first and last B-scan, against the middle) that the offsets held beyond the eye's, removed
     // with the motion (+ = the B-scans at the field's edges lay deeper).
     double curvature_to_motion_um = 0.0;
+    // What that curvature would move the mean 3-D MRW by were it the eye wall's and not motion
+    // (um, >= 0): kMrwUmPerCurvatureUm x |curvature_to_motion_um|.
+    double curvature_mrw_effect_um = 0.0;
     std::vector<std::string> qc_flags;
     std::vector<std::string> notes;
 };
