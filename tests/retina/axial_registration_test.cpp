@@ -306,7 +306,9 @@ TEST(AxialRegistration, CurvedMotionAcrossBscansIsNotGivenToTheEye) {
     EXPECT_NEAR(r.curvature_to_motion_um, a_um, 0.01);
     // 150 um is within what a moving eye leaves (median 101 um at 100 um SD): its effect,
     // 3.0 um of MRW, under the 5 um bound, is reported and not flagged.
-    EXPECT_NEAR(r.curvature_mrw_effect_um, kMrwUmPerCurvatureUm * a_um, 1e-3);
+    // The phantom's field is 4.35 mm: 150 um at its edge is 2 x 150 / 2.175^2 = 63.4 um/mm^2.
+    EXPECT_NEAR(r.curvature_mrw_effect_um,
+                kMrwUmPerCurvatureUmPerMm2 * 2.0 * a_um / (2.175 * 2.175), 1e-3);
     EXPECT_FALSE(has_curvature_flag(r));
     // The shifts are the curvature up to the eye's 1, y, y^3 (a depth, a tilt and a cubic across
     // the B-scans stay the eye's; weighted by each B-scan's BM count, which the disc makes
@@ -332,14 +334,15 @@ TEST(AxialRegistration, CurvedMotionAcrossBscansIsNotGivenToTheEye) {
 }
 
 // A still eye whose wall is 300 um more curved across the B-scans than along them at the field's
-// edge (a staphyloma; to the BM the same as the curved motion above): were it the wall's, the
-// 3-D MRW moves by 0.0203 x 300 = 6.1 um, past the 5 um bound (and past what 117 of 120 random
-// walks of 100 um SD leave, docs/algorithms/onh.md), so it is flagged, with the number.
+// edge (a staphyloma; to the BM the same as the curved motion above): 2 x 300 / 2.175^2 =
+// 127 um/mm^2 on the 4.35 mm field; were it the wall's, the 3-D MRW moves by 0.048 x 127 =
+// 6.1 um, past the 5 um bound (and past what 117 of 120 random walks of 100 um SD leave,
+// docs/algorithms/onh.md), so it is flagged, with the number.
 TEST(AxialRegistration, WallCurvedMoreAcrossThanAlongIsFlagged) {
     const io::Scan scan = curved_across(render_onh_scan(moving(false, 0.0, 25, 96)), 300.0);
     const AxialRegistration r = estimate_axial_motion(scan);
     EXPECT_NEAR(r.curvature_to_motion_um, 300.0, 0.01);
-    EXPECT_NEAR(r.curvature_mrw_effect_um, 6.09, 1e-3);
+    EXPECT_NEAR(r.curvature_mrw_effect_um, 0.048 * 600.0 / (2.175 * 2.175), 1e-3);  // 6.09
     ASSERT_TRUE(has_curvature_flag(r));
     EXPECT_NE(std::find(r.qc_flags.begin(), r.qc_flags.end(),
                         std::string(kCurvatureFlag) + "6 um)"),

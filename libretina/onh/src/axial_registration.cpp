@@ -276,7 +276,8 @@ AxialRegistration estimate_axial_motion(const io::Scan& scan, const AxialRegistr
         (void)motion_of(offset, y, count, params.surface_degree, radial,
                         std::numeric_limits<double>::quiet_NaN(), &free_y2);
         R.curvature_to_motion_um = (free_y2 - fixed_y2) * um_per_px;
-        R.curvature_mrw_effect_um = kMrwUmPerCurvatureUm * std::fabs(R.curvature_to_motion_um);
+        R.curvature_mrw_effect_um = kMrwUmPerCurvatureUmPerMm2 *
+                                    std::fabs(2.0 * R.curvature_to_motion_um / (half_h * half_h));
     }
     std::vector<double> m = motion_of(offset, y, count, params.surface_degree, radial, fixed_y2);
     for (int b = 0; b < nb; ++b) {
@@ -313,8 +314,10 @@ AxialRegistration estimate_axial_motion(const io::Scan& scan, const AxialRegistr
         R.qc_flags.push_back("BM is not one smooth surface: axial registration uncertain");
     }
     // A wall curved differently across the B-scans than along them (a staphyloma, a tilted
-    // disc) looks to the BM exactly like a curved motion; beyond what a moving eye leaves
-    // (docs/algorithms/onh.md: <= 214 um at 100 um SD of motion, 4.3 um of MRW) say so.
+    // disc) looks to the BM exactly like a curved motion, so no bound tells them apart; past the
+    // MRW's 5 um the result is uncertain beyond its tolerance either way, so say so (random
+    // walks of 100 um SD leave a median 2.0 um of MRW on a 4.35 mm field; docs/algorithms/
+    // onh.md "Curved motion across B-scans").
     if (R.curvature_mrw_effect_um > params.max_curvature_mrw_um) {
         R.qc_flags.push_back(
             "eye wall curves differently across and along the B-scans: curvature removed as "
