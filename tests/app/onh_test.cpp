@@ -113,6 +113,7 @@ TEST(OnhCli, LateralRegistrationIsOnByDefaultAndRecorded) {
     EXPECT_EQ(a["options"]["lateral_registration_wavelength_bscans"], 25);
     EXPECT_EQ(a["options"]["axial_registration_isotropic_curvature"], true);
     EXPECT_TRUE(a["axial_registration"]["curvature_to_motion_um"].is_number());
+    EXPECT_TRUE(a["axial_registration"]["curvature_mrw_effect_um"].is_number());
     EXPECT_EQ(a["lateral_registration"]["applied"], true);
     EXPECT_EQ(b["lateral_registration"]["applied"], false);
     const auto& t = truth["acquisition"]["lateral_shift_um"];

@@ -268,11 +268,10 @@ TEST(AxialRegistration, RecoversTheMotionOfAVolume) {
 // (0.01 um, as the still eye above), and the registered device lines are the still ones, so
 // the device-ILM 3-D MRW is the still scan's within 0.05 um (the lines' float32 rounding moved
 // through the surfaces; with the curvature left in the eye, as before the prior, it is +2.6 um).
-TEST(AxialRegistration, CurvedMotionAcrossBscansIsNotGivenToTheEye) {
-    const OnhPhantomParams p = moving(false, 0.0, 25, 96);
-    const io::Scan still = render_onh_scan(p);
-    const double a_um = 150.0;
-    const double um = p.scale_z_mm * 1000.0;
+// The still scan's lines moved deeper by a_um y^2 (y from -1 at the first B-scan to +1 at the
+// last): a curved motion, or as the BM sees it, a wall a_um more curved across the B-scans.
+io::Scan curved_across(const io::Scan& still, double a_um) {
+    const double um = still.meta.scale_z_mm * 1000.0;
     io::Scan scan = still;
     const int nb = scan.num_bscans();
     for (int b = 0; b < nb; ++b) {
@@ -283,9 +282,34 @@ TEST(AxialRegistration, CurvedMotionAcrossBscansIsNotGivenToTheEye) {
         io::shift_bscan(bs, scan.meta.size_x, scan.meta.size_z, a_um * y * y / um);
         pixels.swap(bs.pixels);
     }
+    return scan;
+}
+
+const char* const kCurvatureFlag =
+    "eye wall curves differently across and along the B-scans: curvature removed as motion may "
+    "be the eye's (3-D MRW uncertain by about ";
+
+bool has_curvature_flag(const AxialRegistration& r) {
+    return std::any_of(r.qc_flags.begin(), r.qc_flags.end(), [](const std::string& f) {
+        return f.rfind(kCurvatureFlag, 0) == 0;
+    });
+}
+
+TEST(AxialRegistration, CurvedMotionAcrossBscansIsNotGivenToTheEye) {
+    const OnhPhantomParams p = moving(false, 0.0, 25, 96);
+    const io::Scan still = render_onh_scan(p);
+    const double a_um = 150.0;
+    io::Scan scan = curved_across(still, a_um);
+    const int nb = scan.num_bscans();
     const AxialRegistration r = register_axially(scan);
     ASSERT_TRUE(r.applied);
     EXPECT_NEAR(r.curvature_to_motion_um, a_um, 0.01);
+    // 150 um is within what a moving eye leaves (median 101 um at 100 um SD): its effect,
+    // 3.0 um of MRW, under the 5 um bound, is reported and not flagged.
+    // The phantom's field is 4.35 mm: 150 um at its edge is 2 x 150 / 2.175^2 = 63.4 um/mm^2.
+    EXPECT_NEAR(r.curvature_mrw_effect_um,
+                kMrwUmPerCurvatureUmPerMm2 * 2.0 * a_um / (2.175 * 2.175), 1e-3);
+    EXPECT_FALSE(has_curvature_flag(r));
     // The shifts are the curvature up to the eye's 1, y, y^3 (a depth, a tilt and a cubic across
     // the B-scans stay the eye's; weighted by each B-scan's BM count, which the disc makes
     // uneven in y, the fit of those three moves a little of a y^2 into them: 0.4 um here).
@@ -307,6 +331,26 @@ TEST(AxialRegistration, CurvedMotionAcrossBscansIsNotGivenToTheEye) {
     const AxialRegistration f = estimate_axial_motion(scan, free);
     EXPECT_LT(f.max_abs_shift_um, 0.01);
     EXPECT_EQ(f.curvature_to_motion_um, 0.0);
+}
+
+// A still eye whose wall is 300 um more curved across the B-scans than along them at the field's
+// edge (a staphyloma; to the BM the same as the curved motion above): 2 x 300 / 2.175^2 =
+// 127 um/mm^2 on the 4.35 mm field; were it the wall's, the 3-D MRW moves by 0.048 x 127 =
+// 6.1 um, past the 5 um bound (and past what 117 of 120 random walks of 100 um SD leave,
+// docs/algorithms/onh.md), so it is flagged, with the number.
+TEST(AxialRegistration, WallCurvedMoreAcrossThanAlongIsFlagged) {
+    const io::Scan scan = curved_across(render_onh_scan(moving(false, 0.0, 25, 96)), 300.0);
+    const AxialRegistration r = estimate_axial_motion(scan);
+    EXPECT_NEAR(r.curvature_to_motion_um, 300.0, 0.01);
+    EXPECT_NEAR(r.curvature_mrw_effect_um, 0.048 * 600.0 / (2.175 * 2.175), 1e-3);  // 6.09
+    ASSERT_TRUE(has_curvature_flag(r));
+    EXPECT_NE(std::find(r.qc_flags.begin(), r.qc_flags.end(),
+                        std::string(kCurvatureFlag) + "6 um)"),
+              r.qc_flags.end());
+    // Without the prior nothing is removed, nothing flagged.
+    AxialRegistrationParams free;
+    free.isotropic_curvature = false;
+    EXPECT_FALSE(has_curvature_flag(estimate_axial_motion(scan, free)));
 }
 
 // With segmentation noise of sigma = 1 px (3.9 um, independent per A-scan) on the BM line, each

@@ -184,6 +184,8 @@ void AxialRegistrationParams::validate() const {
     require(std::isfinite(max_residual_um) && max_residual_um > 0.0, "max_residual_um",
             "must be positive");
     require(min_bm_fraction > 0.0 && min_bm_fraction < 1.0, "min_bm_fraction", "must be in (0, 1)");
+    require(std::isfinite(max_curvature_mrw_um) && max_curvature_mrw_um > 0.0,
+            "max_curvature_mrw_um", "must be positive");
 }
 
 AxialRegistration estimate_axial_motion(const io::Scan& scan, const AxialRegistrationParams& params) {
@@ -274,6 +276,8 @@ AxialRegistration estimate_axial_motion(const io::Scan& scan, const AxialRegistr
         (void)motion_of(offset, y, count, params.surface_degree, radial,
                         std::numeric_limits<double>::quiet_NaN(), &free_y2);
         R.curvature_to_motion_um = (free_y2 - fixed_y2) * um_per_px;
+        R.curvature_mrw_effect_um = kMrwUmPerCurvatureUmPerMm2 *
+                                    std::fabs(2.0 * R.curvature_to_motion_um / (half_h * half_h));
     }
     std::vector<double> m = motion_of(offset, y, count, params.surface_degree, radial, fixed_y2);
     for (int b = 0; b < nb; ++b) {
@@ -308,6 +312,17 @@ AxialRegistration estimate_axial_motion(const io::Scan& scan, const AxialRegistr
     }
     if (R.residual_rms_um > params.max_residual_um) {
         R.qc_flags.push_back("BM is not one smooth surface: axial registration uncertain");
+    }
+    // A wall curved differently across the B-scans than along them (a staphyloma, a tilted
+    // disc) looks to the BM exactly like a curved motion, so no bound tells them apart; past the
+    // MRW's 5 um the result is uncertain beyond its tolerance either way, so say so (random
+    // walks of 100 um SD leave a median 2.0 um of MRW on a 4.35 mm field; docs/algorithms/
+    // onh.md "Curved motion across B-scans").
+    if (R.curvature_mrw_effect_um > params.max_curvature_mrw_um) {
+        R.qc_flags.push_back(
+            "eye wall curves differently across and along the B-scans: curvature removed as "
+            "motion may be the eye's (3-D MRW uncertain by about " +
+            fixed_number(R.curvature_mrw_effect_um, 0) + " um)");
     }
     return R;
 }

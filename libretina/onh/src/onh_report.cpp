@@ -129,6 +129,7 @@ J onh_json(const OnhResult& r, const J& options) {
         reg["max_abs_shift_um"] = a.max_abs_shift_um;
         reg["residual_rms_um"] = a.residual_rms_um;
         reg["curvature_to_motion_um"] = a.curvature_to_motion_um;
+        reg["curvature_mrw_effect_um"] = a.curvature_mrw_effect_um;
         reg["bm_values_used"] = a.bm_values_used;
         reg["bm_values_rejected"] = a.bm_values_rejected;
         reg["bscans_not_estimated"] = a.bscans_not_estimated;

@@ -25,6 +25,12 @@
 
 namespace octshape::retina {
 
+// The mean 3-D MRW's change per um/mm^2 of curvature across the B-scans left in the eye (a depth
+// k y^2 / 2, y in mm): 0.048 um, measured on the full-size phantom disc (0.0203 um per um of
+// depth at its 4.35 mm field's edge) and predicted to first order from its BMO-to-ILM vectors
+// (docs/algorithms/onh.md, "Curved motion across B-scans"). It depends on the disc, not the field.
+inline constexpr double kMrwUmPerCurvatureUmPerMm2 = 0.048;
+
 struct AxialRegistrationParams {
     bool enabled = true;
     int surface_degree = 3;           // polynomial degree of the smooth BM surface (1..4)
@@ -35,6 +41,9 @@ struct AxialRegistrationParams {
     // them (S's x^2 term), so that the offsets' curvature beyond it is motion; false: every
     // polynomial of surface_degree in y belongs to the eye (a curved motion is left in it).
     bool isotropic_curvature = true;
+    // Flag when the curvature removed as motion, were it the eye wall's instead, would move the
+    // mean 3-D MRW by more than this (um; kMrwUmPerCurvatureUmPerMm2 per um/mm^2 of it).
+    double max_curvature_mrw_um = 5.0;
 
     void validate() const;  // throws UsageError naming the field
 };
@@ -55,6 +64,10 @@ struct AxialRegistration {
     // first and last B-scan, against the middle) that the offsets held beyond the eye's, removed
     // with the motion (+ = the B-scans at the field's edges lay deeper).
     double curvature_to_motion_um = 0.0;
+    // What that curvature would move the mean 3-D MRW by were it the eye wall's and not motion
+    // (um, >= 0): kMrwUmPerCurvatureUmPerMm2 x its curvature |2 curvature_to_motion_um / h^2|,
+    // h the half height of the field (mm); on a 4.35 mm field 0.0203 x |curvature_to_motion_um|.
+    double curvature_mrw_effect_um = 0.0;
     std::vector<std::string> qc_flags;
     std::vector<std::string> notes;
 };
