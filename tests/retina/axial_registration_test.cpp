@@ -304,12 +304,7 @@ TEST(AxialRegistration, CurvedMotionAcrossBscansIsNotGivenToTheEye) {
     const AxialRegistration r = register_axially(scan);
     ASSERT_TRUE(r.applied);
     EXPECT_NEAR(r.curvature_to_motion_um, a_um, 0.01);
-    // 150 um is within what a moving eye leaves (median 101 um at 100 um SD): its effect,
-    // 3.0 um of MRW, under the 5 um bound, is reported and not flagged.
-    // The phantom's field is 4.35 mm: 150 um at its edge is 2 x 150 / 2.175^2 = 63.4 um/mm^2.
-    EXPECT_NEAR(r.curvature_mrw_effect_um,
-                kMrwUmPerCurvatureUmPerMm2 * 2.0 * a_um / (2.175 * 2.175), 1e-3);
-    EXPECT_FALSE(has_curvature_flag(r));
+    EXPECT_EQ(r.curvature_mrw_effect_um, 0.0);  // until the MRW is measured
     // The shifts are the curvature up to the eye's 1, y, y^3 (a depth, a tilt and a cubic across
     // the B-scans stay the eye's; weighted by each B-scan's BM count, which the disc makes
     // uneven in y, the fit of those three moves a little of a y^2 into them: 0.4 um here).
@@ -325,6 +320,14 @@ TEST(AxialRegistration, CurvedMotionAcrossBscansIsNotGivenToTheEye) {
     const OnhResult got = analyse_onh(scan, device_ilm_surface(scan));
     const OnhResult want = analyse_onh(still, device_ilm_surface(still));
     EXPECT_NEAR(1e3 * got.mrw_mean_mm, 1e3 * want.mrw_mean_mm, 0.05);
+    // 150 um is within what a moving eye leaves (median 101 um at 100 um SD): its effect on
+    // this eye's MRW, 3.3 um (keeping the curvature in the eye moves it by 2.6 um on this
+    // coarse volume: see the test below), under the 5 um bound, is reported and not flagged.
+    AxialRegistration assessed = r;
+    assess_curvature_mrw_effect(assessed, got.ellipse.points_mm, got.mrw_points_mm);
+    EXPECT_GT(assessed.curvature_mrw_effect_um, 0.0);
+    EXPECT_LT(assessed.curvature_mrw_effect_um, 5.0);
+    EXPECT_FALSE(has_curvature_flag(assessed));
     // Without the prior (every cubic in y the eye's) nothing of the curvature is removed.
     AxialRegistrationParams free;
     free.isotropic_curvature = false;
@@ -333,24 +336,45 @@ TEST(AxialRegistration, CurvedMotionAcrossBscansIsNotGivenToTheEye) {
     EXPECT_EQ(f.curvature_to_motion_um, 0.0);
 }
 
-// A still eye whose wall is 300 um more curved across the B-scans than along them at the field's
-// edge (a staphyloma; to the BM the same as the curved motion above): 2 x 300 / 2.175^2 =
-// 127 um/mm^2 on the 4.35 mm field; were it the wall's, the 3-D MRW moves by 0.048 x 127 =
-// 6.1 um, past the 5 um bound (and past what 117 of 120 random walks of 100 um SD leave,
-// docs/algorithms/onh.md), so it is flagged, with the number.
+// A still eye whose wall is 400 um more curved across the B-scans than along them at the field's
+// edge (a staphyloma; to the BM the same as the curved motion above): 2 x 400 / 2.175^2 =
+// 169 um/mm^2 on the 4.35 mm field. Were it the wall's, this eye's 3-D MRW moves by what
+// keeping it in the eye moves it by: measured 7.8 um here, assessed from the eye's own MRW
+// segments 8.2 um (the old disc-wide constant of 0.048 um per um/mm^2 said 8.1, whatever the
+// disc): past the 5 um bound, so it is flagged, with the eye's number. TOL: the assessment is
+// first order in the shear with P and Q following the wall; on a volume the ellipse's heights
+// between the B-scans holding BMO points, and the ILM mesh between B-scans, follow it only as
+// chords: at 150 um of curvature the measured change approaches the first-order one as the
+// B-scans close in (25 / 49 / 97 B-scans over 4.35 mm: 2.60 / 2.88 / 3.0 um against 3.27 /
+// 3.07 / 3.0 um), so on 49 B-scans (91 um apart) the assessment is within 10 % of the change
+// and errs high (the safe side for a flag).
 TEST(AxialRegistration, WallCurvedMoreAcrossThanAlongIsFlagged) {
-    const io::Scan scan = curved_across(render_onh_scan(moving(false, 0.0, 25, 96)), 300.0);
-    const AxialRegistration r = estimate_axial_motion(scan);
-    EXPECT_NEAR(r.curvature_to_motion_um, 300.0, 0.01);
-    EXPECT_NEAR(r.curvature_mrw_effect_um, 0.048 * 600.0 / (2.175 * 2.175), 1e-3);  // 6.09
+    const double a_um = 400.0;
+    const io::Scan kept = curved_across(render_onh_scan(moving(false, 0.0, 49, 192)), a_um);
+    io::Scan scan = kept;
+    AxialRegistration r = register_axially(scan);
+    EXPECT_NEAR(r.curvature_to_motion_um, a_um, 0.01);
+    EXPECT_FALSE(has_curvature_flag(r));  // not before the MRW is measured
+    const OnhResult got = analyse_onh(scan, device_ilm_surface(scan));
+    assess_curvature_mrw_effect(r, got.ellipse.points_mm, got.mrw_points_mm);
+    const double moved_um =
+        1e3 * std::fabs(analyse_onh(kept, device_ilm_surface(kept)).mrw_mean_mm - got.mrw_mean_mm);
+    std::printf("curvature %.0f um: MRW moved %.2f um, assessed %.2f um\n", a_um, moved_um,
+                r.curvature_mrw_effect_um);
+    EXPECT_GE(r.curvature_mrw_effect_um, moved_um);
+    EXPECT_LE(r.curvature_mrw_effect_um, 1.1 * moved_um);
     ASSERT_TRUE(has_curvature_flag(r));
-    EXPECT_NE(std::find(r.qc_flags.begin(), r.qc_flags.end(),
-                        std::string(kCurvatureFlag) + "6 um)"),
+    char number[32];
+    std::snprintf(number, sizeof number, "%.0f um)", r.curvature_mrw_effect_um);
+    EXPECT_NE(std::find(r.qc_flags.begin(), r.qc_flags.end(), std::string(kCurvatureFlag) + number),
               r.qc_flags.end());
-    // Without the prior nothing is removed, nothing flagged.
+    // Without the prior nothing is removed, nothing assessed, nothing flagged.
     AxialRegistrationParams free;
     free.isotropic_curvature = false;
-    EXPECT_FALSE(has_curvature_flag(estimate_axial_motion(scan, free)));
+    AxialRegistration f = estimate_axial_motion(kept, free);
+    assess_curvature_mrw_effect(f, got.ellipse.points_mm, got.mrw_points_mm, free);
+    EXPECT_EQ(f.curvature_mrw_effect_um, 0.0);
+    EXPECT_FALSE(has_curvature_flag(f));
 }
 
 // With segmentation noise of sigma = 1 px (3.9 um, independent per A-scan) on the BM line, each
