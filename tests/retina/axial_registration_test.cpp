@@ -344,10 +344,10 @@ TEST(AxialRegistration, CurvedMotionAcrossBscansIsNotGivenToTheEye) {
 // disc): past the 5 um bound, so it is flagged, with the eye's number. TOL: the assessment is
 // first order in the shear with P and Q following the wall; on a volume the ellipse's heights
 // between the B-scans holding BMO points, and the ILM mesh between B-scans, follow it only as
-// chords: at 150 um of curvature the measured change approaches the first-order one as the
-// B-scans close in (25 / 49 / 97 B-scans over 4.35 mm: 2.60 / 2.88 / 3.0 um against 3.27 /
-// 3.07 / 3.0 um), so on 49 B-scans (91 um apart) the assessment is within 10 % of the change
-// and errs high (the safe side for a flag).
+// chords: the measured change approaches the first-order one as the B-scans close in (150 um
+// on 25 / 49 B-scans over 4.35 mm: 2.60 / 2.88 um against 3.27 / 3.07 um; -214 um on 97 x 256:
+// -4.3 um against -4.34 from the truth's P, Q), so on 49 B-scans (91 um apart) the assessment
+// is within 10 % of the change and errs high (the safe side for a flag).
 TEST(AxialRegistration, WallCurvedMoreAcrossThanAlongIsFlagged) {
     const double a_um = 400.0;
     const io::Scan kept = curved_across(render_onh_scan(moving(false, 0.0, 49, 192)), a_um);
