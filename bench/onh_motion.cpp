@@ -14,8 +14,8 @@
 // the earlier phantom, which blended A-scans; the phantom now renders the moved eye). --bscans/--ascans resize the
 // volume, --lat-bscans N caps the lateral cut-off at N B-scans (0 = off), --lat-smoothing SD
 // smooths the lines for the lateral estimate (defaults: the ONH's), --spectralis-speckle gives it real Spectralis speckle. --file F (repeatable): the
-// lateral shifts estimated on a real scan instead (no truth). --shape overhang: the overhanging
-// disc instead of the cupped one; --lines N: radial lines; --on-only: the registered rows alone;
+// lateral shifts estimated on a real scan instead (no truth). --shape swollen|overhang: the swollen
+// or the overhanging disc instead of the cupped one; --lines N: radial lines; --on-only: the registered rows alone;
 // --residual-only: the still eye's pixels with every line moved by the fractional part of the
 // true shift (what the axial registration's whole-row pixel shift leaves between pixels and
 // lines, without the phantom's blending of rows), registration off. Level-set variants (volumes,
@@ -30,8 +30,9 @@
 // wall is around the disc); --free-curvature:
 // the axial registration without its isotropic eye wall (every cubic in y left in the eye, the
 // registration before issue 32's curvature prior).
+// The swollen disc has no cup: its cup column is the cup volume found (1e-3 mm^3, "a").
 // Usage: onh_motion [--motion 0,30,60,100] [--ilm device,levelset] [--pattern volume,radial]
-//                   [--shape cupped|overhang] [--lines N] [--on-only] [--residual-only]
+//                   [--shape cupped|swollen|overhang] [--lines N] [--on-only] [--residual-only]
 //                   [--no-shadows] [--seed N] [--jitter 0,10,30] [--bscans N] [--ascans N]
 //                   [--oracle] [--whole-jitter] [--spectralis-speckle] [--file F]
 //                   [--ls-window-means] [--ls-raw] [--lat-bscans N] [--lat-smoothing SD]
@@ -73,6 +74,15 @@ std::vector<std::string> split(const std::string& s) {
 }
 
 double pct(double v, double t) { return 100.0 * (v - t) / t; }
+
+// The cup volume's column: % of the truth's, or (the swollen disc has no cup) the volume
+// found, in 1e-3 mm^3 ("a" for absolute).
+std::string cup_column(double v, double t) {
+    char buf[32];
+    if (t > 0.0) std::snprintf(buf, sizeof buf, "%+8.2f", pct(v, t));
+    else std::snprintf(buf, sizeof buf, "%7.3fa", 1e3 * v);
+    return buf;
+}
 
 // RMS of (estimated - identifiable true) shifts, um.
 double shift_error_um(const AxialRegistration& reg, const std::vector<double>& true_px,
@@ -255,8 +265,10 @@ int main(int argc, char** argv) {
                     "bmoA%", "mrw", "mrwA%", "bend%", "mrw_ip", "shift_err", "lat_rms", "lat_err", "lat_se", "reg_s", "total_s",
                     "flags");
         for (const std::string& pattern : patterns) {
-            if (shape != "cupped" && shape != "overhang") throw std::runtime_error("unknown shape " + shape);
-            OnhPhantomParams p = onh_phantom_preset(shape == "overhang" ? OnhShape::kOverhang : OnhShape::kCupped);
+            if (shape != "cupped" && shape != "swollen" && shape != "overhang") throw std::runtime_error("unknown shape " + shape);
+            OnhPhantomParams p = onh_phantom_preset(shape == "overhang" ? OnhShape::kOverhang
+                                                    : shape == "swollen" ? OnhShape::kSwollen
+                                                                         : OnhShape::kCupped);
             p.radial = pattern == "radial";
             if (lines > 0) p.radial_lines = lines;
             p.seed = seed;
@@ -383,6 +395,7 @@ int main(int argc, char** argv) {
                             ilm = build_ilm_surface(scan, ilm_source_from_string(ilm_name));
                         }
                         OnhResult r = analyse_onh(scan, ilm);
+                        assess_curvature_mrw_effect(reg, r.ellipse.points_mm, r.mrw_points_mm, rp);
                         const double total_s = std::chrono::duration<double>(Clock::now() - t0).count();
                         std::string flags = "K=" + std::to_string(lat.smooth_modes) +
                                             (lat.applied ? " lat-applied " : " ");
@@ -393,13 +406,13 @@ int main(int argc, char** argv) {
                         if (!p.radial && reg_on) {
                             // What the registration left in the eye: the cubic of true - estimated.
                             const auto c = left_cubic_um(reg, true_shifts, scan.meta.scale_z_mm * 1000.0);
-                            std::fprintf(stderr, "left in the eye (um, y^0..y^3): %+.2f %+.2f %+.2f %+.2f; curvature to motion %+.2f um\n", c[0], c[1], c[2], c[3], reg.curvature_to_motion_um);
+                            std::fprintf(stderr, "left in the eye (um, y^0..y^3): %+.2f %+.2f %+.2f %+.2f; curvature to motion %+.2f um, its MRW effect %.2f um\n", c[0], c[1], c[2], c[3], reg.curvature_to_motion_um, reg.curvature_mrw_effect_um);
                         }
                         const double lat_err = octshape::test::identifiable_lateral_error_um(lat, true_lateral, scan.meta.scale_x_mm * 1000.0);
-                        std::printf("%-7s %6s %5s %-8s %-4s %+8.2f %+8.1f %+8.2f %+8.2f %+8.2f %+8.2f %+7.1f "
+                        std::printf("%-7s %6s %5s %-8s %-4s %8s %+8.1f %+8.2f %+8.2f %+8.2f %+8.2f %+7.1f "
                                     "%+8.2f %+8.2f %+8.1f %9.2f %7.2f %7.2f %6.2f %7.3f %7.2f  %s\n",
                                     pattern.c_str(), m.c_str(), jit.c_str(), ilm_name.c_str(), mode == 2 ? "true" : reg_on ? "on" : "off",
-                                    pct(r.cup_volume_mm3, truth.cup_volume_mm3),
+                                    cup_column(r.cup_volume_mm3, truth.cup_volume_mm3).c_str(),
                                     1e3 * (r.conht_mm - truth.conht_mm),
                                     pct(r.bmo_volume_mm3, truth.bmo_volume_mm3),
                                     pct(r.total_volume_mm3, truth.total_volume_mm3),

@@ -186,11 +186,15 @@ EyeResult analyse_onh_eye(const std::string& file,
     retina::OnhResult r =
         with_file_named(file, [&] { return retina::analyse_onh(scan, ilm, o.params, bmo); });
     r.axial_registration = registration;
+    // The curvature's effect on this eye's MRW, from its own MRW segments (and its QC flag).
+    retina::assess_curvature_mrw_effect(r.axial_registration, r.ellipse.points_mm,
+                                        r.mrw_points_mm, o.params.axial_registration);
     r.lateral_registration = lateral;
+    const retina::AxialRegistration& axial = r.axial_registration;
     r.qc_flags.insert(r.qc_flags.end(), lateral.qc_flags.begin(), lateral.qc_flags.end());
     r.notes.insert(r.notes.end(), lateral.notes.begin(), lateral.notes.end());
-    r.qc_flags.insert(r.qc_flags.end(), registration.qc_flags.begin(), registration.qc_flags.end());
-    r.notes.insert(r.notes.end(), registration.notes.begin(), registration.notes.end());
+    r.qc_flags.insert(r.qc_flags.end(), axial.qc_flags.begin(), axial.qc_flags.end());
+    r.notes.insert(r.notes.end(), axial.notes.begin(), axial.notes.end());
     prov.mark("analysis");
     const std::string who = log_name(file);
     for (const auto& f : r.qc_flags) spdlog::warn("{}: QC: {}", who, f);

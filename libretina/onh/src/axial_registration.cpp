@@ -276,8 +276,7 @@ AxialRegistration estimate_axial_motion(const io::Scan& scan, const AxialRegistr
         (void)motion_of(offset, y, count, params.surface_degree, radial,
                         std::numeric_limits<double>::quiet_NaN(), &free_y2);
         R.curvature_to_motion_um = (free_y2 - fixed_y2) * um_per_px;
-        R.curvature_mrw_effect_um = kMrwUmPerCurvatureUmPerMm2 *
-                                    std::fabs(2.0 * R.curvature_to_motion_um / (half_h * half_h));
+        R.field_half_height_mm = half_h;
     }
     std::vector<double> m = motion_of(offset, y, count, params.surface_degree, radial, fixed_y2);
     for (int b = 0; b < nb; ++b) {
@@ -312,17 +311,6 @@ AxialRegistration estimate_axial_motion(const io::Scan& scan, const AxialRegistr
     }
     if (R.residual_rms_um > params.max_residual_um) {
         R.qc_flags.push_back("BM is not one smooth surface: axial registration uncertain");
-    }
-    // A wall curved differently across the B-scans than along them (a staphyloma, a tilted
-    // disc) looks to the BM exactly like a curved motion, so no bound tells them apart; past the
-    // MRW's 5 um the result is uncertain beyond its tolerance either way, so say so (random
-    // walks of 100 um SD leave a median 2.0 um of MRW on a 4.35 mm field; docs/algorithms/
-    // onh.md "Curved motion across B-scans").
-    if (R.curvature_mrw_effect_um > params.max_curvature_mrw_um) {
-        R.qc_flags.push_back(
-            "eye wall curves differently across and along the B-scans: curvature removed as "
-            "motion may be the eye's (3-D MRW uncertain by about " +
-            fixed_number(R.curvature_mrw_effect_um, 0) + " um)");
     }
     return R;
 }
@@ -372,6 +360,39 @@ int bscan_of_bmo_point(const BmoPoint& point, const io::Scan& scan) {
         return static_cast<int>(std::lround(point.mm.y() / scan.meta.distance_mm));
     }
     return -1;
+}
+
+void assess_curvature_mrw_effect(AxialRegistration& registration,
+                                 const std::vector<Eigen::Vector3d>& bmo_points_mm,
+                                 const std::vector<Eigen::Vector3d>& mrw_points_mm,
+                                 const AxialRegistrationParams& params) {
+    params.validate();
+    const double h = registration.field_half_height_mm;
+    if (!(h > 0.0) || registration.curvature_to_motion_um == 0.0) return;
+    const double C = registration.curvature_to_motion_um;
+    auto c = [&](double y_mm) { return C * ((y_mm - h) / h) * ((y_mm - h) / h); };
+    double sum = 0.0;
+    int n = 0;
+    for (std::size_t i = 0; i < bmo_points_mm.size() && i < mrw_points_mm.size(); ++i) {
+        const Eigen::Vector3d& P = bmo_points_mm[i];
+        const Eigen::Vector3d& Q = mrw_points_mm[i];
+        const double len = (Q - P).norm();
+        if (!P.allFinite() || !Q.allFinite() || !(len > 0.0)) continue;
+        sum += (Q.z() - P.z()) / len * (c(Q.y()) - c(P.y()));
+        ++n;
+    }
+    registration.curvature_mrw_effect_um = n > 0 ? std::fabs(sum / n) : 0.0;
+    // A wall curved differently across the B-scans than along them (a staphyloma, a tilted
+    // disc) looks to the BM exactly like a curved motion, so no bound tells them apart; past the
+    // MRW's 5 um the result is uncertain beyond its tolerance either way, so say so (random
+    // walks of 100 um SD leave a median 2.0 um of MRW on a 4.35 mm field; docs/algorithms/
+    // onh.md "Curved motion across B-scans").
+    if (registration.curvature_mrw_effect_um > params.max_curvature_mrw_um) {
+        registration.qc_flags.push_back(
+            "eye wall curves differently across and along the B-scans: curvature removed as "
+            "motion may be the eye's (3-D MRW uncertain by about " +
+            fixed_number(registration.curvature_mrw_effect_um, 0) + " um)");
+    }
 }
 
 AxialRegistration register_axially(io::Scan& scan, const AxialRegistrationParams& params) {

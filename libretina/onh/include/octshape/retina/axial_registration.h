@@ -19,17 +19,13 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "octshape/io/scan.h"
 #include "octshape/retina/bmo.h"
 #include "octshape/retina/lateral_registration.h"
 
 namespace octshape::retina {
-
-// The mean 3-D MRW's change per um/mm^2 of curvature across the B-scans left in the eye (a depth
-// k y^2 / 2, y in mm): 0.048 um, measured on the full-size phantom disc (0.0203 um per um of
-// depth at its 4.35 mm field's edge) and predicted to first order from its BMO-to-ILM vectors
-// (docs/algorithms/onh.md, "Curved motion across B-scans"). It depends on the disc, not the field.
-inline constexpr double kMrwUmPerCurvatureUmPerMm2 = 0.048;
 
 struct AxialRegistrationParams {
     bool enabled = true;
@@ -42,7 +38,7 @@ struct AxialRegistrationParams {
     // polynomial of surface_degree in y belongs to the eye (a curved motion is left in it).
     bool isotropic_curvature = true;
     // Flag when the curvature removed as motion, were it the eye wall's instead, would move the
-    // mean 3-D MRW by more than this (um; kMrwUmPerCurvatureUmPerMm2 per um/mm^2 of it).
+    // mean 3-D MRW by more than this (um; assess_curvature_mrw_effect).
     double max_curvature_mrw_um = 5.0;
 
     void validate() const;  // throws UsageError naming the field
@@ -64,9 +60,12 @@ struct AxialRegistration {
     // first and last B-scan, against the middle) that the offsets held beyond the eye's, removed
     // with the motion (+ = the B-scans at the field's edges lay deeper).
     double curvature_to_motion_um = 0.0;
+    // The field's half height h (mm; volumes): the B-scans' y run from 0 to 2h, the curvature's
+    // depth is curvature_to_motion_um ((y - h) / h)^2.
+    double field_half_height_mm = 0.0;
     // What that curvature would move the mean 3-D MRW by were it the eye wall's and not motion
-    // (um, >= 0): kMrwUmPerCurvatureUmPerMm2 x its curvature |2 curvature_to_motion_um / h^2|,
-    // h the half height of the field (mm); on a 4.35 mm field 0.0203 x |curvature_to_motion_um|.
+    // (um, >= 0), from the eye's own MRW segments: set by assess_curvature_mrw_effect after the
+    // ONH analysis (0 until then, and for radial scans).
     double curvature_mrw_effect_um = 0.0;
     std::vector<std::string> qc_flags;
     std::vector<std::string> notes;
@@ -91,6 +90,18 @@ void register_bmo_points(std::vector<BmoPoint>& points, const io::Scan& scan,
 // A-scans by their B-scan's shift; lateral_registration.h). No-op unless applied.
 void register_bmo_points_laterally(std::vector<BmoPoint>& points, const io::Scan& scan,
                                    const LateralRegistration& registration);
+// The curvature's effect on the eye's mean 3-D MRW (docs/algorithms/onh.md, "Curved motion
+// across B-scans"), once the MRW is measured: were the depth c(y) = curvature_to_motion_um
+// ((y - h) / h)^2 removed as motion the eye wall's, each MRW segment from its BMO point P to its
+// closest ILM point Q (grid mm, z = height) is sheared, to first order by v_z (c(y_Q) - c(y_P)),
+// v the unit vector P -> Q; the effect is the magnitude of the mean over the points (the mean
+// MRW's change: the tilt part of c cancels in it). Sets curvature_mrw_effect_um and raises the
+// QC flag past params.max_curvature_mrw_um. Segments not finite or of zero length are skipped;
+// no-op unless the curvature prior removed a curvature (volumes).
+void assess_curvature_mrw_effect(AxialRegistration& registration,
+                                 const std::vector<Eigen::Vector3d>& bmo_points_mm,
+                                 const std::vector<Eigen::Vector3d>& mrw_points_mm,
+                                 const AxialRegistrationParams& params = {});
 // Both: estimate, then apply when params.enabled.
 [[nodiscard]] AxialRegistration register_axially(io::Scan& scan,
                                                  const AxialRegistrationParams& params = {});
