@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -208,6 +209,34 @@ TEST(CubeFit, RimHeightIsNotTheBiasedMaximumSample) {
     ASSERT_GT(d[rim].y(), 0.3525);  // the rim sample itself is 3 um high
     const RimProfileFit f = fit_rim_profile(d, rim);
     EXPECT_NEAR(f.rim.y(), 0.35, 0.001);
+}
+
+TEST(CubeFit, CovarianceLeavesAHandleOnItsBoundFree) {
+    // The pit rises from the centre like a cone (+0.2 mm per mm for the first 0.1 mm, fading
+    // to 0 at the rim, on top of a CuBe interior with alpha = 0): the fit's alpha wants to be
+    // negative and rests on its bound alpha >= 0. The noise terms' covariance
+    // (FitSettings::covariance) must not pin it there: under noise whether a handle rests on its
+    // bound changes from realisation to realisation, and a pinned alpha has no variance and no
+    // covariance with the rim (docs/algorithms/cube.md, "Session 46"). Before, alpha's row and
+    // column were exactly 0.
+    const Ctrl in = interior_curve(0.225, 1.1, 0.35, 0.0, 0.55);
+    const Ctrl ex{V2(1.1, 0.35), V2(1.4, 0.35), V2(1.7, 0.27), V2(2.0, 0.29)};
+    std::vector<V2> d = sample_by_x(in, 94);
+    for (std::size_t k = 1; k < d.size(); ++k) {
+        d[k].y() += 0.2 * std::min(d[k].x(), 0.1) * (1.0 - d[k].x() / 1.1);
+    }
+    const std::vector<V2> e = sample_by_x(ex, 77);
+    d.insert(d.end(), e.begin() + 1, e.end());
+    for (std::size_t k = 1; k + 1 < d.size(); ++k) d[k].y() += (k % 2 == 0 ? 0.001 : -0.001);
+    FitSettings fit;
+    fit.covariance = true;
+    fit.crest_tolerance_mm = 0.005;  // the crest's bounds on r_rim, pinned when active, inactive
+    const RimProfileFit f = fit_rim_profile(d, 94, fit);
+    ASSERT_EQ(f.interior.control[1].x(), f.interior.control[0].x());  // alpha on its bound
+    const Eigen::Matrix4d& c = f.interior_cov;
+    ASSERT_TRUE(c.allFinite());
+    EXPECT_GT(c(0, 0), 0.0);
+    EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d>(c).eigenvalues().minCoeff(), 0.0);
 }
 
 TEST(CubeFit, InteriorStaysAGraph) {

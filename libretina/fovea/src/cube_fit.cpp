@@ -504,14 +504,15 @@ JointState joint_round(std::span<const V2> d,
 
 // Covariance of (alpha, beta, r_rim, h_rim) at the converged state: s^2 Z (Z^T H Z)^-1 Z^T,
 // H the Gauss-Newton matrix of the orthogonal residuals, Z spanning the directions the last
-// round's active interior and crest bounds and the pinned unknowns leave free, s^2 = energy /
+// round's active bounds (those pinned below) and the pinned unknowns leave free, s^2 = energy /
 // (samples - free unknowns): the fit's own residual variance, so that it needs no noise model
-// (NaN when the free block is singular). The exterior's bounds are not pinned even when active:
-// under noise the exterior rests on one of them in most fits, but which one, and whether at all,
-// changes from realisation to realisation, so pinning its unknowns at this fit's bound
-// understated the rim's spread (61 B-scans, 1 px: the per-half-line variance of r_rim over 100
-// realisations was 1.53x the covariance with them pinned, 1.16x without; docs/algorithms/
-// cube.md "V_p: the plug-in volume's noise term").
+// (NaN when the free block is singular). The handles' bounds (alpha, beta >= 0, alpha_ext >= 0,
+// P0.x + alpha_ext <= P2.x <= P3.x) are not pinned even when active: under noise a fit rests on
+// one of them (the exterior in most fits, an interior handle at 0 in some at 2 px), but which
+// one, and whether at all, changes from realisation to realisation, so pinning its unknowns at
+// this fit's bound understated the rim's spread (61 B-scans, 1 px: the per-half-line variance
+// of r_rim over 100 realisations was 1.53x the covariance with the exterior's pinned, 1.16x
+// without; docs/algorithms/cube.md "V_p: the plug-in volume's noise term", "Session 46").
 Eigen::Matrix4d interior_covariance(std::span<const V2> d,
                                     const JointGeometry& geo,
                                     const JointState& cur) {
@@ -527,9 +528,11 @@ Eigen::Matrix4d interior_covariance(std::span<const V2> d,
         A.row(A.rows() - 1) = r;
     };
     for (int c = 0; c < kJointConstraints; ++c) {
-        // The exterior's bounds (3-5: alpha_ext >= 0, P0.x + alpha_ext <= P2.x <= P3.x) are
-        // left free: see above.
-        if (c >= 3 && c <= 5) continue;
+        // The handles' bounds alpha, beta >= 0 (0-1) and the exterior's (3-5) are left free:
+        // see above. Pinned when active: alpha + beta <= r_rim - P0.x (2; left free, the max
+        // slope's term of a 25 x 128 phantom reached -754 deg on a half-line resting on it:
+        // cube.md "Session 46") and the crest's bounds on r_rim (6-7).
+        if (c <= 1 || (c >= 3 && c <= 5)) continue;
         if ((cur.active & (1U << c)) != 0U) add_row(C.row(c));
     }
     Eigen::Matrix<double, 1, kJoint> e = Eigen::Matrix<double, 1, kJoint>::Zero();
