@@ -12,6 +12,25 @@
 
 namespace octshape::mesh::detail {
 
+// The mesh a denoiser iterates on, renumbered for locality (docs/algorithms/rofi.md,
+// "Issue 35 (session 21)"): faces sorted along a Morton (Z-order) curve of their centroids
+// (10 bits per axis over the centroids' bounding cube; ties keep the input's order), each
+// face's corners in the input's order; vertices numbered in order of first appearance in the
+// new face list, corner by corner; a vertex no face uses is left out. So the faces of a disk
+// Ω_i and the stars of neighbouring vertices lie close together in memory whatever the
+// input's order: the caller's numbering only decides the order of equal keys.
+struct LocalOrder {
+    Vertices V;               // the used vertices, renumbered
+    Faces F;                  // the faces, reordered and renamed
+    std::vector<int> vertex;  // vertex[k] = the caller's index of vertex k of V
+};
+
+[[nodiscard]] LocalOrder local_order(const Vertices& V, const Faces& F);
+
+// out.row(order.vertex[k]) = X.row(k) for every k: X (in the local numbering) back into the
+// caller's; the rows of `out` no face uses are left as they are.
+void to_caller_order(const Vertices& X, const LocalOrder& order, Vertices& out);
+
 // Everything a denoiser needs before its first iteration.
 struct DenoiseSetup {
     Adjacency adjacency;               // of F
