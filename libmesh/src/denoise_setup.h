@@ -3,8 +3,10 @@
 // first iteration, the packed per-face state of an iteration and the vertex step (Eq. 5.9 /
 // Eq. 3.7).
 
+#include <chrono>
 #include <cstdint>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "octshape/mesh/denoise.h"
@@ -30,6 +32,26 @@ struct LocalOrder {
 // out.row(order.vertex[k]) = X.row(k) for every k: X (in the local numbering) back into the
 // caller's; the rows of `out` no face uses are left as they are.
 void to_caller_order(const Vertices& X, const LocalOrder& order, Vertices& out);
+
+// A denoiser on the renumbered mesh: `denoise(local)` runs it on local.V and local.F; its
+// result comes back with V in the caller's numbering (rows no face uses: as in V) and the
+// renumbering's time added to seconds_setup. RoFi and ENVT both call it.
+template <class Denoise>
+[[nodiscard]] DenoiseResult denoise_in_local_order(const Vertices& V, const Faces& F,
+                                                   Denoise&& denoise) {
+    using Clock = std::chrono::steady_clock;
+    const auto t0 = Clock::now();
+    const LocalOrder local = local_order(V, F);
+    const auto t1 = Clock::now();
+    DenoiseResult result = denoise(local);
+    const auto t2 = Clock::now();
+    Vertices out = V;
+    to_caller_order(result.V, local, out);
+    result.V = std::move(out);
+    result.seconds_setup += std::chrono::duration<double>(t1 - t0).count() +
+                            std::chrono::duration<double>(Clock::now() - t2).count();
+    return result;
+}
 
 // Everything a denoiser needs before its first iteration.
 struct DenoiseSetup {

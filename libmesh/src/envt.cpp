@@ -155,16 +155,9 @@ DenoiseResult envt_denoise(const Vertices& V, const Faces& F, const EnvtParams& 
     params.validate();
     validate_mesh(V, F);
     if (params.iterations == 0 || F.rows() == 0) return envt_denoise_numbered(V, F, params);
-    const auto t0 = Clock::now();
-    const detail::LocalOrder local = detail::local_order(V, F);
-    const double renumber = seconds_since(t0);
-    DenoiseResult result = envt_denoise_numbered(local.V, local.F, params);
-    const auto t1 = Clock::now();
-    Vertices out = V;
-    detail::to_caller_order(result.V, local, out);
-    result.V = std::move(out);
-    result.seconds_setup += renumber + seconds_since(t1);
-    return result;
+    return detail::denoise_in_local_order(V, F, [&](const detail::LocalOrder& local) {
+        return envt_denoise_numbered(local.V, local.F, params);
+    });
 }
 
 FaceFeatures face_features(const Vertices& V, const Faces& F, const FeatureParams& params) {

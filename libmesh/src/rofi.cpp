@@ -927,25 +927,18 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
     params.validate();
     validate_mesh(V, F);
     if (params.iterations == 0 || F.rows() == 0) return rofi_denoise_numbered(V, F, params);
-    const auto t0 = Clock::now();
-    const detail::LocalOrder local = detail::local_order(V, F);
-    RofiParams run = params;
-    Vertices seen;  // the observer's vertices in the caller's numbering
-    if (params.observer) {
-        seen = V;
-        run.observer = [&](int it, const Vertices& X, const RofiProgress& progress) {
-            detail::to_caller_order(X, local, seen);
-            params.observer(it, seen, progress);
-        };
-    }
-    const double renumber = seconds_since(t0);
-    DenoiseResult result = rofi_denoise_numbered(local.V, local.F, run);
-    const auto t1 = Clock::now();
-    Vertices out = V;
-    detail::to_caller_order(result.V, local, out);
-    result.V = std::move(out);
-    result.seconds_setup += renumber + seconds_since(t1);
-    return result;
+    return detail::denoise_in_local_order(V, F, [&](const detail::LocalOrder& local) {
+        RofiParams run = params;
+        Vertices seen;  // the observer's vertices in the caller's numbering
+        if (params.observer) {
+            seen = V;
+            run.observer = [&](int it, const Vertices& X, const RofiProgress& progress) {
+                detail::to_caller_order(X, local, seen);
+                params.observer(it, seen, progress);
+            };
+        }
+        return rofi_denoise_numbered(local.V, local.F, run);
+    });
 }
 
 }  // namespace octshape::mesh
