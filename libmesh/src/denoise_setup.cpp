@@ -22,6 +22,22 @@ std::uint64_t spread3(std::uint32_t x) {
     return v;
 }
 
+// Sorts keys (Morton code in bits 32–61, face in bits 0–31, built in ascending face order)
+// by their code: a least-significant-digit radix sort, three passes of 10 bits. Each pass is
+// stable, so faces with equal codes stay in ascending order: the order std::sort gives the
+// whole keys, in ≈ 30 instructions a key instead of ≈ 200.
+void sort_by_code(std::vector<std::uint64_t>& key) {
+    std::vector<std::uint64_t> out(key.size());
+    for (int pass = 0; pass < 3; ++pass) {
+        const int shift = 32 + 10 * pass;
+        std::vector<std::size_t> start(1025, 0);
+        for (const std::uint64_t k : key) ++start[((k >> shift) & 0x3ffu) + 1];
+        for (std::size_t b = 0; b < 1024; ++b) start[b + 1] += start[b];
+        for (const std::uint64_t k : key) out[start[(k >> shift) & 0x3ffu]++] = k;
+        key.swap(out);
+    }
+}
+
 }  // namespace
 
 LocalOrder local_order(const Vertices& V, const Faces& F) {
@@ -54,7 +70,7 @@ LocalOrder local_order(const Vertices& V, const Faces& F) {
         }
         key[f] = code << 32 | f;
     }
-    std::sort(key.begin(), key.end());
+    sort_by_code(key);
     LocalOrder out;
     out.F.resize(F.rows(), 3);
     std::vector<int> local(static_cast<std::size_t>(V.rows()), -1);
