@@ -1,5 +1,6 @@
 #include "denoise_setup.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -8,6 +9,97 @@
 #include "simd.h"
 
 namespace octshape::mesh::detail {
+
+namespace {
+
+// The 10 low bits of x spread to every third bit (bit b to bit 3b).
+std::uint64_t spread3(std::uint32_t x) {
+    std::uint64_t v = x & 0x3ffu;
+    v = (v | v << 16) & 0x30000ffull;
+    v = (v | v << 8) & 0x300f00full;
+    v = (v | v << 4) & 0x30c30c3ull;
+    v = (v | v << 2) & 0x9249249ull;
+    return v;
+}
+
+// Sorts keys (Morton code in bits 32–61, face in bits 0–31, built in ascending face order)
+// by their code: a least-significant-digit radix sort, three passes of 10 bits. Each pass is
+// stable, so faces with equal codes stay in ascending order: the order std::sort gives the
+// whole keys, in ≈ 30 instructions a key instead of ≈ 200.
+void sort_by_code(std::vector<std::uint64_t>& key) {
+    std::vector<std::uint64_t> out(key.size());
+    for (int pass = 0; pass < 3; ++pass) {
+        const int shift = 32 + 10 * pass;
+        std::vector<std::size_t> start(1025, 0);
+        for (const std::uint64_t k : key) ++start[((k >> shift) & 0x3ffu) + 1];
+        for (std::size_t b = 0; b < 1024; ++b) start[b + 1] += start[b];
+        for (const std::uint64_t k : key) out[start[(k >> shift) & 0x3ffu]++] = k;
+        key.swap(out);
+    }
+}
+
+}  // namespace
+
+LocalOrder local_order(const Vertices& V, const Faces& F) {
+    const auto m = static_cast<std::size_t>(F.rows());
+    const double* v = V.data();
+    const int* tri = F.data();
+    std::vector<double> centroid(3 * m);
+    double lo[3] = {0.0, 0.0, 0.0};
+    double hi[3] = {0.0, 0.0, 0.0};
+    for (std::size_t f = 0; f < m; ++f) {
+        for (int k = 0; k < 3; ++k) {
+            const double c = (v[3 * static_cast<std::ptrdiff_t>(tri[3 * f]) + k] +
+                              v[3 * static_cast<std::ptrdiff_t>(tri[3 * f + 1]) + k] +
+                              v[3 * static_cast<std::ptrdiff_t>(tri[3 * f + 2]) + k]) / 3.0;
+            centroid[3 * f + k] = c;
+            lo[k] = f == 0 ? c : std::min(lo[k], c);
+            hi[k] = f == 0 ? c : std::max(hi[k], c);
+        }
+    }
+    // One scale for all three axes (a cube: the curve's cells are cubes on the surface).
+    const double extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+    const double scale = extent > 0.0 ? 1023.0 / extent : 0.0;
+    // key = Morton code << 32 | face: sorting the keys sorts by the code, ties by the face.
+    std::vector<std::uint64_t> key(m);
+    for (std::size_t f = 0; f < m; ++f) {
+        std::uint64_t code = 0;
+        for (int k = 0; k < 3; ++k) {
+            const double q = std::clamp((centroid[3 * f + k] - lo[k]) * scale, 0.0, 1023.0);
+            code |= spread3(static_cast<std::uint32_t>(q)) << k;
+        }
+        key[f] = code << 32 | f;
+    }
+    sort_by_code(key);
+    LocalOrder out;
+    out.F.resize(F.rows(), 3);
+    std::vector<int> local(static_cast<std::size_t>(V.rows()), -1);
+    out.vertex.reserve(static_cast<std::size_t>(V.rows()));
+    int* const renamed = out.F.data();
+    for (std::size_t k = 0; k < m; ++k) {
+        const std::size_t f = key[k] & 0xffffffffu;
+        for (int c = 0; c < 3; ++c) {
+            const int i = tri[3 * f + c];
+            int& l = local[static_cast<std::size_t>(i)];
+            if (l < 0) {
+                l = static_cast<int>(out.vertex.size());
+                out.vertex.push_back(i);
+            }
+            renamed[3 * k + c] = l;
+        }
+    }
+    out.V.resize(static_cast<Eigen::Index>(out.vertex.size()), 3);
+    for (std::size_t k = 0; k < out.vertex.size(); ++k) {
+        out.V.row(static_cast<Eigen::Index>(k)) = V.row(out.vertex[k]);
+    }
+    return out;
+}
+
+void to_caller_order(const Vertices& X, const LocalOrder& order, Vertices& out) {
+    for (std::size_t k = 0; k < order.vertex.size(); ++k) {
+        out.row(order.vertex[k]) = X.row(static_cast<Eigen::Index>(k));
+    }
+}
 
 DenoiseSetup prepare_denoise(const Vertices& V,
                              const Faces& F,

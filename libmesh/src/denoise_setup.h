@@ -3,14 +3,55 @@
 // first iteration, the packed per-face state of an iteration and the vertex step (Eq. 5.9 /
 // Eq. 3.7).
 
+#include <chrono>
 #include <cstdint>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "octshape/mesh/denoise.h"
 #include "octshape/mesh/mesh.h"
 
 namespace octshape::mesh::detail {
+
+// The mesh a denoiser iterates on, renumbered for locality (docs/algorithms/rofi.md,
+// "Issue 35 (session 21)"): faces sorted along a Morton (Z-order) curve of their centroids
+// (10 bits per axis over the centroids' bounding cube; ties keep the input's order), each
+// face's corners in the input's order; vertices numbered in order of first appearance in the
+// new face list, corner by corner; a vertex no face uses is left out. So the faces of a disk
+// Ω_i and the stars of neighbouring vertices lie close together in memory whatever the
+// input's order: the caller's numbering only decides the order of equal keys.
+struct LocalOrder {
+    Vertices V;               // the used vertices, renumbered
+    Faces F;                  // the faces, reordered and renamed
+    std::vector<int> vertex;  // vertex[k] = the caller's index of vertex k of V
+};
+
+[[nodiscard]] LocalOrder local_order(const Vertices& V, const Faces& F);
+
+// out.row(order.vertex[k]) = X.row(k) for every k: X (in the local numbering) back into the
+// caller's; the rows of `out` no face uses are left as they are.
+void to_caller_order(const Vertices& X, const LocalOrder& order, Vertices& out);
+
+// A denoiser on the renumbered mesh: `denoise(local)` runs it on local.V and local.F; its
+// result comes back with V in the caller's numbering (rows no face uses: as in V) and the
+// renumbering's time added to seconds_setup. RoFi and ENVT both call it.
+template <class Denoise>
+[[nodiscard]] DenoiseResult denoise_in_local_order(const Vertices& V, const Faces& F,
+                                                   Denoise&& denoise) {
+    using Clock = std::chrono::steady_clock;
+    const auto t0 = Clock::now();
+    const LocalOrder local = local_order(V, F);
+    const auto t1 = Clock::now();
+    DenoiseResult result = denoise(local);
+    const auto t2 = Clock::now();
+    Vertices out = V;
+    to_caller_order(result.V, local, out);
+    result.V = std::move(out);
+    result.seconds_setup += std::chrono::duration<double>(t1 - t0).count() +
+                            std::chrono::duration<double>(Clock::now() - t2).count();
+    return result;
+}
 
 // Everything a denoiser needs before its first iteration.
 struct DenoiseSetup {

@@ -71,9 +71,11 @@ void FeatureParams::validate() const {
     require(threads >= 1, "FeatureParams.threads", ">= 1", threads);
 }
 
-DenoiseResult envt_denoise(const Vertices& V, const Faces& F, const EnvtParams& params) {
-    params.validate();
-    validate_mesh(V, F);
+namespace {
+
+// envt_denoise on a valid mesh as it is numbered (the caller renumbers it: local_order).
+DenoiseResult envt_denoise_numbered(const Vertices& V, const Faces& F,
+                                    const EnvtParams& params) {
     DenoiseResult result;
     const detail::DenoiseSetup setup =
         detail::prepare_denoise(V, F, params.radius, 2.0, params.fix_boundary, params.iterations,
@@ -143,6 +145,19 @@ DenoiseResult envt_denoise(const Vertices& V, const Faces& F, const EnvtParams& 
     }
     result.seconds_iterations = seconds_since(t1);
     return result;
+}
+
+}  // namespace
+
+// The iterations run on the mesh renumbered for locality, as RoFi's (detail::local_order);
+// the result is in the caller's numbering.
+DenoiseResult envt_denoise(const Vertices& V, const Faces& F, const EnvtParams& params) {
+    params.validate();
+    validate_mesh(V, F);
+    if (params.iterations == 0 || F.rows() == 0) return envt_denoise_numbered(V, F, params);
+    return detail::denoise_in_local_order(V, F, [&](const detail::LocalOrder& local) {
+        return envt_denoise_numbered(local.V, local.F, params);
+    });
 }
 
 FaceFeatures face_features(const Vertices& V, const Faces& F, const FeatureParams& params) {

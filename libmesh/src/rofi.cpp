@@ -855,11 +855,9 @@ struct ResidualStop {
     double last_whiteness = 0;   // its W
 };
 
-}  // namespace
-
-DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& params) {
-    params.validate();
-    validate_mesh(V, F);
+// rofi_denoise on a valid mesh as it is numbered (the caller renumbers it: local_order).
+DenoiseResult rofi_denoise_numbered(const Vertices& V, const Faces& F,
+                                    const RofiParams& params) {
     DenoiseResult result;
     detail::DenoiseSetup setup =
         detail::prepare_denoise(V, F, std::nullopt, params.radius_factor, params.fix_boundary,
@@ -918,6 +916,29 @@ DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& 
     }
     result.seconds_iterations = seconds_since(t1);
     return result;
+}
+
+}  // namespace
+
+// The iterations run on the mesh renumbered for locality (detail::local_order: the order of
+// the sums in Ω_i and in the vertex stars is the new numbering's; rofi.md, "Issue 35
+// (session 21)"); the observer and the result see the caller's numbering.
+DenoiseResult rofi_denoise(const Vertices& V, const Faces& F, const RofiParams& params) {
+    params.validate();
+    validate_mesh(V, F);
+    if (params.iterations == 0 || F.rows() == 0) return rofi_denoise_numbered(V, F, params);
+    return detail::denoise_in_local_order(V, F, [&](const detail::LocalOrder& local) {
+        RofiParams run = params;
+        Vertices seen;  // the observer's vertices in the caller's numbering
+        if (params.observer) {
+            seen = V;
+            run.observer = [&](int it, const Vertices& X, const RofiProgress& progress) {
+                detail::to_caller_order(X, local, seen);
+                params.observer(it, seen, progress);
+            };
+        }
+        return rofi_denoise_numbered(local.V, local.F, run);
+    });
 }
 
 }  // namespace octshape::mesh

@@ -60,6 +60,21 @@ TEST(Envt, RigidMotionOfTheInputMovesTheOutputTheSameWay) {
     }
 }
 
+TEST(Envt, RenumberingForLocalityIsInvisibleToTheCaller) {
+    // ENVT iterates on the mesh renumbered as RoFi's (rofi_test.cpp has the full check):
+    // vertices renamed with the faces in the same order give the same renumbered mesh, so the
+    // same bits, returned in the caller's numbering.
+    const TestMesh m = with_noise(cube(5), 0.03);
+    const auto base = mesh::envt_denoise(m.V, m.F, params(10));
+    const std::vector<int> vp = shuffled(m.V.rows(), 35);
+    const TestMesh renamed = permuted(m, vp, identity(m.F.rows()));
+    const auto r = mesh::envt_denoise(renamed.V, renamed.F, params(10));
+    EXPECT_NE(base.V, m.V);
+    for (Eigen::Index i = 0; i < m.V.rows(); ++i) {
+        ASSERT_EQ(r.V.row(vp[static_cast<std::size_t>(i)]), base.V.row(i)) << "vertex " << i;
+    }
+}
+
 TEST(Envt, NoisyPlaneBecomesAPlaneAndCubeKeepsItsFaces) {
     auto m = plane_grid(24);
     Gaussian g(13);

@@ -2,6 +2,7 @@
 // Meshes with known geometry for the libmesh tests: closed (icosphere, cube), open (plane
 // grid), and the same with reproducible Gaussian noise.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <map>
@@ -226,6 +227,35 @@ inline TestMesh superellipsoid(int levels, double e = 6.0) {
 inline std::vector<TestMesh> noisy_family() {
     return {with_noise(icosphere(3), 0.02), with_noise(cube(6), 0.03),
             with_noise(plane_grid(16), 0.015)};
+}
+
+// The mesh with its vertices renamed by `vertex_perm` (new index of old vertex i) and its
+// faces put in the order `face_perm` (new face k = old face face_perm[k]), corners kept.
+inline TestMesh permuted(const TestMesh& m, const std::vector<int>& vertex_perm,
+                         const std::vector<int>& face_perm) {
+    const auto at = [](const std::vector<int>& p, Eigen::Index i) {
+        return p[static_cast<std::size_t>(i)];
+    };
+    TestMesh out{m.name, mesh::Vertices(m.V.rows(), 3), mesh::Faces(m.F.rows(), 3)};
+    for (Eigen::Index i = 0; i < m.V.rows(); ++i) out.V.row(at(vertex_perm, i)) = m.V.row(i);
+    for (Eigen::Index k = 0; k < m.F.rows(); ++k) {
+        for (int c = 0; c < 3; ++c) out.F(k, c) = at(vertex_perm, m.F(at(face_perm, k), c));
+    }
+    return out;
+}
+
+// 0, 1, …, n − 1; shuffled: the same in a reproducible random order.
+inline std::vector<int> identity(Eigen::Index n) {
+    std::vector<int> p(static_cast<std::size_t>(n));
+    for (std::size_t i = 0; i < p.size(); ++i) p[i] = static_cast<int>(i);
+    return p;
+}
+
+inline std::vector<int> shuffled(Eigen::Index n, std::uint32_t seed) {
+    std::vector<int> p = identity(n);
+    std::mt19937 rng(seed);
+    std::shuffle(p.begin(), p.end(), rng);
+    return p;
 }
 
 }  // namespace octshape::test

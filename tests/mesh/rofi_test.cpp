@@ -197,6 +197,61 @@ TEST(Rofi, RigidMotionOfTheInputMovesTheOutputTheSameWay) {
     }
 }
 
+TEST(Rofi, RenumberingForLocalityIsInvisibleToTheCaller) {
+    // rofi_denoise iterates on the mesh renumbered along a curve of the face centroids
+    // (faces) and by first appearance (vertices) and returns the vertices in the caller's
+    // numbering. A closed surface with creases and an open one (fixed boundary), each with
+    // a vertex no face uses (returned unchanged).
+    for (TestMesh m : {with_noise(cube(6), 0.03), with_noise(plane_grid(12), 0.02)}) {
+        const Eigen::Index used = m.V.rows();
+        m.V.conservativeResize(used + 1, 3);
+        m.V.row(used) << 7.0, -3.0, 2.0;
+        auto p = params(20);
+        p.sigma_s = 0.6;
+        const auto base = mesh::rofi_denoise(m.V, m.F, p);
+        // In the caller's order: every vertex moved by < 0.2 (noise σ 0.02–0.03; on the cube
+        // another vertex's row is ≥ a grid step, 1/3, away), the unused one not at all, the
+        // plane's boundary exactly in place.
+        ASSERT_EQ(base.V.rows(), m.V.rows());
+        EXPECT_EQ(base.V.row(used), m.V.row(used)) << m.name;
+        EXPECT_LT((base.V - m.V).rowwise().norm().maxCoeff(), 0.2) << m.name;
+        const auto boundary =
+            mesh::build_adjacency(m.F, static_cast<int>(m.V.rows())).boundary_vertex;
+        int on_boundary = 0;
+        for (Eigen::Index i = 0; i < used; ++i) {
+            on_boundary += boundary[static_cast<std::size_t>(i)];
+            if (boundary[static_cast<std::size_t>(i)] != 0) {
+                EXPECT_EQ(base.V.row(i), m.V.row(i)) << m.name << " vertex " << i;
+            }
+        }
+        EXPECT_EQ(base.fixed_vertices, on_boundary) << m.name;
+
+        // Vertices renamed, faces in the same order: the same renumbered mesh (the curve's
+        // order depends on the faces' order and positions, not on the vertex names), so the
+        // same arithmetic: the same bits, row for row.
+        const std::vector<int> vp = shuffled(m.V.rows(), 35);
+        const TestMesh renamed = permuted(m, vp, identity(m.F.rows()));
+        const auto r1 = mesh::rofi_denoise(renamed.V, renamed.F, p);
+        for (Eigen::Index i = 0; i < m.V.rows(); ++i) {
+            ASSERT_EQ(r1.V.row(vp[static_cast<std::size_t>(i)]), base.V.row(i))
+                << m.name << " vertex " << i;
+        }
+        // Faces shuffled too: faces whose centroids share a cell of the curve keep the
+        // input's order among themselves, so the sums may run in another order: rounding
+        // only (~1e-16 per operation on coordinates of size ~1 over 20 iterations; the
+        // rigid-motion test's 1e-9 allows the same).
+        const TestMesh shuffled_mesh = permuted(m, vp, shuffled(m.F.rows(), 36));
+        const auto r2 = mesh::rofi_denoise(shuffled_mesh.V, shuffled_mesh.F, p);
+        double diff = 0.0;
+        for (Eigen::Index i = 0; i < m.V.rows(); ++i) {
+            const auto row = r2.V.row(vp[static_cast<std::size_t>(i)]);
+            diff = std::max(diff, (row - base.V.row(i)).cwiseAbs().maxCoeff());
+        }
+        EXPECT_LT(diff, 1e-12) << m.name;
+        EXPECT_EQ(r2.folds_repaired, base.folds_repaired) << m.name;
+    }
+}
+
 TEST(Rofi, BoundaryVerticesStayFixed) {
     const auto m = with_noise(plane_grid(16), 0.015);
     const auto r = mesh::rofi_denoise(m.V, m.F, params());
