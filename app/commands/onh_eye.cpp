@@ -86,6 +86,7 @@ std::string onh_options_text(const OnhEyeOptions& o) {
       << " lambda_vitreous=" << ls.lambda_vitreous << " lambda_tissue=" << ls.lambda_tissue
       << " region_means=" << static_cast<int>(ls.region_means)
       << " hidden_local_level=" << ls.hidden_local_level
+      << " open_vitreous_mean=" << ls.open_vitreous_mean
       << " band_layers=" << ls.band_layers << " reinit_interval=" << ls.reinit_interval
       << " cfl=" << ls.cfl << " max_iterations=" << ls.max_iterations
       << " tile_mm=" << ls.tile_mm << " patience=" << ls.patience

@@ -603,7 +603,7 @@ LevelSetResult finish(Prepared p, const LevelSetParams& params) {
     res.prepare = p.clock.elapsed();
 
     Stopwatch t0;
-    evolve(p.windows, p.phi, p.image, params, p.ilm.h, res);
+    evolve(p.windows, p.phi, p.image, params, p.ilm.h, res, params.open_vitreous_mean ? p.ilm.ilm.data() : nullptr);
     if (params.leak_fallback) {
         std::vector<int> bscans;
         const std::int64_t n = fall_back_leaks(p.windows, p.phi, p.ilm, params.leak_depth_mm, bscans);

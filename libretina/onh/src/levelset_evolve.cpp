@@ -22,7 +22,7 @@ constexpr std::int8_t kCandidate = 126;  // rebuild(): listed as a candidate for
 class Evolver {
 public:
     Evolver(const Windows& w, std::vector<float>& phi, const std::vector<float>& image,
-            const LevelSetParams& p, const Spacing& h)
+            const LevelSetParams& p, const Spacing& h, const float* device_ilm)
         : w_(w), phi_(phi), image_(image), p_(p), h_{h.hx, h.hy, h.hz} {
         // One B-scan (a radial scan's 2-D level set): the clamped neighbours make every
         // y-difference zero, so the curvature and the upwind gradient are the 2-D ones; the
@@ -54,15 +54,29 @@ public:
         const double inv_h = 1.0 / hx + 1.0 / hy + 1.0 / hz;
         const double inv_h2 = 1.0 / (hx * hx) + 1.0 / (hy * hy) + 1.0 / (hz * hz);
         dt_ = p.cfl / (inv_h + 2.0 * p.mu_mm * inv_h2);
+        // The open vitreous (docs/algorithms/levelset.md "Leaks", "Vitreous mean"): rows more
+        // than leak_depth_mm below the device ILM do not count towards c_vitreous.
+        open_end_.assign(cols_.size(), std::numeric_limits<int>::max());
+        if (device_ilm != nullptr) {
+            const double rows = p.leak_depth_mm / hz;
+            for (std::size_t c = 0; c < cols_.size(); ++c) {
+                const double r = std::floor(static_cast<double>(device_ilm[c]) + rows) + 1.0;
+                if (std::isfinite(r)) open_end_[c] = static_cast<int>(std::clamp(r, -1.0, 1e9));
+            }
+        }
         // Region sums for c_vitreous and c_tissue (Eq. LS-2), kept exact under sign changes.
-        for (std::int64_t v = 0; v < w.size; ++v) {
-            const auto i = static_cast<std::size_t>(v);
-            if (phi_[i] > 0.0F) {
-                sum_out_ += image_[i];
-                ++n_out_;
-            } else {
-                sum_in_ += image_[i];
-                ++n_in_;
+        for (std::size_t c = 0; c < cols_.size(); ++c) {
+            const Column& col = cols_[c];
+            for (int d = col.lo; d < col.hi; ++d) {
+                const auto i = static_cast<std::size_t>(col.base + d);
+                if (phi_[i] > 0.0F) {
+                    if (d >= open_end_[c]) continue;
+                    sum_out_ += image_[i];
+                    ++n_out_;
+                } else {
+                    sum_in_ += image_[i];
+                    ++n_in_;
+                }
             }
         }
     }
@@ -332,14 +346,19 @@ public:
             flipped_.push_back(active_[k]);
             const double v = image_[i];
             const double sign = after ? 1.0 : -1.0;  // +1: tissue -> vitreous
-            sum_out_ += sign * v;
-            n_out_ += after ? 1 : -1;
+            const bool open = is_open(active_[k]);
+            if (open) {
+                sum_out_ += sign * v;
+                n_out_ += after ? 1 : -1;
+            }
             sum_in_ -= sign * v;
             n_in_ -= after ? 1 : -1;
             if (!tile_sums_.empty()) {
                 TileSums& ts = tile_sums_[static_cast<std::size_t>(tile_of(active_[k].b, active_[k].a))];
-                ts.out += sign * v;
-                ts.n_out += after ? 1 : -1;
+                if (open) {
+                    ts.out += sign * v;
+                    ts.n_out += after ? 1 : -1;
+                }
                 ts.in -= sign * v;
                 ts.n_in -= after ? 1 : -1;
             }
@@ -402,6 +421,10 @@ private:
             if (n_out < kMinSide || n_in < kMinSide) continue;
             const double m_out = s_out / n_out, m_in = s_in / n_in;
             if (!(m_in - m_out >= 0.25 * global)) continue;
+            // Under a lip the tissue is dimmer than where the global means are taken, so the
+            // hidden edge's midpoint lies below the global level; one above it has tissue on its
+            // vitreous side (a leak into a shadow), and taking it would pull the front on.
+            if (0.5 * (m_out + m_in) > 0.5 * (c_vitreous() + c_tissue())) continue;
             level_[k] = static_cast<float>(0.5 * (m_out + m_in));
             level_sum_ += level_[k];
             ++level_n_;
@@ -426,6 +449,7 @@ private:
             const auto i = static_cast<std::size_t>(vx.index);
             TileSums& ts = tile_sums_[static_cast<std::size_t>(tile_of(vx.b, vx.a))];
             if (phi_[i] > 0.0F) {
+                if (!is_open(vx)) continue;
                 ts.out += image_[i];
                 ++ts.n_out;
             } else {
@@ -457,6 +481,11 @@ private:
 
     [[nodiscard]] static Voxel make_voxel(std::int64_t index, int b, int a, int d) {
         return {static_cast<std::uint32_t>(index), static_cast<std::uint16_t>(b), static_cast<std::uint16_t>(a), d};
+    }
+    // Vitreous here counts towards c_vitreous: not deeper than leak_depth_mm below the device
+    // ILM (every voxel without a device ILM given).
+    [[nodiscard]] bool is_open(const Voxel& vx) const {
+        return vx.depth < open_end_[static_cast<std::size_t>(w_.column(vx.b, vx.a))];
     }
     [[nodiscard]] int tile_of(int b, int a) const {
         return column_tile_[static_cast<std::size_t>(w_.column(b, a))];
@@ -637,6 +666,7 @@ private:
 
     const Windows& w_;
     std::vector<Column> cols_;
+    std::vector<int> open_end_;  // per column: first row whose vitreous is not open (is_open)
     std::vector<float>& phi_;
     const std::vector<float>& image_;
     const LevelSetParams& p_;
@@ -675,8 +705,9 @@ private:
 }  // namespace
 
 void evolve(const Windows& w, std::vector<float>& phi, const std::vector<float>& image,
-            const LevelSetParams& params, const Spacing& h, LevelSetResult& res) {
-    Evolver ev(w, phi, image, params, h);
+            const LevelSetParams& params, const Spacing& h, LevelSetResult& res,
+            const float* device_ilm) {
+    Evolver ev(w, phi, image, params, h, device_ilm);
     res.time_step = ev.dt();
     ev.update_activity(0);
     ev.rebuild();

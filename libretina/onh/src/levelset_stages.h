@@ -102,8 +102,11 @@ void binomial_pass(std::vector<float>& buf, std::vector<float>& tmp, int rows, i
 // Evolves phi in place to convergence (or max_iterations) and fills the evolution diagnostics
 // of `res` (iterations, converged, band_voxels, voxel updates, time_step, region means,
 // front_reached_window_edge, warnings).
+// `device_ilm` (nb × na, px; may be null): vitreous more than leak_depth_mm below it does not
+// count towards c_vitreous (docs/algorithms/levelset.md "Vitreous mean").
 void evolve(const Windows& w, std::vector<float>& phi, const std::vector<float>& image,
-            const LevelSetParams& params, const Spacing& h, LevelSetResult& res);
+            const LevelSetParams& params, const Spacing& h, LevelSetResult& res,
+            const float* device_ilm = nullptr);
 
 // ---- stage 4b: leaks (docs/algorithms/levelset.md "Leaks") -----------------------------------
 

@@ -124,7 +124,7 @@ std::vector<double> evolve_bscan(const io::Scan& scan,
     std::vector<float> image = ls::despeckle(scan, w, params.despeckle_passes, params.despeckle_max_sigma_x_mm, ilm, k);
     std::vector<float> phi = ls::initial_phi(w, ilm);
     LevelSetResult res;
-    ls::evolve(w, phi, image, params, ilm.h, res);
+    ls::evolve(w, phi, image, params, ilm.h, res, params.open_vitreous_mean ? ilm.ilm.data() : nullptr);
     if (params.leak_fallback) {
         std::vector<int> cut_bscans;
         out.shadow_ascans = static_cast<int>(ls::cut_shadowed_tissue(

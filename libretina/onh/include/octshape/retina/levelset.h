@@ -76,6 +76,12 @@ struct LevelSetParams {
     // (docs/algorithms/levelset.md "Refinement under lips"). A scan without such a cavity is
     // unchanged.
     bool hidden_local_level = true;
+    // true: c_vitreous is the mean of the open vitreous only — vitreous voxels more than
+    // leak_depth_mm below the device ILM (a cavity under a lip, or a front that ran into
+    // shadowed tissue) do not count towards it, so a leak cannot raise the decision level and
+    // pull more shadowed tissue in after it (docs/algorithms/levelset.md "Vitreous mean").
+    // false: every vitreous band voxel counts (before issue 32).
+    bool open_vitreous_mean = true;
 
     // --- Narrow band evolution ---
     // W: band = voxels ≤ W 6-neighbour steps from the interface; layers < W are updated, layer
