@@ -31,13 +31,20 @@
 // the axial registration without its isotropic eye wall (every cubic in y left in the eye, the
 // registration before issue 32's curvature prior).
 // The swollen disc has no cup: its cup column is the cup volume found (1e-3 mm^3, "a").
+// --interp-oracle (volumes, the still eye, no registration; docs/algorithms/onh.md "The level
+// set's cup-volume deficit, taken apart"): the cup volume of surfaces that differ in one thing
+// each (the exact ILM at the nodes, piecewise linear or cubic between B-scans; the device graph;
+// the level set; the level set cut at its B-scan planes, linear or cubic between them) and the
+// level-set vertices' vertical error by slope; with --ls-mu UM, --ls-despeckle N, --ls-sigma-x UM,
+// --ls-patience N the level set's length weight, blur passes, x-blur cap and patience.
 // Usage: onh_motion [--motion 0,30,60,100] [--ilm device,levelset] [--pattern volume,radial]
 //                   [--shape cupped|swollen|overhang] [--lines N] [--on-only] [--residual-only]
 //                   [--no-shadows] [--seed N] [--jitter 0,10,30] [--bscans N] [--ascans N]
 //                   [--oracle] [--whole-jitter] [--spectralis-speckle] [--file F]
 //                   [--ls-window-means] [--ls-raw] [--lat-bscans N] [--lat-smoothing SD]
 //                   [--eye OD|OS] [--axial-true] [--axial-leave c0,c1,c2,c3] [--free-curvature]
-//                   [--circle-bm F]
+//                   [--circle-bm F] [--interp-oracle [--ls-mu UM] [--ls-despeckle N]
+//                   [--ls-sigma-x UM] [--ls-patience N]]
 
 #include <chrono>
 #include <cmath>
@@ -57,6 +64,7 @@
 #include "octshape/retina/levelset.h"
 #include "octshape/retina/lateral_registration.h"
 #include "octshape/retina/onh.h"
+#include "octshape/retina/onh_surfaces.h"
 #include "octshape/retina/phantom_onh.h"
 #include "fixtures/lateral_shifts.h"
 
@@ -193,6 +201,196 @@ int real_files(const std::vector<std::string>& files) {
     return 0;
 }
 
+
+// --interp-oracle (volumes, the still eye; for locating the level set's cup-volume deficit,
+// docs/algorithms/onh.md "Between B-scans"): the cup volume of ILM surfaces that differ in one
+// thing each. "truth-nodes": the graph of the exact ILM heights at the scan's nodes (what the
+// piecewise-linear surface between B-scans costs alone); "truth-yK": the same with K - 1 exact
+// rows between B-scans; "device": the device graph; "device-cubicK": the device heights with
+// K - 1 rows between B-scans from the cubic (Catmull-Rom) through the four nearest B-scans
+// of the same A-scan; "levelset": the level set. For the level set also its vertices' vertical
+// error (vertex height - the true ILM height above it, um; + = towards the vitreous) binned
+// by the true slope, on B-scan planes or between them, inside or outside the BMO.
+GridSurface refine_rows(const GridSurface& s, int k, const OnhPhantomGeometry* g) {
+    GridSurface r;
+    r.cols = s.cols;
+    r.rows = (s.rows - 1) * k + 1;
+    r.dx_mm = s.dx_mm;
+    r.dy_mm = s.dy_mm / k;
+    r.z.assign(static_cast<std::size_t>(r.cols) * static_cast<std::size_t>(r.rows), 0.0);
+    r.filled.assign(r.z.size(), 0);
+    for (int j = 0; j < r.rows; ++j) {
+        const int b = std::min(j / k, s.rows - 2);
+        const double t = static_cast<double>(j - b * k) / k;
+        for (int a = 0; a < r.cols; ++a) {
+            double z;
+            if (g != nullptr) {
+                z = g->ilm_heights(a * r.dx_mm, j * r.dy_mm).front();
+            } else {
+                auto at = [&](int bb) { return s.at(a, std::clamp(bb, 0, s.rows - 1)); };
+                const double p0 = at(b - 1), p1 = at(b), p2 = at(b + 1), p3 = at(b + 2);
+                // Catmull-Rom: exact for quadratics away from the ends.
+                z = p1 + 0.5 * t * (p2 - p0 + t * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3 +
+                                                   t * (3.0 * (p1 - p2) + p3 - p0)));
+            }
+            r.z[static_cast<std::size_t>(j) * static_cast<std::size_t>(r.cols) + static_cast<std::size_t>(a)] = z;
+        }
+    }
+    return r;
+}
+
+// The top crossing of a mesh at every node (a dx, b dy): the mesh cut by the B-scan plane
+// y = b dy, each cut segment sampled at the A-scans it spans, the highest z kept (NaN where
+// none): the level set seen on its B-scan planes only.
+GridSurface top_at_nodes(const octshape::mesh::Vertices& V, const octshape::mesh::Faces& F, int cols, int rows,
+                         double dx, double dy) {
+    GridSurface s;
+    s.cols = cols;
+    s.rows = rows;
+    s.dx_mm = dx;
+    s.dy_mm = dy;
+    s.z.assign(static_cast<std::size_t>(cols) * static_cast<std::size_t>(rows), -std::numeric_limits<double>::infinity());
+    s.filled.assign(s.z.size(), 0);
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+        Eigen::Vector3d p[3];
+        for (int k = 0; k < 3; ++k) p[k] = V.row(F(f, k)).transpose();
+        const double ylo = std::min({p[0].y(), p[1].y(), p[2].y()}), yhi = std::max({p[0].y(), p[1].y(), p[2].y()});
+        for (int b = static_cast<int>(std::ceil(ylo / dy - 1e-9)); b <= static_cast<int>(std::floor(yhi / dy + 1e-9)); ++b) {
+            if (b < 0 || b >= rows) continue;
+            const double yc = b * dy;
+            std::vector<Eigen::Vector2d> cut;  // (x, z) where the edges meet the plane
+            for (int k = 0; k < 3; ++k) {
+                const Eigen::Vector3d& u = p[k];
+                const Eigen::Vector3d& v = p[(k + 1) % 3];
+                const double du = u.y() - yc, dv = v.y() - yc;
+                if (std::abs(du) < 1e-12) cut.emplace_back(u.x(), u.z());
+                if ((du < 0 && dv > 0) || (du > 0 && dv < 0)) {
+                    const double t = du / (du - dv);
+                    cut.emplace_back(u.x() + t * (v.x() - u.x()), u.z() + t * (v.z() - u.z()));
+                }
+            }
+            if (cut.size() < 2) continue;
+            std::sort(cut.begin(), cut.end(), [](const Eigen::Vector2d& l, const Eigen::Vector2d& r) { return l.x() < r.x(); });
+            const Eigen::Vector2d a0 = cut.front(), a1 = cut.back();
+            for (int a = static_cast<int>(std::ceil(a0.x() / dx - 1e-9)); a <= static_cast<int>(std::floor(a1.x() / dx + 1e-9)); ++a) {
+                if (a < 0 || a >= cols) continue;
+                const double t = a1.x() > a0.x() ? (a * dx - a0.x()) / (a1.x() - a0.x()) : 0.0;
+                double& z = s.z[static_cast<std::size_t>(b) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(a)];
+                z = std::max(z, a0.y() + t * (a1.y() - a0.y()));
+            }
+        }
+    }
+    for (double& z : s.z) {
+        if (!std::isfinite(z)) z = std::numeric_limits<double>::quiet_NaN();
+    }
+    return s;
+}
+
+int interp_oracle(const OnhPhantomParams& p, bool shadows, const LevelSetParams& lsp) {
+    OnhPhantomParams pm = p;
+    pm.artefacts.vessel_shadows = shadows;
+    pm.artefacts.segmentation_faults = shadows;
+    const OnhTruth truth = compute_onh_truth(pm);
+    const octshape::io::Scan scan = render_onh_scan(pm);
+    const OnhPhantomGeometry g(pm);
+    GridSurface nodes = line_height_field(scan, octshape::io::Layer::kILM);
+    for (int b = 0; b < nodes.rows; ++b) {
+        for (int a = 0; a < nodes.cols; ++a) {
+            nodes.z[static_cast<std::size_t>(b) * static_cast<std::size_t>(nodes.cols) + static_cast<std::size_t>(a)] =
+                g.ilm_heights(a * nodes.dx_mm, b * nodes.dy_mm).front();
+        }
+    }
+    auto run = [&](const std::string& name, const IlmSurface& ilm) {
+        const OnhResult r = analyse_onh(scan, ilm);
+        std::printf("%-16s cup %+7.3f %%  bmoV %+7.3f %%  totV %+7.3f %%  conht %+6.2f um  mrw %+6.2f um  mrwA %+6.2f %%\n",
+                    name.c_str(), pct(r.cup_volume_mm3, truth.cup_volume_mm3), pct(r.bmo_volume_mm3, truth.bmo_volume_mm3),
+                    pct(r.total_volume_mm3, truth.total_volume_mm3), 1e3 * (r.conht_mm - truth.conht_mm),
+                    1e3 * (r.mrw_mean_mm - truth.mrw_mean_mm), pct(r.mrw_area_mm2, truth.mrw_area_mm2));
+        return r;
+    };
+    auto graph = [&](const GridSurface& s) {
+        IlmSurface ilm;
+        ilm.source = "device";
+        graph_mesh(s, ilm.V, ilm.F);
+        return ilm;
+    };
+    std::printf("# %d x %d %s, %s; cup volume %.4f mm^3\n", pm.num_bscans, pm.num_ascans,
+                pm.eye == octshape::io::Laterality::kOS ? "OS" : "OD", shadows ? "shadows and faults" : "clean",
+                truth.cup_volume_mm3);
+    run("truth-nodes", graph(nodes));
+    for (int k : {2, 4}) run("truth-y" + std::to_string(k), graph(refine_rows(nodes, k, &g)));
+    const IlmSurface dev = build_ilm_surface(scan, IlmSource::kDevice);
+    run("device", dev);
+    GridSurface ds = line_height_field(scan, octshape::io::Layer::kILM);
+    if (std::none_of(ds.z.begin(), ds.z.end(), [](double v) { return std::isnan(v); })) {
+        for (int k : {2, 4}) run("device-cubic" + std::to_string(k), graph(refine_rows(ds, k, nullptr)));
+    }
+    const LevelSetResult ls = levelset_ilm(scan, lsp);
+    IlmSurface lsi;
+    lsi.V = ls.V;
+    lsi.F = ls.F;
+    lsi.source = "levelset";
+    const OnhResult r = run("levelset", lsi);
+    std::printf("  level set: %d iterations, %lld voxel updates, band means c_v %.4f c_t %.4f, level %.4f\n",
+                ls.iterations, static_cast<long long>(ls.voxel_updates), ls.c_vitreous, ls.c_tissue,
+                0.5 * (ls.c_vitreous + ls.c_tissue));
+    for (int raw = 0; raw < 2; ++raw) {
+        // The level set on its B-scan planes, as a graph: piecewise linear between them, and the
+        // Catmull-Rom cubic with 3 rows between them.
+        GridSurface lt = top_at_nodes(raw == 1 ? ls.V_raw : ls.V, ls.F, nodes.cols, nodes.rows, nodes.dx_mm, nodes.dy_mm);
+        const auto missing = std::count_if(lt.z.begin(), lt.z.end(), [](double v) { return std::isnan(v); });
+        if (missing > 0) thin_plate_fill(lt);
+        const std::string tag = raw == 1 ? "ls-raw" : "ls";
+        run(tag + "-nodes", graph(lt));
+        run(tag + "-nodes-cubic4", graph(refine_rows(lt, 4, nullptr)));
+        if (missing > 0) std::printf("  (%ld nodes without a crossing, thin-plate filled)\n", static_cast<long>(missing));
+    }
+    // Vertical errors of the level-set vertices by region: after RoFi (V) and the marching-cubes
+    // vertices before it (V_raw), whose y says whether they lie on a B-scan plane or on an
+    // edge between two B-scans.
+    const double slopes[] = {0.0, 0.1, 0.3, 0.6, 1.0, 2.0, 1e9};
+    std::printf("# level-set vertex height - true ILM height (um), by true slope |grad h|\n");
+    std::printf("%-6s %-8s %-8s %-10s %8s %9s %8s\n", "mesh", "where", "plane", "slope", "n", "mean_um", "sd_um");
+    for (int raw = 0; raw < 2; ++raw) {
+        const auto& V = raw == 1 ? ls.V_raw : ls.V;
+        double sum[2][2][6] = {}, sq[2][2][6] = {};
+        long cnt[2][2][6] = {};
+        for (Eigen::Index i = 0; i < V.rows(); ++i) {
+            const double x = V(i, 0), y = V(i, 1), z = V(i, 2);
+            const auto h = g.ilm_heights(x, y);
+            if (h.size() != 1) continue;  // overhang columns: no single height
+            const double e = 1e3 * (z - h.front());
+            const double d = 1e-3;
+            const double sx = (g.ilm_heights(x + d, y).front() - g.ilm_heights(x - d, y).front()) / (2 * d);
+            const double sy = (g.ilm_heights(x, y + d).front() - g.ilm_heights(x, y - d).front()) / (2 * d);
+            const double slope = std::hypot(sx, sy);
+            const double fy = y / nodes.dy_mm;
+            const int on_plane = raw == 0 || std::abs(fy - std::round(fy)) < 1e-6 ? 0 : 1;
+            const int inside = g.normalised(x, y).norm() < 1.0 ? 0 : 1;
+            int k = 0;
+            while (slope >= slopes[k + 1]) ++k;
+            sum[inside][on_plane][k] += e;
+            sq[inside][on_plane][k] += e * e;
+            ++cnt[inside][on_plane][k];
+        }
+        for (int in = 0; in < 2; ++in) {
+            for (int pl = 0; pl < 2; ++pl) {
+                for (int k = 0; k < 6; ++k) {
+                    const long n = cnt[in][pl][k];
+                    if (n == 0) continue;
+                    const double m = sum[in][pl][k] / static_cast<double>(n);
+                    std::printf("%-6s %-8s %-8s %4.1f-%-5.1f %8ld %+9.2f %8.2f\n", raw == 1 ? "raw" : "rofi",
+                                in == 0 ? "in-BMO" : "outside", raw == 0 ? "any" : pl == 0 ? "B-scan" : "between",
+                                slopes[k], std::min(slopes[k + 1], 99.0), n, m,
+                                std::sqrt(std::max(0.0, sq[in][pl][k] / static_cast<double>(n) - m * m)));
+                }
+            }
+        }
+    }
+    (void)r;
+    return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -220,6 +418,8 @@ int main(int argc, char** argv) {
         std::vector<std::string> circle_files;
         std::string eye = "OD";
         bool axial_true = false;
+        bool interp = false;  // --interp-oracle
+        LevelSetParams interp_lsp;  // --ls-mu, --ls-despeckle (with --interp-oracle)
         bool free_curvature = false;  // --free-curvature: the registration before the isotropic prior
         std::vector<double> axial_leave;  // um, coefficients of y^j
         for (int i = 1; i < argc; ++i) {
@@ -245,6 +445,11 @@ int main(int argc, char** argv) {
             else if (a == "--ls-raw") ls_raw = true;
             else if (a == "--eye" && more) eye = argv[++i];
             else if (a == "--axial-true") axial_true = true;
+            else if (a == "--interp-oracle") interp = true;
+            else if (a == "--ls-mu" && more) interp_lsp.mu_mm = 1e-3 * std::stod(argv[++i]);
+            else if (a == "--ls-despeckle" && more) interp_lsp.despeckle_passes = std::stoi(argv[++i]);
+            else if (a == "--ls-sigma-x" && more) interp_lsp.despeckle_max_sigma_x_mm = 1e-3 * std::stod(argv[++i]);
+            else if (a == "--ls-patience" && more) interp_lsp.patience = std::stoi(argv[++i]);
             else if (a == "--free-curvature") free_curvature = true;
             else if (a == "--axial-leave" && more) {
                 axial_true = true;
@@ -281,6 +486,10 @@ int main(int argc, char** argv) {
                 p.speckle_looks = 7;
                 p.speckle_axial_half_width_px = 1.9;
                 p.speckle_lateral_half_width_px = 1.6;
+            }
+            if (interp && !p.radial) {
+                interp_oracle(p, shadows, interp_lsp);
+                continue;
             }
             const OnhTruth truth = compute_onh_truth(p);
             if (!axial_leave.empty() && !p.radial) {

@@ -51,6 +51,15 @@ public:
         }
         tile_active_.assign(tile_last_change_.size(), 1);
         far_ = static_cast<float>((p.band_layers + 1) * std::max({hx, w.nb == 1 ? hx : hy, hz}));
+        // Band means: only band voxels with |φ| up to (W + 1) in-plane spacings (x or depth,
+        // the larger; 34 µm at 384 A-scans), the farthest a band voxel of one B-scan's own
+        // (2-D) band can lie. Layer 0 holds every voxel with a 6-neighbour of the other sign, so
+        // where the surface is steep along the B-scans (30-90 µm apart) it spans slope x spacing
+        // in depth: clear vitreous and dim deep tissue far from the edge, which pulled the
+        // decision level towards the vitreous, the more the coarser the B-scans
+        // (docs/algorithms/onh.md "The level set's cup-volume deficit"). A radial scan's 2-D
+        // level set keeps every band voxel (bit for bit as before).
+        means_reach_ = static_cast<float>((p.band_layers + 1) * std::max(hx, hz));
         const double inv_h = 1.0 / hx + 1.0 / hy + 1.0 / hz;
         const double inv_h2 = 1.0 / (hx * hx) + 1.0 / (hy * hy) + 1.0 / (hz * hz);
         dt_ = p.cfl / (inv_h + 2.0 * p.mu_mm * inv_h2);
@@ -347,13 +356,17 @@ public:
             const double v = image_[i];
             const double sign = after ? 1.0 : -1.0;  // +1: tissue -> vitreous
             const bool open = is_open(active_[k]);
-            if (open) {
-                sum_out_ += sign * v;
-                n_out_ += after ? 1 : -1;
+            // Band means: only a voxel the sums hold moves from one sum to the other, and
+            // vitreous counts only where it is open.
+            if (tile_sums_.empty() || counted_[i] != 0) {
+                if (open) {
+                    sum_out_ += sign * v;
+                    n_out_ += after ? 1 : -1;
+                }
+                sum_in_ -= sign * v;
+                n_in_ -= after ? 1 : -1;
             }
-            sum_in_ -= sign * v;
-            n_in_ -= after ? 1 : -1;
-            if (!tile_sums_.empty()) {
+            if (!tile_sums_.empty() && counted_[i] != 0) {
                 TileSums& ts = tile_sums_[static_cast<std::size_t>(tile_of(active_[k].b, active_[k].a))];
                 if (open) {
                     ts.out += sign * v;
@@ -442,11 +455,14 @@ private:
     };
     void band_means() {
         if (tile_sums_.empty()) tile_sums_.assign(region_.size(), TileSums{});
+        if (counted_.empty()) counted_.assign(layer_.size(), 0);
         for (std::size_t t = 0; t < region_.size(); ++t) {
             if (region_[t]) tile_sums_[t] = TileSums{};
         }
         for (const Voxel& vx : band_) {
             const auto i = static_cast<std::size_t>(vx.index);
+            counted_[i] = std::abs(phi_[i]) <= means_reach_ ? 1 : 0;
+            if (counted_[i] == 0) continue;
             TileSums& ts = tile_sums_[static_cast<std::size_t>(tile_of(vx.b, vx.a))];
             if (phi_[i] > 0.0F) {
                 if (!is_open(vx)) continue;
@@ -687,6 +703,8 @@ private:
     std::vector<Voxel> flipped_;  // voxels that changed sign since the last rebuild
     std::vector<TileSums> tile_sums_;  // band means per tile (kBand only; empty otherwise)
     float far_ = 1.0F;
+    float means_reach_ = 1.0F;          // band means: |φ| up to this (mm)
+    std::vector<std::uint8_t> counted_;  // band voxel held by the band-mean sums
     double dt_ = 0.0;
     double sum_in_ = 0.0, sum_out_ = 0.0;
     std::int64_t n_in_ = 0, n_out_ = 0;
