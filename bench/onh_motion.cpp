@@ -27,7 +27,8 @@
 // polynomial sum c_j y^j (um, y = -1 at the first B-scan, +1 at the last) in the eye on top of
 // --axial-true (+ = deeper), to measure what a smooth motion left in does; --circle-bm F: the
 // BM curvature difference k_xx - k_yy of a real circle scan (how far from isotropic the eye
-// wall is around the disc); --free-curvature:
+// wall is around the disc); --ls-pixel-frame: the level set's result left in the pixels' frame
+// (whole rows; before it was moved by each B-scan's sub-row residual); --free-curvature:
 // the axial registration without its isotropic eye wall (every cubic in y left in the eye, the
 // registration before issue 32's curvature prior).
 // The swollen disc has no cup: its cup column is the cup volume found (1e-3 mm^3, "a").
@@ -37,7 +38,7 @@
 //                   [--oracle] [--whole-jitter] [--spectralis-speckle] [--file F]
 //                   [--ls-window-means] [--ls-raw] [--lat-bscans N] [--lat-smoothing SD]
 //                   [--eye OD|OS] [--axial-true] [--axial-leave c0,c1,c2,c3] [--free-curvature]
-//                   [--circle-bm F]
+//                   [--circle-bm F] [--ls-pixel-frame]
 
 #include <chrono>
 #include <cmath>
@@ -220,6 +221,7 @@ int main(int argc, char** argv) {
         std::vector<std::string> circle_files;
         std::string eye = "OD";
         bool axial_true = false;
+        bool ls_pixel_frame = false;
         bool free_curvature = false;  // --free-curvature: the registration before the isotropic prior
         std::vector<double> axial_leave;  // um, coefficients of y^j
         for (int i = 1; i < argc; ++i) {
@@ -245,6 +247,7 @@ int main(int argc, char** argv) {
             else if (a == "--ls-raw") ls_raw = true;
             else if (a == "--eye" && more) eye = argv[++i];
             else if (a == "--axial-true") axial_true = true;
+            else if (a == "--ls-pixel-frame") ls_pixel_frame = true;
             else if (a == "--free-curvature") free_curvature = true;
             else if (a == "--axial-leave" && more) {
                 axial_true = true;
@@ -379,6 +382,11 @@ int main(int argc, char** argv) {
                             apply_axial_registration(scan, reg);
                         } else {
                             reg = register_axially(scan, rp);
+                        }
+                        if (ls_pixel_frame) {
+                            // The level set's result left in the pixels' frame (before its
+                            // move by the sub-row residual): the lines' offsets forgotten.
+                            for (auto& bs : scan.bscans) bs.line_offset_px = 0.0;
                         }
                         const double reg_s = std::chrono::duration<double>(Clock::now() - t0).count();
                         IlmSurface ilm;
