@@ -27,7 +27,8 @@
 // polynomial sum c_j y^j (um, y = -1 at the first B-scan, +1 at the last) in the eye on top of
 // --axial-true (+ = deeper), to measure what a smooth motion left in does; --circle-bm F: the
 // BM curvature difference k_xx - k_yy of a real circle scan (how far from isotropic the eye
-// wall is around the disc); --free-curvature:
+// wall is around the disc); --ls-pixel-frame: the level set's result left in the pixels' frame
+// (whole rows; before it was moved by each B-scan's sub-row residual); --free-curvature:
 // the axial registration without its isotropic eye wall (every cubic in y left in the eye, the
 // registration before issue 32's curvature prior).
 // The swollen disc has no cup: its cup column is the cup volume found (1e-3 mm^3, "a").
@@ -45,6 +46,7 @@
 //                   [--eye OD|OS] [--axial-true] [--axial-leave c0,c1,c2,c3] [--free-curvature]
 //                   [--circle-bm F] [--interp-oracle [--ls-mu UM] [--ls-despeckle N]
 //                   [--ls-sigma-x UM] [--ls-patience N]]
+//                   [--ls-pixel-frame]
 
 #include <chrono>
 #include <cmath>
@@ -420,6 +422,7 @@ int main(int argc, char** argv) {
         bool axial_true = false;
         bool interp = false;  // --interp-oracle
         LevelSetParams interp_lsp;  // --ls-mu, --ls-despeckle (with --interp-oracle)
+        bool ls_pixel_frame = false;
         bool free_curvature = false;  // --free-curvature: the registration before the isotropic prior
         std::vector<double> axial_leave;  // um, coefficients of y^j
         for (int i = 1; i < argc; ++i) {
@@ -450,6 +453,7 @@ int main(int argc, char** argv) {
             else if (a == "--ls-despeckle" && more) interp_lsp.despeckle_passes = std::stoi(argv[++i]);
             else if (a == "--ls-sigma-x" && more) interp_lsp.despeckle_max_sigma_x_mm = 1e-3 * std::stod(argv[++i]);
             else if (a == "--ls-patience" && more) interp_lsp.patience = std::stoi(argv[++i]);
+            else if (a == "--ls-pixel-frame") ls_pixel_frame = true;
             else if (a == "--free-curvature") free_curvature = true;
             else if (a == "--axial-leave" && more) {
                 axial_true = true;
@@ -588,6 +592,11 @@ int main(int argc, char** argv) {
                             apply_axial_registration(scan, reg);
                         } else {
                             reg = register_axially(scan, rp);
+                        }
+                        if (ls_pixel_frame) {
+                            // The level set's result left in the pixels' frame (before its
+                            // move by the sub-row residual): the lines' offsets forgotten.
+                            for (auto& bs : scan.bscans) bs.line_offset_px = 0.0;
                         }
                         const double reg_s = std::chrono::duration<double>(Clock::now() - t0).count();
                         IlmSurface ilm;

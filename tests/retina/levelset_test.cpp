@@ -1,6 +1,7 @@
 #include "octshape/retina/levelset.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -11,6 +12,7 @@
 
 #include "octshape/error.h"
 #include "octshape/mesh/closest_point.h"
+#include "octshape/retina/axial_registration.h"
 #include "octshape/retina/phantom_onh.h"
 #include "slow_test.h"
 
@@ -499,6 +501,58 @@ TEST(LevelSet, ReleasingVariantGivesTheSameSurface) {
     ASSERT_EQ(a.F.rows(), b.F.rows());
     EXPECT_TRUE(a.F == b.F);
     EXPECT_TRUE(a.V == b.V);
+}
+
+}  // namespace
+}  // namespace octshape::retina
+
+namespace octshape::retina {
+namespace {
+
+// Median height (z = -depth, mm) of the raw mesh's points on B-scan b's plane.
+double median_height_on_bscan(const mesh::Vertices& V, int b, double hy) {
+    std::vector<double> z;
+    for (Eigen::Index i = 0; i < V.rows(); ++i) {
+        if (std::abs(V(i, 1) / hy - b) < 1e-6) z.push_back(V(i, 2));
+    }
+    if (z.empty()) return std::numeric_limits<double>::quiet_NaN();
+    std::nth_element(z.begin(), z.begin() + static_cast<std::ptrdiff_t>(z.size() / 2), z.end());
+    return z[z.size() / 2];
+}
+
+// The axial registration moves the lines by the shift and the pixels by whole rows, so the
+// level set (on the pixels) must move its result by the sub-row residual into the lines' frame
+// (docs/algorithms/onh.md, "Applied"). Shifts of -0.4 / +0.4 / 0 rows (under half a row: the
+// pixels stay as read, the lines move): the level set runs on the same pixels from the same
+// start (its device ILM taken back into the pixels' frame), so its surface in B-scan b must be
+// the still one's moved by exactly the shift. Tolerance 0.02 rows: the only difference is the
+// float rounding of the start (1e-6 rows) and what it does to the converged front; the error
+// this guards against is the whole shift, 0.4 rows (before, the surface stayed at the pixels'
+// edge).
+TEST(LevelSet, ResultFollowsTheLinesBySubRowShift) {
+    OnhPhantomParams p = reduced(OnhShape::kSwollen);
+    p.num_bscans = 25;
+    p.num_ascans = 96;
+    const io::Scan still = render_onh_scan(p);
+    io::Scan moved = still;
+    const double hz = still.meta.scale_z_mm, hy = still.meta.distance_mm;
+    AxialRegistration reg;
+    reg.applied = true;
+    const std::array<double, 3> rows{-0.4, 0.4, 0.0};
+    for (int b = 0; b < moved.num_bscans(); ++b) {
+        // shift + = the B-scan lay deeper: its lines move up by it, i.e. by -shift rows.
+        reg.shift_um.push_back(-rows[static_cast<std::size_t>(b % 3)] * hz * 1000.0);
+    }
+    apply_axial_registration(moved, reg);
+    ASSERT_TRUE(moved.bscans[0].pixels == still.bscans[0].pixels);  // under half a row
+    const LevelSetResult a = levelset_ilm(still);
+    const LevelSetResult m = levelset_ilm(moved);
+    for (int b = 2; b + 2 < still.num_bscans(); ++b) {
+        const double expected = -rows[static_cast<std::size_t>(b % 3)];  // z = -depth, rows
+        const double got =
+            (median_height_on_bscan(m.V_raw, b, hy) - median_height_on_bscan(a.V_raw, b, hy)) / hz;
+        EXPECT_NEAR(got, expected, 0.02) << "B-scan " << b;
+    }
 }
 
 }  // namespace

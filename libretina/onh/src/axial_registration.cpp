@@ -339,6 +339,11 @@ void apply_axial_registration(io::Scan& scan, const AxialRegistration& registrat
             io::shift_bscan(bs, scan.meta.size_x, scan.meta.size_z, whole);
             seg.swap(bs.seg);
         }
+        // What the lines moved beyond the pixels: the level set, which reads the pixels, moves
+        // its result by it into the lines' frame (docs/algorithms/onh.md, "Applied").
+        if (std::fabs(dz) >= 1e-3) {
+            bs.line_offset_px += dz - (bs.pixels.empty() ? 0.0 : whole);
+        }
     }
 }
 

@@ -142,8 +142,13 @@ DeviceIlm device_ilm_rows(const io::Scan& scan, int b0, int nb, const Spacing& h
     out.ilm.resize(ncol);
     out.valid.assign(ncol, 1);
     for (int b = 0; b < nb; ++b) {
+        // In the pixels' frame: the level set reads the pixels, and its start, depth windows and
+        // leak fallback must agree with them; its result is moved into the lines' frame after
+        // the mesh (io::BScan::line_offset_px).
+        const double offset = scan.bscans[static_cast<std::size_t>(b0 + b)].line_offset_px;
         for (int a = 0; a < na; ++a) {
-            const float v = scan.depth_px(static_cast<int>(io::Layer::kILM), b0 + b, a);
+            float v = scan.depth_px(static_cast<int>(io::Layer::kILM), b0 + b, a);
+            if (offset != 0.0) v = static_cast<float>(v - offset);
             const auto c = static_cast<std::size_t>(b * na + a);
             if (io::is_valid(v) && v >= -1.0F && v <= static_cast<float>(nz)) {
                 out.ilm[c] = v;
@@ -569,6 +574,7 @@ struct Prepared {
     Windows windows;
     std::vector<float> image;  // despeckled intensities on the windows
     std::vector<float> phi;    // φ0 on the windows
+    std::vector<double> line_offset_px;  // per B-scan (io::BScan::line_offset_px)
     Stopwatch clock;           // started with the preparation
 };
 
@@ -587,6 +593,7 @@ Prepared prepare(const io::Scan& scan, const LevelSetParams& params) {
         }
     }
     p.phi = initial_phi(p.windows, p.ilm);
+    for (const io::BScan& bs : scan.bscans) p.line_offset_px.push_back(bs.line_offset_px);
     return p;
 }
 
@@ -633,6 +640,7 @@ LevelSetResult finish(Prepared p, const LevelSetParams& params) {
     t0 = Stopwatch();
     Surface s = surface(p.windows, p.phi, p.ilm.h, params.slab_bscans);
     p.phi = std::vector<float>();
+    to_line_frame(s, p.line_offset_px, p.ilm.h);
     res.raw_vertices = s.V.rows();
     res.raw_faces = s.F.rows();
     res.marching_cubes = t0.elapsed();

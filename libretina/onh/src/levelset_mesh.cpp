@@ -181,6 +181,21 @@ CleanUp clean_up(Surface& s, const std::vector<std::uint8_t>& valid, int nb, int
     return out;
 }
 
+void to_line_frame(Surface& s, const std::vector<double>& line_offset_px, const Spacing& h) {
+    const bool moved = std::any_of(line_offset_px.begin(), line_offset_px.end(),
+                                   [](double r) { return r != 0.0; });
+    if (!moved) return;
+    const int nb = static_cast<int>(line_offset_px.size());
+    for (Eigen::Index i = 0; i < s.V.rows(); ++i) {
+        const double j = std::clamp(s.V(i, 1) / h.hy, 0.0, nb - 1.0);
+        const int b = std::min(static_cast<int>(std::floor(j)), std::max(0, nb - 2));
+        const double f = nb > 1 ? j - b : 0.0;
+        const double r = (1.0 - f) * line_offset_px[static_cast<std::size_t>(b)] +
+                         (nb > 1 ? f * line_offset_px[static_cast<std::size_t>(b) + 1] : 0.0);
+        s.V(i, 2) -= r * h.hz;  // z = -depth: deeper by r rows
+    }
+}
+
 void smooth(Surface s, const LevelSetParams& params, LevelSetResult& res) {
     res.V_raw = s.V;
     if (params.smooth && params.rofi.iterations > 0) {

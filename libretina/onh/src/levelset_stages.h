@@ -168,6 +168,11 @@ struct CleanUp {
 // Removes the faces whose centroid lies over an invalid column (nearest column), keeps the
 // largest connected component and orients the normals up (+z). AnalysisError when no face is
 // left inside the valid area.
+// Moves the surface of a volume's level set from the pixels' frame into the lines' (registered)
+// frame: each vertex deeper by the line offset (io::BScan::line_offset_px, rows) of its B-scan,
+// interpolated linearly between B-scans at y / hy. No-op when every offset is 0.
+void to_line_frame(Surface& s, const std::vector<double>& line_offset_px, const Spacing& h);
+
 [[nodiscard]] CleanUp clean_up(Surface& s, const std::vector<std::uint8_t>& valid, int nb, int na,
                                const Spacing& h);
 

@@ -55,12 +55,25 @@ struct BscanLevelSet {
     int missing_ilm_columns = 0;
     int leak_ascans = 0;  // A-scans that fell back to the device ILM (a leak)
     int shadow_ascans = 0;  // A-scans whose shadowed tissue was cut from the vitreous (a leak)
+    // Rows by which the B-scan's lines lie deeper than its pixels (io::BScan::line_offset_px):
+    // dist and curve are in the pixels' frame, at_line_frame and the reported curve in the lines'.
+    double line_offset_px = 0.0;
 
     [[nodiscard]] double at(int d, int a) const {
         if (d < r0) return kDistanceCapMm;
         if (d >= r0 + rows) return -kDistanceCapMm;
         return dist[static_cast<std::size_t>(d - r0) * static_cast<std::size_t>(na) +
                     static_cast<std::size_t>(a)];
+    }
+    // The signed distance at row d of the lines' frame: the pixels' row d - line_offset_px,
+    // linear between rows (as marching cubes interpolates), so the zero level moves by exactly
+    // the offset.
+    [[nodiscard]] double at_line_frame(int d, int a) const {
+        if (line_offset_px == 0.0) return at(d, a);
+        const double x = d - line_offset_px;
+        const int d0 = static_cast<int>(std::floor(x));
+        const double f = x - d0;
+        return (1.0 - f) * at(d0, a) + f * at(d0 + 1, a);
     }
 };
 
@@ -333,6 +346,7 @@ BscanLevelSet bscan_level_set(const io::Scan& scan,
     }
     marching_squares(out, phi, ds, hz);
     signed_distance(out, vit, ds, hz);
+    out.line_offset_px = scan.bscans[static_cast<std::size_t>(k)].line_offset_px;
     return out;
 }
 
@@ -441,8 +455,8 @@ GridPhi interpolate_between_lines(const std::vector<BscanLevelSet>& bs,
             for (const Tap& t : tp) {
                 if (t.w == 0.0) continue;
                 const BscanLevelSet& l = bs[static_cast<std::size_t>(t.line)];
-                const double f0 = l.at(d, t.a);
-                const double f1 = t.f > 0.0 ? l.at(d, t.a + 1) : f0;
+                const double f0 = l.at_line_frame(d, t.a);
+                const double f1 = t.f > 0.0 ? l.at_line_frame(d, t.a + 1) : f0;
                 v += t.w * ((1.0 - t.f) * f0 + t.f * f1);
             }
             g.phi[static_cast<std::size_t>(g.w.offset[i] + (d - g.w.lo[i]))] = static_cast<float>(v);
@@ -452,7 +466,7 @@ GridPhi interpolate_between_lines(const std::vector<BscanLevelSet>& bs,
 }
 
 // The per-B-scan diagnostics as QC flags and notes; moves each B-scan's curve into `out`.
-void report_bscans(std::vector<BscanLevelSet>& bs, IlmSurface& out) {
+void report_bscans(std::vector<BscanLevelSet>& bs, double hz, IlmSurface& out) {
     const int nl = static_cast<int>(bs.size());
     out.bscan_curves.resize(static_cast<std::size_t>(nl));
     int missing = 0;
@@ -466,6 +480,14 @@ void report_bscans(std::vector<BscanLevelSet>& bs, IlmSurface& out) {
         if (l.leak_ascans > 0 || l.shadow_ascans > 0) out.leak_bscans.push_back(k);
         out.leak_fallback_ascans += l.leak_ascans;
         out.leak_cut_ascans += l.shadow_ascans;
+        // Into the lines' frame: deeper by the line offset (z = -depth).
+        const double dz = -l.line_offset_px * hz;
+        if (dz != 0.0) {
+            for (PlaneSegment& g : l.curve) {
+                g.z0 += dz;
+                g.z1 += dz;
+            }
+        }
         out.bscan_curves[static_cast<std::size_t>(k)] = std::move(l.curve);
     }
     if (!unconverged.empty()) {
@@ -562,7 +584,7 @@ IlmSurface radial_levelset_ilm_surface(const io::Scan& scan, const LevelSetParam
         " marching-cubes faces, " + std::to_string(out.F.rows()) +
         " after the clip to the scanned circle and the largest of " + std::to_string(c.components) +
         " components, " + std::to_string(res.rofi_iterations) + " RoFi iterations");
-    report_bscans(bs, out);
+    report_bscans(bs, scan.meta.scale_z_mm, out);
     return out;
 }
 

@@ -128,6 +128,11 @@ struct BScan {
     std::vector<std::vector<float>> seg;
     // size_z rows x size_x columns, row-major; empty unless pixels were loaded.
     std::vector<float> pixels;
+    // Rows by which the segmentation lines lie deeper than the same content in the pixels (0 as
+    // read): the sub-row residual that ONH axial registration leaves when it moves the lines by
+    // the shift and the pixels by whole rows. What is found in the pixels lies this much deeper
+    // in the lines' (registered) frame.
+    double line_offset_px = 0.0;
 
     [[nodiscard]] int num_seg() const { return static_cast<int>(seg.size()); }
     [[nodiscard]] bool has_line(int k) const { return k >= 0 && k < num_seg(); }

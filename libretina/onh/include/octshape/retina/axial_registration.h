@@ -14,7 +14,8 @@
 // through the crossing, so every function of the position is seen by several lines: only the
 // mean offset is the eye's. The motion is removed from every segmentation line of each B-scan
 // and from its pixels rounded to whole rows (io::shift_bscan; no rows blended, so the speckle
-// and edges stay as read: the pixels lie up to half a pixel from their lines).
+// and edges stay as read: the pixels lie up to half a pixel from their lines; that residual is
+// kept in io::BScan::line_offset_px, and the level set moves its result by it).
 
 #include <string>
 #include <vector>
@@ -76,8 +77,8 @@ struct AxialRegistration {
 [[nodiscard]] AxialRegistration estimate_axial_motion(const io::Scan& scan,
                                                       const AxialRegistrationParams& params = {});
 // Removes the estimated motion from every B-scan: the lines by the shift, the pixels by the
-// shift rounded to whole rows (a shift under half a row leaves them as read). No-op unless
-// applied.
+// shift rounded to whole rows (a shift under half a row leaves them as read); adds what the
+// lines moved beyond the pixels to io::BScan::line_offset_px. No-op unless applied.
 void apply_axial_registration(io::Scan& scan, const AxialRegistration& registration);
 // Moves BMO points given in the unregistered scan with it: each point by its B-scan's shift
 // (a point from an x_mm,y_mm,z_mm file: the B-scan nearest its y).
